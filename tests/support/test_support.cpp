@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: MIT
+// Test helpers: where the shared real frames are, and where built binaries live.
+#include "test_support.h"
+
+namespace telex::test {
+
+std::filesystem::path real_data_dir() {
+  std::filesystem::path p = std::filesystem::path(TELEX_SHARED_DIR) / "data" / "real";
+  std::error_code ec;
+  if (std::filesystem::is_directory(p, ec)) return p;
+  return {};
+}
+
+std::filesystem::path built_binary(const std::string& name) {
+  std::filesystem::path p = std::filesystem::path(TELEX_BINARY_DIR) / "tools" / name;
+  return p;
+}
+
+}  // namespace telex::test
