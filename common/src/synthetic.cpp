@@ -159,6 +159,64 @@ const std::array<float, 65536>& normal_table() {
   return table;
 }
 
+// Incidence angle from its cosine by table: acos per pixel cost more than the ray cast itself,
+// and the noise model needs the angle only to ~1e-3 rad (worst near 0 deg, where sigma is flat).
+double theta_from_cos(double c) {
+  constexpr int kN = 4096;
+  static const std::array<float, kN + 2> table = [] {
+    std::array<float, kN + 2> t{};
+    for (int i = 0; i <= kN; ++i) t[i] = static_cast<float>(std::acos(static_cast<double>(i) / kN));
+    t[kN + 1] = 0.0f;
+    return t;
+  }();
+  const double x = std::clamp(c, 0.0, 1.0) * kN;
+  const int i = static_cast<int>(x);
+  const double f = x - i;
+  return table[i] + f * (table[i + 1] - table[i]);
+}
+
+// lateral_sigma_px by table over [0, pi/2] rad: it divides, and is needed for every pixel.
+double lateral_sigma_table(double theta_rad) {
+  constexpr int kN = 2048;
+  static const std::array<float, kN + 2> table = [] {
+    std::array<float, kN + 2> t{};
+    for (int i = 0; i <= kN + 1; ++i)
+      t[i] = static_cast<float>(lateral_sigma_px(i * (kPi / 2) / kN));
+    return t;
+  }();
+  const double x = std::clamp(theta_rad, 0.0, kPi / 2) * (kN / (kPi / 2));
+  const int i = static_cast<int>(x);
+  return table[i] + (x - i) * (table[i + 1] - table[i]);
+}
+
+// Depth of each integer Kinect disparity, so quantising costs one division instead of two.
+const std::array<double, 1092>& raw_depth_table() {
+  static const std::array<double, 1092> table = [] {
+    std::array<double, 1092> t{};
+    for (int i = 0; i < 1092; ++i) t[i] = kinect_raw_to_depth_m(i);
+    return t;
+  }();
+  return table;
+}
+
+// Pixel bounds of the image of a sphere (centre relative to the viewpoint) with one pixel of
+// margin; nullopt when the sphere reaches the viewpoint's plane and must always be tested.
+struct PixelRect {
+  double u0, u1, v0, v1;
+  bool contains(double u, double v) const { return u >= u0 && u <= u1 && v >= v0 && v <= v1; }
+};
+std::optional<PixelRect> project_bound(const glm::dvec3& c, double r, const Intrinsics& k) {
+  const double z0 = c.z - r, z1 = c.z + r;
+  if (z0 <= 1e-3) return std::nullopt;
+  // x / z over the sphere's bounding box is extreme at its corners.
+  const double xs[4] = {(c.x - r) / z0, (c.x - r) / z1, (c.x + r) / z0, (c.x + r) / z1};
+  const double ys[4] = {(c.y - r) / z0, (c.y - r) / z1, (c.y + r) / z0, (c.y + r) / z1};
+  const auto [x0, x1] = std::minmax_element(xs, xs + 4);
+  const auto [y0, y1] = std::minmax_element(ys, ys + 4);
+  return PixelRect{k.fx * *x0 + k.cx - 1, k.fx * *x1 + k.cx + 1, k.fy * *y0 + k.cy - 1,
+                   k.fy * *y1 + k.cy + 1};
+}
+
 }  // namespace
 
 // ---- Scene builders ----------------------------------------------------------------------------
@@ -238,7 +296,29 @@ bool Scene::animated() const { return !motions_.empty(); }
 
 // ---- Ray casting -------------------------------------------------------------------------------
 
+namespace {
+bool in_mask(std::uint64_t mask, int id) { return id >= 64 || ((mask >> id) & 1u); }
+}  // namespace
+
+std::vector<Scene::Bound> Scene::finite_bounds() const {
+  std::vector<Bound> out;
+  for (const Sphere& s : spheres_) out.push_back({s.c, s.r, s.id});
+  for (const Box& b : boxes_) out.push_back({b.c, b.bound_r, b.id});
+  for (const Cylinder& c : cylinders_) out.push_back({c.c, c.bound_r, c.id});
+  return out;
+}
+
 std::optional<Hit> Scene::raycast(const glm::dvec3& o, const glm::dvec3& d) const {
+  return raycast_masked(o, d, ~std::uint64_t{0});
+}
+
+bool Scene::blocked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
+                    int skip_object) const {
+  return blocked_masked(o, d, max_t_m, skip_object, ~std::uint64_t{0});
+}
+
+std::optional<Hit> Scene::raycast_masked(const glm::dvec3& o, const glm::dvec3& d,
+                                         std::uint64_t mask) const {
   double best = 1e300;
   int kind = -1, index = -1;
   for (std::size_t i = 0; i < planes_.size(); ++i) {
@@ -249,16 +329,19 @@ std::optional<Hit> Scene::raycast(const glm::dvec3& o, const glm::dvec3& d) cons
     if (t > kTMin && t < best) best = t, kind = 0, index = static_cast<int>(i);
   }
   for (std::size_t i = 0; i < spheres_.size(); ++i) {
+    if (!in_mask(mask, spheres_[i].id)) continue;
     const double t = hit_sphere(spheres_[i].c, spheres_[i].r, o, d, best);
     if (t > 0) best = t, kind = 1, index = static_cast<int>(i);
   }
   for (std::size_t i = 0; i < boxes_.size(); ++i) {
     const Box& b = boxes_[i];
+    if (!in_mask(mask, b.id)) continue;
     const double t = hit_box(b.c, b.h, b.rot, b.bound_r, o, d, best);
     if (t > 0) best = t, kind = 2, index = static_cast<int>(i);
   }
   for (std::size_t i = 0; i < cylinders_.size(); ++i) {
     const Cylinder& c = cylinders_[i];
+    if (!in_mask(mask, c.id)) continue;
     const double t = hit_cylinder(c.c, c.axis, c.r, c.half_h, c.bound_r, o, d, best);
     if (t > 0) best = t, kind = 3, index = static_cast<int>(i);
   }
@@ -308,23 +391,27 @@ std::optional<Hit> Scene::raycast(const glm::dvec3& o, const glm::dvec3& d) cons
   return hit;
 }
 
-bool Scene::blocked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
-                    int skip_object) const {
+bool Scene::blocked_masked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
+                           int skip_object, std::uint64_t mask) const {
   constexpr double kEps = 1e-6;
   auto in_range = [&](double t) { return t > kEps && t < max_t_m; };
   for (const Plane& p : planes_) {
     if (p.id == skip_object) continue;
-    const double denom = glm::dot(p.n, d);
-    if (std::abs(denom) < 1e-15) continue;
-    if (in_range((p.d - glm::dot(p.n, o)) / denom)) return true;
+    // kEps < num / denom < max_t_m without dividing: shadow rays are cast per pixel.
+    double denom = glm::dot(p.n, d), num = p.d - glm::dot(p.n, o);
+    if (denom < 0) denom = -denom, num = -num;
+    if (denom < 1e-15) continue;
+    if (num > kEps * denom && num < max_t_m * denom) return true;
   }
   for (const Sphere& s : spheres_)
-    if (s.id != skip_object && in_range(hit_sphere(s.c, s.r, o, d, max_t_m))) return true;
+    if (s.id != skip_object && in_mask(mask, s.id) && in_range(hit_sphere(s.c, s.r, o, d, max_t_m)))
+      return true;
   for (const Box& b : boxes_)
-    if (b.id != skip_object && in_range(hit_box(b.c, b.h, b.rot, b.bound_r, o, d, max_t_m)))
+    if (b.id != skip_object && in_mask(mask, b.id) &&
+        in_range(hit_box(b.c, b.h, b.rot, b.bound_r, o, d, max_t_m)))
       return true;
   for (const Cylinder& c : cylinders_)
-    if (c.id != skip_object &&
+    if (c.id != skip_object && in_mask(mask, c.id) &&
         in_range(hit_cylinder(c.c, c.axis, c.r, c.half_h, c.bound_r, o, d, max_t_m)))
       return true;
   return false;
@@ -446,9 +533,6 @@ double lateral_sigma_px(double theta_rad) {
   return 0.8 + 0.035 * th / (kPi / 2 - th);
 }
 
-double kinect_raw_to_depth_m(double raw) { return 351.3 / (1092.5 - raw); }
-double depth_m_to_kinect_raw(double z_m) { return 1092.5 - 351.3 / z_m; }
-
 Rendered render(const Scene& scene, const Intrinsics& intr, const SensorModel& sensor,
                 std::uint64_t frame_index) {
   return render_from(scene, intr, glm::dvec3(0.0), sensor, frame_index);
@@ -468,41 +552,78 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
   out.true_depth_m = cv::Mat1f(h, w, 0.0f);
   out.true_normals = cv::Mat3f(h, w, cv::Vec3f(0, 0, 0));
   out.object_id = cv::Mat1i(h, w, -1);
-  cv::Mat1f cos_inc(h, w, 0.0f);       // cosine of the incidence angle seen from the camera
+  cv::Mat1f incidence(h, w, 0.0f);     // angle between the camera ray and the surface normal (rad)
   cv::Mat1b shadowed(h, w, uchar{0});  // projector cannot reach the surface point
 
   const glm::dvec3 projector = t_cam_m + glm::dvec3(sensor.baseline_m, 0, 0);
+  // Per-object screen rectangles from the camera (as row and column bit masks) and from the
+  // projector, so each ray is tested only against the objects whose image covers it.
+  const auto bounds = scene.finite_bounds();
+  std::vector<std::uint64_t> row_mask(h, ~std::uint64_t{0}), col_mask(w, ~std::uint64_t{0});
+  std::vector<std::pair<std::uint64_t, PixelRect>> projector_rects;
+  std::uint64_t projector_always = ~std::uint64_t{0};
+  for (const auto& b : bounds) {
+    if (b.id >= 64) continue;
+    const std::uint64_t bit = std::uint64_t{1} << b.id;
+    if (const auto rc = project_bound(b.c - t_cam_m, b.r, intr)) {
+      for (int v = 0; v < h; ++v)
+        if (v < rc->v0 || v > rc->v1) row_mask[v] &= ~bit;
+      for (int u = 0; u < w; ++u)
+        if (u < rc->u0 || u > rc->u1) col_mask[u] &= ~bit;
+    }
+    if (const auto rp = project_bound(b.c - projector, b.r, intr)) {
+      projector_always &= ~bit;
+      projector_rects.emplace_back(bit, *rp);
+    }
+  }
+
+  std::vector<double> ray_x(w);
+  for (int u = 0; u < w; ++u) ray_x[u] = (u - intr.cx) / intr.fx;
   for (int v = 0; v < h; ++v) {
     float* zt = out.true_depth_m[v];
     cv::Vec3f* nt = out.true_normals[v];
     int* idt = out.object_id[v];
-    float* ct = cos_inc[v];
+    float* ct = incidence[v];
     uchar* sh = shadowed[v];
     const double y = (v - intr.cy) / intr.fy;
     for (int u = 0; u < w; ++u) {
-      const glm::dvec3 dir = glm::normalize(glm::dvec3((u - intr.cx) / intr.fx, y, 1.0));
-      const auto hit = scene.raycast(t_cam_m, dir);
+      const double x = ray_x[u];
+      const glm::dvec3 dir = glm::dvec3(x, y, 1.0) * (1.0 / std::sqrt(x * x + y * y + 1.0));
+      const auto hit = scene.raycast_masked(t_cam_m, dir, row_mask[v] & col_mask[u]);
       if (!hit) continue;
       glm::dvec3 n = hit->normal_camera;
       if (glm::dot(n, dir) > 0) n = -n;
       zt[u] = static_cast<float>(hit->t_m * dir.z);
       nt[u] = cv::Vec3f(static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z));
       idt[u] = hit->object_id;
-      ct[u] = static_cast<float>(-glm::dot(n, dir));
+      ct[u] = static_cast<float>(theta_from_cos(-glm::dot(n, dir)));
       if (sensor.shadow_holes) {
         const glm::dvec3 to = hit->p_camera - projector;
         const double dist = glm::length(to);
         // Every object is convex or a plane, so it shadows itself exactly when it faces away
         // from the projector, and only the other objects need a shadow ray.
-        if (glm::dot(n, to) >= 0 ||
-            scene.blocked(projector, to / dist, dist * (1.0 - 1e-7), hit->object_id))
+        if (glm::dot(n, to) >= 0) {
           sh[u] = 1;
+        } else {
+          std::uint64_t mask = projector_always;
+          if (to.z > 1e-9) {
+            const double up = intr.fx * to.x / to.z + intr.cx, vp = intr.fy * to.y / to.z + intr.cy;
+            for (const auto& [bit, rect] : projector_rects)
+              if (rect.contains(up, vp)) mask |= bit;
+          } else {
+            mask = ~std::uint64_t{0};
+          }
+          if (scene.blocked_masked(projector, to * (1.0 / dist), dist * (1.0 - 1e-7),
+                                   hit->object_id, mask))
+            sh[u] = 1;
+        }
       }
     }
   }
 
   // Sensor pass: each pixel draws its noise from a hash of (seed, frame, pixel).
   const auto& gauss = normal_table();
+  const auto& raw_table = raw_depth_table();
   const std::uint64_t frame_key =
       splitmix64(splitmix64(sensor.seed) ^ (frame_index * 0xD1B54A32D192ED03ull));
   const double dropout_threshold = sensor.dropout_rate * 65536.0;
@@ -519,13 +640,11 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
       int su = u, sv = v;  // pixel whose surface this measurement comes from
       double z = out.true_depth_m(v, u);
       if (sensor.lateral_noise) {
-        const double c0 = cos_inc(v, u);
-        const double theta0 = c0 > 0 ? std::acos(std::min(1.0, c0)) : 0.0;
-        const double s = lateral_sigma_px(theta0);
+        const double s = lateral_sigma_table(incidence(v, u));
         const double fu = std::clamp(u + s * g0, 0.0, w - 1.0);
         const double fv = std::clamp(v + s * g1, 0.0, h - 1.0);
-        su = static_cast<int>(std::lround(fu));
-        sv = static_cast<int>(std::lround(fv));
+        su = static_cast<int>(fu + 0.5);  // fu, fv >= 0: truncation rounds
+        sv = static_cast<int>(fv + 0.5);
         z = out.true_depth_m(sv, su);
         const int u0 = std::min(static_cast<int>(fu), w - 2 >= 0 ? w - 2 : 0);
         const int v0 = std::min(static_cast<int>(fv), h - 2 >= 0 ? h - 2 : 0);
@@ -543,18 +662,19 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
       if (!(z > 0.0)) continue;
       if (z < sensor.min_range_m || z > sensor.max_range_m) continue;
       if (shadowed(sv, su)) continue;
-      const double c = cos_inc(sv, su);
-      const double theta = std::acos(std::clamp(c, 0.0, 1.0));
+      const double theta = incidence(sv, su);
       if (theta > sensor.max_incidence_rad) continue;
       if (uniform < dropout_threshold) continue;
       if (sensor.axial_noise) z += axial_sigma_m(z, theta) * g2;
       if (sensor.quantise) {
-        const double raw = std::round(depth_m_to_kinect_raw(z));
-        if (raw >= 1092.0 || raw < 0.0) continue;  // beyond what 11 bits of disparity encode
-        z = kinect_raw_to_depth_m(raw);
+        const double raw_f = depth_m_to_kinect_raw(z);
+        if (!(raw_f >= 0.0)) continue;  // nearer than disparity 0
+        const std::int64_t raw = static_cast<std::int64_t>(raw_f + 0.5);
+        if (raw >= 1092) continue;  // beyond what 11 bits of disparity encode
+        z = raw_table[raw];
       }
-      const double mm = std::round(z * 1000.0);
-      if (mm < 1.0 || mm > 65535.0) continue;
+      const double mm = z * 1000.0 + 0.5;
+      if (!(mm >= 1.0 && mm < 65536.0)) continue;
       dst[u] = static_cast<std::uint16_t>(mm);
     }
   }

@@ -28,6 +28,12 @@ struct Motion {
   double period_s = 1.0;
 };
 
+class Scene;
+struct SensorModel;
+struct Rendered;
+Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
+                     const SensorModel& sensor, std::uint64_t frame_index);
+
 // An analytic scene in the camera frame (x right, y down, z forward, metres). Objects are
 // infinite planes, spheres, oriented boxes and capped cylinders; every object gets an id (its
 // index of insertion) that ray casts and renders report.
@@ -63,6 +69,22 @@ class Scene {
                int skip_object = -1) const;
 
  private:
+  friend Rendered render_from(const Scene&, const Intrinsics&, const glm::dvec3&,
+                              const SensorModel&, std::uint64_t);
+  // Bounding sphere of a finite object; renderers project them to skip objects per pixel.
+  struct Bound {
+    glm::dvec3 c;
+    double r;
+    int id;
+  };
+  std::vector<Bound> finite_bounds() const;
+  // As raycast/blocked, but finite objects with id < 64 are tested only when their bit in
+  // `mask` is set (planes and ids >= 64 always are).
+  std::optional<Hit> raycast_masked(const glm::dvec3& o, const glm::dvec3& d,
+                                    std::uint64_t mask) const;
+  bool blocked_masked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m, int skip_object,
+                      std::uint64_t mask) const;
+
   struct Plane {
     glm::dvec3 n;
     double d;
@@ -139,7 +161,7 @@ double axial_sigma_m(double z_m, double theta_rad);
 double lateral_sigma_px(double theta_rad);
 
 // Kinect raw 11-bit disparity <-> depth, NYU toolbox fit: z = 351.3 / (1092.5 - raw).
-double kinect_raw_to_depth_m(double raw);
-double depth_m_to_kinect_raw(double z_m);
+inline double kinect_raw_to_depth_m(double raw) { return 351.3 / (1092.5 - raw); }
+inline double depth_m_to_kinect_raw(double z_m) { return 1092.5 - 351.3 / z_m; }
 
 }  // namespace telex::synth
