@@ -80,11 +80,15 @@ TEST(HapticStability, ExtremeInputsMeetTheirCriteria) {
 }
 
 TEST(HapticStability, AnalyticPlaneAndSphereWithinFivePercent) {
-  const std::vector<StabilityCaseResult> cases = accuracy_cases();
-  ASSERT_EQ(cases.size(), 4u);
+  const std::vector<StabilityCaseResult> cases = accuracy_cases(false);
+  ASSERT_EQ(cases.size(), 8u);  // 2 scenes x press/stroke x exact/ideal-mm
   for (const auto& r : cases) {
     EXPECT_TRUE(r.pass) << r.name << ": " << r.note;
-    EXPECT_LE(metric(r, "rms_error_rel_peak"), 0.05) << r.name;
+    if (r.name.ends_with(" exact")) {
+      EXPECT_LE(metric(r, "rms_error_rel_peak"), 0.05) << r.name;
+    }
+    // Millimetre rounding costs a few percent, never tens of them.
+    EXPECT_LE(metric(r, "rms_error_rel_peak"), 0.10) << r.name;
     EXPECT_GT(metric(r, "peak_force_N"), 1.0) << r.name;  // the path really pressed
   }
 }
