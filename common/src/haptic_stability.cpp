@@ -262,21 +262,20 @@ StabilityCaseResult cutaneous_case(double k) {
   HapticParams p;
   p.stiffness_N_per_m = k;
   const Intrinsics kin = kinect_v1_intrinsics(320, 240);
-  // 35-degree plane through (0, 0, 0.7) with per-frame depth noise of the Kinect's order
-  // (1.5 mm), so the clamp and rate limit face real chatter.
+  // The synthetic "tilted" plane (35 degrees, 1 m) seen through the Kinect-like sensor model, a
+  // new noisy frame every 1/30 s, so the clamp and rate limit face real depth chatter.
+  const synth::Scene scene = synth::Scene::named("tilted");
   const double a = 35.0 * M_PI / 180.0;
-  const glm::dvec3 n(std::sin(a), 0.0, -std::cos(a));
-  const double d = glm::dot(n, glm::dvec3(0, 0, 0.7));
-  const cv::Mat1f clean = plane_depth(kin, n, d);
-  cv::RNG rng(7);
+  const glm::dvec3 n(-std::sin(a), 0.0, -std::cos(a));
+  const double d = glm::dot(n, glm::dvec3(0, 0, 1.0));
+  std::vector<cv::Mat1f> frames;
+  for (int i = 0; i < 8; ++i)
+    frames.push_back(
+        depth_m_from_mm(synth::render(scene, kin, synth::SensorModel{}, i).depth.depth_mm));
   Driver drv(p);
   drv.republish = false;
-  auto new_frame = [&] {
-    cv::Mat1f noisy(clean.size());
-    rng.fill(noisy, cv::RNG::NORMAL, 0.0, 0.0015);
-    noisy += clean;
-    drv.publish(noisy, kin);
-  };
+  std::size_t next = 0;
+  auto new_frame = [&] { drv.publish(frames[next++ % frames.size()], kin); };
   new_frame();
   const glm::dvec3 q0(0.02, 0.01, (d - n.x * 0.02) / n.z);  // on the plane
   const glm::dvec3 t = glm::normalize(glm::cross(n, glm::dvec3(0, 1, 0)));
@@ -303,7 +302,7 @@ StabilityCaseResult cutaneous_case(double k) {
                {"rate_limited_ticks", static_cast<double>(drv.model.counters().rate_limited)}};
   r.pass = drv.mon.base_ok(p) && drv.mon.max_force > 0.0;
   r.criteria = base_criteria(p) + "; contact felt";
-  r.note = "press 1 cm and stroke 10 cm on a noisy 35-degree plane; unclamped peak " +
+  r.note = "press 1 cm, stroke 10 cm on the sensor-model tilted plane; unclamped peak " +
            fmt_num(max_raw) + " N";
   return r;
 }
