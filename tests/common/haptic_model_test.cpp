@@ -111,6 +111,8 @@ TEST(HapticModel, FrictionOpposesSlidingDirection) {
     // Kinetic friction: opposite to the motion with magnitude mu_d times the normal force.
     EXPECT_GT(glm::dot(glm::normalize(t), -dir), 0.999);
     EXPECT_NEAR(glm::length(t), p.mu_dynamic * f.normal_force_N, kForceTol);
+    // The one-direction shear display sees the friction along the finger axis (default -y).
+    EXPECT_NEAR(f.shear_along_axis_N, -dir.y * -p.mu_dynamic * f.normal_force_N, kForceTol);
     rig.move(start + 0.05 * dir, start, 200);  // back to the centre for the next direction
   }
 }
