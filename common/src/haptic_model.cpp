@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <optional>
 #include <stdexcept>
 
 namespace telex {
@@ -120,16 +121,14 @@ struct HapticModel::View {
   // Depth of the surface along the ray through p, or nothing where there is no data.
   bool depth_on_ray(const glm::dvec3& p, double& z) const {
     if (!(p.z > 1e-6)) return false;
-    const Intrinsics& k = cur->intrinsics;
-    const double u = k.fx * p.x / p.z + k.cx;
-    const double v = k.fy * p.y / p.z + k.cy;
-    const auto zc = depth_at(*cur, u, v, steps);
+    const auto zc = depth_on_ray_of(*cur, p);
     if (prev == nullptr) {
       if (!zc) return false;
       z = *zc;
       return true;
     }
-    const auto zp = depth_at(*prev, u, v, steps);
+    // Each frame projects with its own intrinsics: the stream may change resolution.
+    const auto zp = depth_on_ray_of(*prev, p);
     if (zc && zp) {
       z = *zp + alpha * (*zc - *zp);
     } else if (zc) {
@@ -140,6 +139,11 @@ struct HapticModel::View {
       return false;
     }
     return true;
+  }
+
+  std::optional<double> depth_on_ray_of(const Surface& s, const glm::dvec3& p) const {
+    const Intrinsics& k = s.intrinsics;
+    return depth_at(s, k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy, steps);
   }
 
   bool inside(const glm::dvec3& p) const {
