@@ -414,12 +414,6 @@ void compute_normals_roi(const cv::Mat1f& depth_m, const Intrinsics& intrinsics,
   run(depth_m, intrinsics, roi, normals_out, options);
 }
 
-cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm) {
-  cv::Mat1f out;
-  depth_mm.convertTo(out, CV_32F, 1e-3);
-  return out;
-}
-
 cv::Mat3b normals_to_rgb(const cv::Mat3f& normals) {
   cv::Mat3b out(normals.size());
   for (int y = 0; y < normals.rows; ++y) {

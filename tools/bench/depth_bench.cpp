@@ -20,6 +20,7 @@
 
 #include "telex/common/bilateral.h"
 #include "telex/common/depth_image.h"
+#include "telex/common/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
 

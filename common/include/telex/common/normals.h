@@ -22,6 +22,7 @@ struct NormalOptions {
   bool allow_simd = true;
 };
 
+// Millimetre images convert with depth_m_from_mm (haptic_surface.h).
 // Unit normals (x, y, z in the camera frame: x right, y down, z forward) facing the camera (n.z < 0
 // for a surface seen head-on). Invalid normals are the zero vector (0, 0, 0): at holes (0 or NaN
 // depth) and where no derivative exists on one side of a discontinuity in either direction.
@@ -36,9 +37,6 @@ cv::Mat3f compute_normals(const cv::Mat1f& depth_m, const Intrinsics& intrinsics
 void compute_normals_roi(const cv::Mat1f& depth_m, const Intrinsics& intrinsics,
                          const cv::Rect& roi, cv::Mat3f& normals_out,
                          const NormalOptions& options = {});
-
-// Depth in metres (0 stays 0) from millimetres.
-cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm);
 
 // RGB visualisation (channel 0 = R = x): (n + 1) / 2 * 255; invalid normals are black.
 cv::Mat3b normals_to_rgb(const cv::Mat3f& normals);
