@@ -170,51 +170,57 @@ __attribute__((target("avx2,fma"))) inline __m256 exp_neg_avx2(__m256 x) {
   return _mm256_mul_ps(p, _mm256_castsi256_ps(e));
 }
 
-__attribute__((target("avx2,fma"))) void filter_rows_avx2(const Plan& plan, const Padded& pad,
-                                                          int width, int rows, cv::Mat1f& out) {
+// Eight output pixels starting at `centre` (c: their depths, c_valid: depth > 0).
+__attribute__((target("avx2,fma"))) inline __m256 filter8_avx2(const Plan& plan,
+                                                               const float* centre, __m256 c,
+                                                               __m256 c_valid) {
   const __m256 zero = _mm256_setzero_ps();
   const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
   const __m256 cutoff = _mm256_set1_ps(kCutoffU2);
-  const __m256 to_m = _mm256_set1_ps(1e-3f);
-  const int vec_end = width - width % 8;
-  alignas(32) float scale_buf[8];
+  __m256 inv_sigma;
+  if (plan.per_pixel_sigma) {
+    alignas(32) float buf[8];
+    for (int i = 0; i < 8; ++i) buf[i] = centre[i] > 0.0f ? pixel_inv_sigma(plan, centre[i]) : 0.0f;
+    inv_sigma = _mm256_load_ps(buf);
+  } else {
+    inv_sigma = _mm256_set1_ps(plan.inv_sigma_mm);
+  }
+  __m256 sum_w = zero, sum_wd = zero;
+  for (const Tap& t : plan.taps) {
+    const __m256 n = _mm256_loadu_ps(centre + t.offset);
+    const __m256 u = _mm256_mul_ps(_mm256_and_ps(_mm256_sub_ps(n, c), abs_mask), inv_sigma);
+    const __m256 u2 = _mm256_mul_ps(u, u);
+    // Beyond 3 sigma and holes do not vote.
+    const __m256 keep =
+        _mm256_and_ps(_mm256_cmp_ps(u2, cutoff, _CMP_LE_OQ), _mm256_cmp_ps(n, zero, _CMP_GT_OQ));
+    const __m256 range_w = exp_neg_avx2(_mm256_mul_ps(u2, _mm256_set1_ps(-0.5f)));
+    const __m256 w = _mm256_and_ps(_mm256_mul_ps(range_w, _mm256_set1_ps(t.weight)), keep);
+    sum_w = _mm256_add_ps(sum_w, w);
+    sum_wd = _mm256_fmadd_ps(w, n, sum_wd);
+  }
+  // Hole centres may have sum_w 0 (0/0); the mask writes 0 there instead of NaN.
+  const __m256 v = _mm256_mul_ps(_mm256_div_ps(sum_wd, sum_w), _mm256_set1_ps(1e-3f));
+  return _mm256_and_ps(v, c_valid);
+}
+
+__attribute__((target("avx2,fma"))) void filter_rows_avx2(const Plan& plan, const Padded& pad,
+                                                          int width, int rows, cv::Mat1f& out) {
+  const __m256 zero = _mm256_setzero_ps();
+  alignas(32) float tail[8];
   for (int y = 0; y < rows; ++y) {
     const float* row = pad.row(y);
-    float* o = out[y];
-    for (int x = 0; x < vec_end; x += 8) {
+    // Every pixel, the last partial block included, goes through the same lanes, so an ROI gives
+    // bit-identical results to the full frame; the padded rows have room for the extra reads.
+    for (int x = 0; x < width; x += 8) {
+      float* o = x + 8 <= width ? out[y] + x : tail;
       const __m256 c = _mm256_loadu_ps(row + x);
       const __m256 c_valid = _mm256_cmp_ps(c, zero, _CMP_GT_OQ);
-      if (_mm256_movemask_ps(c_valid) == 0) {  // a run of holes: nothing to filter
-        _mm256_storeu_ps(o + x, zero);
-        continue;
-      }
-      __m256 inv_sigma;
-      if (plan.per_pixel_sigma) {
-        for (int i = 0; i < 8; ++i)
-          scale_buf[i] = row[x + i] > 0.0f ? pixel_inv_sigma(plan, row[x + i]) : 0.0f;
-        inv_sigma = _mm256_load_ps(scale_buf);
-      } else {
-        inv_sigma = _mm256_set1_ps(plan.inv_sigma_mm);
-      }
-      __m256 sum_w = zero, sum_wd = zero;
-      for (const Tap& t : plan.taps) {
-        const __m256 n = _mm256_loadu_ps(row + x + t.offset);
-        const __m256 u = _mm256_mul_ps(_mm256_and_ps(_mm256_sub_ps(n, c), abs_mask), inv_sigma);
-        const __m256 u2 = _mm256_mul_ps(u, u);
-        // Beyond 3 sigma and holes do not vote.
-        const __m256 keep = _mm256_and_ps(_mm256_cmp_ps(u2, cutoff, _CMP_LE_OQ),
-                                          _mm256_cmp_ps(n, zero, _CMP_GT_OQ));
-        const __m256 range_w = exp_neg_avx2(_mm256_mul_ps(u2, _mm256_set1_ps(-0.5f)));
-        const __m256 w = _mm256_and_ps(_mm256_mul_ps(range_w, _mm256_set1_ps(t.weight)), keep);
-        sum_w = _mm256_add_ps(sum_w, w);
-        sum_wd = _mm256_fmadd_ps(w, n, sum_wd);
-      }
-      // Hole centres may have sum_w 0 (0/0); the mask writes 0 there instead of NaN.
-      const __m256 v = _mm256_mul_ps(_mm256_div_ps(sum_wd, sum_w), to_m);
-      _mm256_storeu_ps(o + x, _mm256_and_ps(v, c_valid));
+      // A run of holes has nothing to filter.
+      _mm256_storeu_ps(
+          o, _mm256_movemask_ps(c_valid) == 0 ? zero : filter8_avx2(plan, row + x, c, c_valid));
+      if (o == tail) std::copy(tail, tail + (width - x), out[y] + x);
     }
   }
-  filter_rows_scalar(plan, pad, vec_end, width, rows, out);
 }
 
 bool cpu_has_avx2() {
