@@ -30,10 +30,9 @@ inline std::int32_t med(std::int32_t a, std::int32_t b, std::int32_t c) {
   return a + b - c;
 }
 
-// What one pass over a depth tile learns: its hole runs and whether mapping values to indices
+// What one pass over a depth tile learns: its valid pixel count and whether mapping values to indices
 // of the sorted distinct-value table pays.
 struct Analysis {
-  std::vector<std::uint32_t> runs;  // alternating valid / hole run lengths, starting with valid
   std::size_t n_valid = 0;
   bool use_table = false;
   std::vector<std::uint16_t> table;         // sorted distinct non-zero values (when use_table)
@@ -54,36 +53,47 @@ DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
                        std::vector<std::uint16_t>& table);
 
 // Runs the MED prediction over `img` in raster order, calling emit(zigzag residual) for every
-// valid pixel. A hole takes its prediction as its symbol, so holes never disturb neighbours.
-template <class Emit>
+// valid pixel and run(length) for each alternating valid / hole run (starting with valid, the
+// first possibly empty). A hole takes its prediction as its symbol, so holes never disturb
+// their neighbours' predictions.
+template <class Emit, class Run>
 void predict(const cv::Mat1w& img, const std::uint16_t* index_of, std::vector<std::int32_t>& rows,
-             Emit&& emit) {
+             Emit&& emit, Run&& run) {
   const int w = img.cols;
   rows.assign(2 * static_cast<std::size_t>(w), 0);
   std::int32_t* prev = rows.data();
   std::int32_t* cur = rows.data() + w;
-  for (int y = 0; y < img.rows; ++y) {
-    const std::uint16_t* row = img[y];
-    for (int x = 0; x < w; ++x) {
-      std::int32_t pred;
-      if (y == 0) {
-        pred = x ? cur[x - 1] : 0;
-      } else if (x == 0) {
-        pred = prev[0];
-      } else {
-        pred = med(cur[x - 1], prev[x], prev[x - 1]);
-      }
-      const std::uint16_t v = row[x];
-      if (v == 0) {
-        cur[x] = pred;
-      } else {
-        const std::int32_t s = index_of ? index_of[v] : v;
-        emit(zigzag(s - pred));
-        cur[x] = s;
-      }
+  bool in_valid = true;
+  std::uint32_t len = 0;
+  auto step = [&](std::uint16_t v, std::int32_t pred, int x) {
+    const bool valid = v != 0;
+    if (valid != in_valid) {
+      run(len);
+      len = 0;
+      in_valid = valid;
     }
+    ++len;
+    if (!valid) {
+      cur[x] = pred;
+    } else {
+      const std::int32_t s = index_of ? index_of[v] : v;
+      emit(zigzag(s - pred));
+      cur[x] = s;
+    }
+  };
+  {
+    const std::uint16_t* row = img[0];
+    step(row[0], 0, 0);
+    for (int x = 1; x < w; ++x) step(row[x], cur[x - 1], x);
     std::swap(prev, cur);
   }
+  for (int y = 1; y < img.rows; ++y) {
+    const std::uint16_t* row = img[y];
+    step(row[0], prev[0], 0);
+    for (int x = 1; x < w; ++x) step(row[x], med(cur[x - 1], prev[x], prev[x - 1]), x);
+    std::swap(prev, cur);
+  }
+  run(len);
 }
 
 // Inverse of predict(): `runs` (validated to sum to w*h, no empty run after the first) says which

@@ -11,7 +11,7 @@ namespace {
 constexpr std::uint8_t kFlagTable = 0x01;
 constexpr int kEscape = 20;           // unary prefix length that announces a raw 17-bit residual
 constexpr int kRawBits = 17;          // a zigzag residual of two 16-bit values fits in 17 bits
-constexpr std::uint32_t kReset = 64;  // JPEG-LS style halving keeps k adaptive
+constexpr int kMeanShift = 5;
 
 struct FastScratch {
   std::vector<std::uint8_t> runs_bits;
@@ -42,21 +42,12 @@ bool get_eg0(BitReader& br, std::uint32_t& v) {
   return true;
 }
 
+// Rice parameter from an exponential moving average of the residuals (a ~ 16 x mean): a shift
+// and a bit_width instead of JPEG-LS's division-free loop, identical in encoder and decoder.
 struct Rice {
-  std::uint32_t a = 2;
-  std::uint32_t n = 1;
-  int k() const {
-    int k = 0;
-    while ((n << k) < a && k < 16) ++k;
-    return k;
-  }
-  void update(std::uint32_t z) {
-    a += z;
-    if (++n == kReset) {
-      a >>= 1;
-      n >>= 1;
-    }
-  }
+  std::uint32_t a = 16;
+  int k() const { return std::min(16, static_cast<int>(std::bit_width(a >> kMeanShift))); }
+  void update(std::uint32_t z) { a = a - (a >> 4) + z; }
 };
 
 }  // namespace
@@ -65,14 +56,11 @@ std::vector<std::uint8_t> encode_fast(const cv::Mat1w& img) {
   FastScratch& s = scratch();
   const Analysis& a = analyse(img);
   const std::size_t total = static_cast<std::size_t>(img.rows) * img.cols;
-  if (s.runs_bits.size() < a.runs.size() * 8 + 16) s.runs_bits.resize(a.runs.size() * 8 + 16);
+  // Worst cases: 7 bytes per run (at most total + 1 runs), 5 bytes per residual.
+  if (s.runs_bits.size() < total * 7 + 16) s.runs_bits.resize(total * 7 + 16);
   if (s.res_bits.size() < a.n_valid * 5 + 16) s.res_bits.resize(a.n_valid * 5 + 16);
-  (void)total;
 
   BitWriter rw(s.runs_bits.data());
-  for (std::uint32_t r : a.runs) put_eg0(rw, r);
-  const std::size_t runs_len = rw.finish();
-
   BitWriter bw(s.res_bits.data());
   Rice rice;
   predict(img, a.index_of, s.rows, [&](std::uint32_t z) {
@@ -86,7 +74,8 @@ std::vector<std::uint8_t> encode_fast(const cv::Mat1w& img) {
       bw.put(z, kRawBits);
     }
     rice.update(z);
-  });
+  }, [&](std::uint32_t run) { put_eg0(rw, run); });
+  const std::size_t runs_len = rw.finish();
   const std::size_t res_len = bw.finish();
 
   std::vector<std::uint8_t> out;

@@ -12,7 +12,7 @@ namespace telex::proto::detail {
 namespace {
 
 constexpr std::uint8_t kFlagTable = 0x01;
-constexpr int kPlanesShift = 1;  // bits 1-2: byte planes - 1
+constexpr int kBitsShift = 1;  // bits 1-2: log2 of the packed symbol width (1..3)
 constexpr std::size_t kZipHeader = 5;
 
 // One deflate state per thread, reset between calls: deflateInit costs far more than a tile.
@@ -69,37 +69,71 @@ ZipScratch& scratch() {
 
 }  // namespace
 
+namespace {
+
+// Symbols of `bits` (2, 4 or 8) packed low bits first; a saturated symbol (all ones) is followed
+// in the overflow stream by a varint of the excess. Packing several residuals per byte lets
+// deflate's byte-wise Huffman code them jointly, below its one-bit-per-symbol floor.
+std::size_t packed_cost(const std::vector<std::uint32_t>& z, int bits) {
+  const std::uint32_t sat = (1u << bits) - 1;
+  std::size_t over = 0;
+  for (std::uint32_t v : z) {
+    if (v >= sat) {
+      std::uint32_t e = v - sat;
+      do {
+        ++over;
+        e >>= 7;
+      } while (e);
+    }
+  }
+  return (z.size() * bits + 7) / 8 + over;
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   ZipScratch& s = scratch();
   const Analysis& a = analyse(img);
   s.residuals.clear();
   s.residuals.reserve(a.n_valid);
-  std::uint32_t zmax = 0;
-  predict(img, a.index_of, s.rows, [&](std::uint32_t z) {
-    s.residuals.push_back(z);
-    zmax |= z;
-  });
-  const int planes = zmax < 0x100 ? 1 : zmax < 0x10000 ? 2 : 3;
+  s.runs.clear();
+  predict(
+      img, a.index_of, s.rows, [&](std::uint32_t z) { s.residuals.push_back(z); },
+      [&](std::uint32_t r) { s.runs.push_back(r); });
 
   std::vector<std::uint8_t>& body = s.body;
   body.clear();
-  for (std::uint32_t r : a.runs) put_varint(body, r);
+  for (std::uint32_t r : s.runs) put_varint(body, r);
   if (a.use_table) put_table(body, a.table);
-  const std::size_t base = body.size();
-  body.resize(base + a.n_valid * static_cast<std::size_t>(planes));
-  // Byte planes: deflate sees long runs of small low bytes, and the high planes are mostly zero.
-  for (int p = 0; p < planes; ++p) {
-    std::uint8_t* o = body.data() + base + a.n_valid * static_cast<std::size_t>(p);
-    const int shift = 8 * p;
-    for (std::size_t i = 0; i < a.n_valid; ++i)
-      o[i] = static_cast<std::uint8_t>(s.residuals[i] >> shift);
+  // Packed width by the size before deflate; 2 wins on structured-light depth, 8 on noise.
+  int bits = 2;
+  std::size_t best = packed_cost(s.residuals, 2);
+  for (int b : {4, 8}) {
+    const std::size_t c = packed_cost(s.residuals, b);
+    if (c < best) {
+      best = c;
+      bits = b;
+    }
   }
+  const std::uint32_t sat = (1u << bits) - 1;
+  const std::size_t n = s.residuals.size();
+  const std::size_t base = body.size();
+  body.resize(base + (n * bits + 7) / 8, 0);
+  std::uint8_t* packed = body.data() + base;
+  const int per_byte = 8 / bits;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t z = s.residuals[i];
+    const std::uint32_t sym = z < sat ? z : sat;
+    packed[i / per_byte] |= static_cast<std::uint8_t>(sym << (bits * (i % per_byte)));
+  }
+  for (std::uint32_t z : s.residuals)
+    if (z >= sat) put_varint(body, z - sat);
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);
   std::vector<std::uint8_t> out(kZipHeader + deflateBound(&zs, body.size()));
-  out[0] =
-      static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | ((planes - 1) << kPlanesShift));
+  const int bits_code = bits == 2 ? 1 : bits == 4 ? 2 : 3;
+  out[0] = static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | (bits_code << kBitsShift));
   const auto body_len = static_cast<std::uint32_t>(body.size());
   for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<std::uint8_t>(body_len >> (8 * i));
   zs.next_in = body.data();
@@ -115,13 +149,15 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   if (bytes.size() < kZipHeader) return DecodeStatus::Truncated;
   const std::uint8_t flags = bytes[0];
   if (flags & ~0x07u) return DecodeStatus::Corrupt;
-  const int planes = ((flags >> kPlanesShift) & 3) + 1;
-  if (planes > 3) return DecodeStatus::Corrupt;
+  const int bits_code = (flags >> kBitsShift) & 3;
+  if (bits_code == 0) return DecodeStatus::Corrupt;
+  const int bits = 1 << bits_code;
   const bool use_table = flags & kFlagTable;
   const std::uint32_t body_len = load_u32(bytes.data() + 1);
   const std::size_t total = static_cast<std::size_t>(w) * h;
-  // Largest body a w x h tile can need: a 5-byte varint per run, a full table, three planes.
-  const std::size_t bound = total * 5 + 5 + 65536 * 3 + 10 + total * 3;
+  // Largest body a w x h tile can need: a 5-byte varint per run, a full table, one byte of
+  // packed symbols and a 5-byte overflow varint per pixel.
+  const std::size_t bound = total * 5 + 5 + 65536 * 3 + 10 + total + total * 5;
   if (body_len > bound) return DecodeStatus::DecompressionBomb;
 
   ZipScratch& s = scratch();
@@ -163,19 +199,31 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
     const DecodeStatus t = get_table(body, pos, s.table);
     if (t != DecodeStatus::Ok) return t;
   }
-  const std::size_t need = n_valid * static_cast<std::size_t>(planes);
-  if (body.size() - pos < need) return DecodeStatus::Truncated;
-  if (body.size() - pos > need) return DecodeStatus::Corrupt;
-  const std::uint8_t* p0 = body.data() + pos;
+  const std::size_t packed_len = (n_valid * bits + 7) / 8;
+  if (body.size() - pos < packed_len) return DecodeStatus::Truncated;
+  const std::uint8_t* packed = body.data() + pos;
+  std::size_t over = pos + packed_len;
+  const std::uint32_t sat = (1u << bits) - 1;
+  const int per_byte = 8 / bits;
   std::size_t i = 0;
+  bool short_overflow = false;
   auto next = [&](std::uint32_t& z) {
-    z = p0[i];
-    if (planes > 1) z |= static_cast<std::uint32_t>(p0[n_valid + i]) << 8;
-    if (planes > 2) z |= static_cast<std::uint32_t>(p0[2 * n_valid + i]) << 16;
+    z = (packed[i / per_byte] >> (bits * (i % per_byte))) & sat;
     ++i;
-    return true;  // the plane length was checked above
+    if (z == sat) {
+      std::uint32_t e = 0;
+      if (!get_varint(body, over, e)) {
+        short_overflow = true;
+        return false;
+      }
+      z = sat + e;  // wraps only on a corrupt stream, which reconstruct() rejects by range
+    }
+    return true;
   };
-  return reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
+  const DecodeStatus st =
+      reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
+  if (st != DecodeStatus::Ok) return short_overflow ? DecodeStatus::Truncated : st;
+  return over == body.size() ? DecodeStatus::Ok : DecodeStatus::Corrupt;
 }
 
 }  // namespace telex::proto::detail
