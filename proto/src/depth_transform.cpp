@@ -46,8 +46,8 @@ Analysis& analyse(const cv::Mat1w& img) {
   }
   s.seen[0] = 0;
   for (std::uint16_t v : a.table) s.seen[v] = 0;
-  a.use_table = collecting && !a.table.empty() &&
-                a.table.size() <= std::max<std::size_t>(16, a.n_valid / 4);
+  a.use_table =
+      collecting && !a.table.empty() && a.table.size() <= std::max<std::size_t>(16, a.n_valid / 4);
   if (a.use_table) {
     std::sort(a.table.begin(), a.table.end());
     for (std::size_t i = 0; i < a.table.size(); ++i)

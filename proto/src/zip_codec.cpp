@@ -3,6 +3,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include "byte_io.h"
@@ -26,7 +27,10 @@ struct Deflater {
     if (level != want) {
       if (level >= 0) deflateEnd(&zs);
       zs = z_stream{};
-      if (deflateInit2(&zs, want, Z_DEFLATED, 15, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+      // Level 0 selects Huffman-only deflate: on packed residuals LZ77 matching costs time and
+      // gains nothing (docs/BENCHMARKS.md "## Codecs").
+      const int strategy = want == 0 ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY;
+      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, 15, 8, strategy) != Z_OK)
         throw std::runtime_error("zip codec: deflateInit2 failed");
       level = want;
     } else {
@@ -74,19 +78,42 @@ namespace {
 // Symbols of `bits` (2, 4 or 8) packed low bits first; a saturated symbol (all ones) is followed
 // in the overflow stream by a varint of the excess. Packing several residuals per byte lets
 // deflate's byte-wise Huffman code them jointly, below its one-bit-per-symbol floor.
-std::size_t packed_cost(const std::vector<std::uint32_t>& z, int bits) {
-  const std::uint32_t sat = (1u << bits) - 1;
-  std::size_t over = 0;
+std::size_t varint_len(std::uint32_t v) {
+  return v < (1u << 7) ? 1 : v < (1u << 14) ? 2 : v < (1u << 21) ? 3 : v < (1u << 28) ? 4 : 5;
+}
+
+// Body bytes (before deflate) of the packed symbols plus overflow for widths 2, 4 and 8.
+std::array<std::size_t, 3> packed_costs(const std::vector<std::uint32_t>& z) {
+  std::array<std::size_t, 3> over{0, 0, 0};
   for (std::uint32_t v : z) {
-    if (v >= sat) {
-      std::uint32_t e = v - sat;
-      do {
-        ++over;
-        e >>= 7;
-      } while (e);
+    if (v >= 3) {
+      over[0] += varint_len(v - 3);
+      if (v >= 15) {
+        over[1] += varint_len(v - 15);
+        if (v >= 255) over[2] += varint_len(v - 255);
+      }
     }
   }
-  return (z.size() * bits + 7) / 8 + over;
+  const std::size_t n = z.size();
+  return {(n * 2 + 7) / 8 + over[0], (n * 4 + 7) / 8 + over[1], n + over[2]};
+}
+
+template <int Bits>
+void pack(const std::vector<std::uint32_t>& z, std::uint8_t* out) {
+  constexpr std::uint32_t kSat = (1u << Bits) - 1;
+  constexpr int kPer = 8 / Bits;
+  const std::size_t n = z.size();
+  std::size_t i = 0;
+  for (; i + kPer <= n; i += kPer) {
+    std::uint32_t byte = 0;
+    for (int j = 0; j < kPer; ++j) byte |= std::min(z[i + j], kSat) << (Bits * j);
+    *out++ = static_cast<std::uint8_t>(byte);
+  }
+  if (i < n) {
+    std::uint32_t byte = 0;
+    for (int j = 0; i + j < n; ++j) byte |= std::min(z[i + j], kSat) << (Bits * j);
+    *out = static_cast<std::uint8_t>(byte);
+  }
 }
 
 }  // namespace
@@ -94,11 +121,11 @@ std::size_t packed_cost(const std::vector<std::uint32_t>& z, int bits) {
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   ZipScratch& s = scratch();
   const Analysis& a = analyse(img);
-  s.residuals.clear();
-  s.residuals.reserve(a.n_valid);
+  s.residuals.resize(a.n_valid);
   s.runs.clear();
+  std::uint32_t* res = s.residuals.data();
   predict(
-      img, a.index_of, s.rows, [&](std::uint32_t z) { s.residuals.push_back(z); },
+      img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; },
       [&](std::uint32_t r) { s.runs.push_back(r); });
 
   std::vector<std::uint8_t>& body = s.body;
@@ -106,26 +133,16 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   for (std::uint32_t r : s.runs) put_varint(body, r);
   if (a.use_table) put_table(body, a.table);
   // Packed width by the size before deflate; 2 wins on structured-light depth, 8 on noise.
-  int bits = 2;
-  std::size_t best = packed_cost(s.residuals, 2);
-  for (int b : {4, 8}) {
-    const std::size_t c = packed_cost(s.residuals, b);
-    if (c < best) {
-      best = c;
-      bits = b;
-    }
-  }
+  const auto costs = packed_costs(s.residuals);
+  const int bits = costs[0] <= costs[1] && costs[0] <= costs[2] ? 2 : costs[1] <= costs[2] ? 4 : 8;
   const std::uint32_t sat = (1u << bits) - 1;
   const std::size_t n = s.residuals.size();
   const std::size_t base = body.size();
-  body.resize(base + (n * bits + 7) / 8, 0);
+  body.resize(base + (n * bits + 7) / 8);
   std::uint8_t* packed = body.data() + base;
-  const int per_byte = 8 / bits;
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t z = s.residuals[i];
-    const std::uint32_t sym = z < sat ? z : sat;
-    packed[i / per_byte] |= static_cast<std::uint8_t>(sym << (bits * (i % per_byte)));
-  }
+  if (bits == 2) pack<2>(s.residuals, packed);
+  if (bits == 4) pack<4>(s.residuals, packed);
+  if (bits == 8) pack<8>(s.residuals, packed);
   for (std::uint32_t z : s.residuals)
     if (z >= sat) put_varint(body, z - sat);
 
@@ -144,6 +161,36 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   out.resize(kZipHeader + zs.total_out);
   return out;
 }
+
+namespace {
+
+template <int Bits>
+DecodeStatus unpack(ZipScratch& s, std::span<const std::uint8_t> body, const std::uint8_t* packed,
+                    std::size_t over, int w, int h, bool use_table, cv::Mat1w& out) {
+  constexpr std::uint32_t kSat = (1u << Bits) - 1;
+  constexpr int kPer = 8 / Bits;
+  std::size_t i = 0;
+  bool short_overflow = false;
+  auto next = [&](std::uint32_t& z) {
+    z = (packed[i / kPer] >> (Bits * (i % kPer))) & kSat;
+    ++i;
+    if (z == kSat) {
+      std::uint32_t e = 0;
+      if (!get_varint(body, over, e)) {
+        short_overflow = true;
+        return false;
+      }
+      z = kSat + e;  // wraps only on a corrupt stream, which reconstruct() rejects by range
+    }
+    return true;
+  };
+  const DecodeStatus st =
+      reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
+  if (st != DecodeStatus::Ok) return short_overflow ? DecodeStatus::Truncated : st;
+  return over == body.size() ? DecodeStatus::Ok : DecodeStatus::Corrupt;
+}
+
+}  // namespace
 
 DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::Mat1w& out) {
   if (bytes.size() < kZipHeader) return DecodeStatus::Truncated;
@@ -202,28 +249,15 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   const std::size_t packed_len = (n_valid * bits + 7) / 8;
   if (body.size() - pos < packed_len) return DecodeStatus::Truncated;
   const std::uint8_t* packed = body.data() + pos;
-  std::size_t over = pos + packed_len;
-  const std::uint32_t sat = (1u << bits) - 1;
-  const int per_byte = 8 / bits;
-  std::size_t i = 0;
-  bool short_overflow = false;
-  auto next = [&](std::uint32_t& z) {
-    z = (packed[i / per_byte] >> (bits * (i % per_byte))) & sat;
-    ++i;
-    if (z == sat) {
-      std::uint32_t e = 0;
-      if (!get_varint(body, over, e)) {
-        short_overflow = true;
-        return false;
-      }
-      z = sat + e;  // wraps only on a corrupt stream, which reconstruct() rejects by range
-    }
-    return true;
-  };
-  const DecodeStatus st =
-      reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
-  if (st != DecodeStatus::Ok) return short_overflow ? DecodeStatus::Truncated : st;
-  return over == body.size() ? DecodeStatus::Ok : DecodeStatus::Corrupt;
+  const std::size_t over = pos + packed_len;
+  switch (bits) {
+    case 2:
+      return unpack<2>(s, body, packed, over, w, h, use_table, out);
+    case 4:
+      return unpack<4>(s, body, packed, over, w, h, use_table, out);
+    default:
+      return unpack<8>(s, body, packed, over, w, h, use_table, out);
+  }
 }
 
 }  // namespace telex::proto::detail

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: MIT
 // `telex codec`: ratio and speed of our depth codecs against zlib, zstd, PNG and RVL on one frame.
+#include <time.h>
 #include <zlib.h>
 #include <zstd.h>
 
 #include <algorithm>
-#include <time.h>
 #include <functional>
 #include <iomanip>
 #include <iostream>
