@@ -7,6 +7,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <numbers>
+#include <opencv2/core/utility.hpp>
 #include <stdexcept>
 
 namespace telex::synth {
@@ -205,16 +206,28 @@ struct PixelRect {
   double u0, u1, v0, v1;
   bool contains(double u, double v) const { return u >= u0 && u <= u1 && v >= v0 && v <= v1; }
 };
-std::optional<PixelRect> project_bound(const glm::dvec3& c, double r, const Intrinsics& k) {
-  const double z0 = c.z - r, z1 = c.z + r;
-  if (z0 <= 1e-3) return std::nullopt;
-  // x / z over the sphere's bounding box is extreme at its corners.
-  const double xs[4] = {(c.x - r) / z0, (c.x - r) / z1, (c.x + r) / z0, (c.x + r) / z1};
-  const double ys[4] = {(c.y - r) / z0, (c.y - r) / z1, (c.y + r) / z0, (c.y + r) / z1};
-  const auto [x0, x1] = std::minmax_element(xs, xs + 4);
-  const auto [y0, y1] = std::minmax_element(ys, ys + 4);
-  return PixelRect{k.fx * *x0 + k.cx - 1, k.fx * *x1 + k.cx + 1, k.fy * *y0 + k.cy - 1,
-                   k.fy * *y1 + k.cy + 1};
+// Pixel rectangle holding the image of the convex hull of `corners` (relative to the viewpoint),
+// with one pixel of margin; nullopt when a corner is not in front (then always test the object).
+std::optional<PixelRect> project_bound(const std::array<glm::dvec3, 8>& corners,
+                                       const glm::dvec3& viewpoint, const Intrinsics& k) {
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (const glm::dvec3& c : corners) {
+    const glm::dvec3 p = c - viewpoint;
+    if (p.z <= 1e-3) return std::nullopt;
+    const double x = p.x / p.z, y = p.y / p.z;
+    x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+  }
+  return PixelRect{k.fx * x0 + k.cx - 1, k.fx * x1 + k.cx + 1, k.fy * y0 + k.cy - 1,
+                   k.fy * y1 + k.cy + 1};
+}
+
+// Corners of the box centre +- sum of +-half_axes[i].
+std::array<glm::dvec3, 8> box_corners(const glm::dvec3& c, const glm::dvec3& a0,
+                                      const glm::dvec3& a1, const glm::dvec3& a2) {
+  std::array<glm::dvec3, 8> out;
+  for (int i = 0; i < 8; ++i)
+    out[i] = c + ((i & 1) ? a0 : -a0) + ((i & 2) ? a1 : -a1) + ((i & 4) ? a2 : -a2);
+  return out;
 }
 
 }  // namespace
@@ -302,14 +315,24 @@ bool in_mask(std::uint64_t mask, int id) { return id >= 64 || ((mask >> id) & 1u
 
 std::vector<Scene::Bound> Scene::finite_bounds() const {
   std::vector<Bound> out;
-  for (const Sphere& s : spheres_) out.push_back({s.c, s.r, s.id});
-  for (const Box& b : boxes_) out.push_back({b.c, b.bound_r, b.id});
-  for (const Cylinder& c : cylinders_) out.push_back({c.c, c.bound_r, c.id});
+  for (const Sphere& s : spheres_)
+    out.push_back({box_corners(s.c, {s.r, 0, 0}, {0, s.r, 0}, {0, 0, s.r}), s.id});
+  for (const Box& b : boxes_)
+    out.push_back({box_corners(b.c, b.rot[0] * b.h.x, b.rot[1] * b.h.y, b.rot[2] * b.h.z), b.id});
+  for (const Cylinder& c : cylinders_) {
+    // Any two unit vectors perpendicular to the axis complete the enclosing box.
+    const glm::dvec3 helper = std::abs(c.axis.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    const glm::dvec3 e0 = glm::normalize(glm::cross(c.axis, helper));
+    const glm::dvec3 e1 = glm::cross(c.axis, e0);
+    out.push_back({box_corners(c.c, e0 * c.r, e1 * c.r, c.axis * c.half_h), c.id});
+  }
   return out;
 }
 
 std::optional<Hit> Scene::raycast(const glm::dvec3& o, const glm::dvec3& d) const {
-  return raycast_masked(o, d, ~std::uint64_t{0});
+  Hit hit;
+  if (!cast_masked(o, d, ~std::uint64_t{0}, hit)) return std::nullopt;
+  return hit;
 }
 
 bool Scene::blocked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
@@ -317,8 +340,8 @@ bool Scene::blocked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
   return blocked_masked(o, d, max_t_m, skip_object, ~std::uint64_t{0});
 }
 
-std::optional<Hit> Scene::raycast_masked(const glm::dvec3& o, const glm::dvec3& d,
-                                         std::uint64_t mask) const {
+bool Scene::cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t mask,
+                        Hit& hit) const {
   double best = 1e300;
   int kind = -1, index = -1;
   for (std::size_t i = 0; i < planes_.size(); ++i) {
@@ -345,9 +368,10 @@ std::optional<Hit> Scene::raycast_masked(const glm::dvec3& o, const glm::dvec3& 
     const double t = hit_cylinder(c.c, c.axis, c.r, c.half_h, c.bound_r, o, d, best);
     if (t > 0) best = t, kind = 3, index = static_cast<int>(i);
   }
-  if (kind < 0) return std::nullopt;
+  if (kind < 0) return false;
 
-  Hit hit{best, o + best * d, glm::dvec3(0.0), -1};
+  hit.t_m = best;
+  hit.p_camera = o + best * d;
   switch (kind) {
     case 0: {
       const Plane& p = planes_[index];
@@ -388,7 +412,7 @@ std::optional<Hit> Scene::raycast_masked(const glm::dvec3& o, const glm::dvec3& 
       break;
     }
   }
-  return hit;
+  return true;
 }
 
 bool Scene::blocked_masked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m,
@@ -565,13 +589,13 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
   for (const auto& b : bounds) {
     if (b.id >= 64) continue;
     const std::uint64_t bit = std::uint64_t{1} << b.id;
-    if (const auto rc = project_bound(b.c - t_cam_m, b.r, intr)) {
+    if (const auto rc = project_bound(b.corners, t_cam_m, intr)) {
       for (int v = 0; v < h; ++v)
         if (v < rc->v0 || v > rc->v1) row_mask[v] &= ~bit;
       for (int u = 0; u < w; ++u)
         if (u < rc->u0 || u > rc->u1) col_mask[u] &= ~bit;
     }
-    if (const auto rp = project_bound(b.c - projector, b.r, intr)) {
+    if (const auto rp = project_bound(b.corners, projector, intr)) {
       projector_always &= ~bit;
       projector_rects.emplace_back(bit, *rp);
     }
@@ -579,47 +603,55 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
 
   std::vector<double> ray_x(w);
   for (int u = 0; u < w; ++u) ray_x[u] = (u - intr.cx) / intr.fx;
-  for (int v = 0; v < h; ++v) {
-    float* zt = out.true_depth_m[v];
-    cv::Vec3f* nt = out.true_normals[v];
-    int* idt = out.object_id[v];
-    float* ct = incidence[v];
-    uchar* sh = shadowed[v];
-    const double y = (v - intr.cy) / intr.fy;
-    for (int u = 0; u < w; ++u) {
-      const double x = ray_x[u];
-      const glm::dvec3 dir = glm::dvec3(x, y, 1.0) * (1.0 / std::sqrt(x * x + y * y + 1.0));
-      const auto hit = scene.raycast_masked(t_cam_m, dir, row_mask[v] & col_mask[u]);
-      if (!hit) continue;
-      glm::dvec3 n = hit->normal_camera;
-      if (glm::dot(n, dir) > 0) n = -n;
-      zt[u] = static_cast<float>(hit->t_m * dir.z);
-      nt[u] = cv::Vec3f(static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z));
-      idt[u] = hit->object_id;
-      ct[u] = static_cast<float>(theta_from_cos(-glm::dot(n, dir)));
-      if (sensor.shadow_holes) {
-        const glm::dvec3 to = hit->p_camera - projector;
-        const double dist = glm::length(to);
-        // Every object is convex or a plane, so it shadows itself exactly when it faces away
-        // from the projector, and only the other objects need a shadow ray.
-        if (glm::dot(n, to) >= 0) {
-          sh[u] = 1;
-        } else {
-          std::uint64_t mask = projector_always;
-          if (to.z > 1e-9) {
-            const double up = intr.fx * to.x / to.z + intr.cx, vp = intr.fy * to.y / to.z + intr.cy;
-            for (const auto& [bit, rect] : projector_rects)
-              if (rect.contains(up, vp)) mask |= bit;
-          } else {
-            mask = ~std::uint64_t{0};
-          }
-          if (scene.blocked_masked(projector, to * (1.0 / dist), dist * (1.0 - 1e-7),
-                                   hit->object_id, mask))
+  auto geometry_rows = [&](const cv::Range& rows) {
+    for (int v = rows.start; v < rows.end; ++v) {
+      float* zt = out.true_depth_m[v];
+      cv::Vec3f* nt = out.true_normals[v];
+      int* idt = out.object_id[v];
+      float* ct = incidence[v];
+      uchar* sh = shadowed[v];
+      const double y = (v - intr.cy) / intr.fy;
+      for (int u = 0; u < w; ++u) {
+        const double x = ray_x[u];
+        const glm::dvec3 dir = glm::dvec3(x, y, 1.0) * (1.0 / std::sqrt(x * x + y * y + 1.0));
+        Hit hit_storage;
+        if (!scene.cast_masked(t_cam_m, dir, row_mask[v] & col_mask[u], hit_storage)) continue;
+        const Hit* hit = &hit_storage;
+        glm::dvec3 n = hit->normal_camera;
+        if (glm::dot(n, dir) > 0) n = -n;
+        zt[u] = static_cast<float>(hit->t_m * dir.z);
+        nt[u] =
+            cv::Vec3f(static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z));
+        idt[u] = hit->object_id;
+        ct[u] = static_cast<float>(theta_from_cos(-glm::dot(n, dir)));
+        if (sensor.shadow_holes) {
+          const glm::dvec3 to = hit->p_camera - projector;
+          const double dist = glm::length(to);
+          // Every object is convex or a plane, so it shadows itself exactly when it faces away
+          // from the projector, and only the other objects need a shadow ray.
+          if (glm::dot(n, to) >= 0) {
             sh[u] = 1;
+          } else {
+            std::uint64_t mask = projector_always;
+            if (to.z > 1e-9) {
+              const double up = intr.fx * to.x / to.z + intr.cx,
+                           vp = intr.fy * to.y / to.z + intr.cy;
+              for (const auto& [bit, rect] : projector_rects)
+                if (rect.contains(up, vp)) mask |= bit;
+            } else {
+              mask = ~std::uint64_t{0};
+            }
+            if (scene.blocked_masked(projector, to * (1.0 / dist), dist * (1.0 - 1e-7),
+                                     hit->object_id, mask))
+              sh[u] = 1;
+          }
         }
       }
     }
-  }
+  };
+  // Rows are independent (noise is hashed per pixel), so OpenCV's thread pool may split them;
+  // the result is identical for any thread count (cv::setNumThreads(1) runs serially).
+  cv::parallel_for_(cv::Range(0, h), geometry_rows);
 
   // Sensor pass: each pixel draws its noise from a hash of (seed, frame, pixel).
   const auto& gauss = normal_table();
@@ -629,55 +661,64 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
   const double dropout_threshold = sensor.dropout_rate * 65536.0;
   out.depth.intrinsics = intr;
   out.depth.depth_mm = cv::Mat1w(h, w, kNoDepth);
-  for (int v = 0; v < h; ++v) {
-    std::uint16_t* dst = out.depth.depth_mm[v];
-    for (int u = 0; u < w; ++u) {
-      const std::uint64_t r = splitmix64(frame_key + static_cast<std::uint64_t>(v) * w + u);
-      const float g0 = gauss[r & 0xFFFF], g1 = gauss[(r >> 16) & 0xFFFF],
-                  g2 = gauss[(r >> 32) & 0xFFFF];
-      const double uniform = static_cast<double>(r >> 48) + 0.5;  // in (0, 65536)
+  // Freshly allocated, hence continuous: flat indexing keeps the per-pixel work small.
+  const float* const z_true = out.true_depth_m.ptr<float>();
+  const int* const ids = out.object_id.ptr<int>();
+  const float* const theta_map = incidence.ptr<float>();
+  const uchar* const shadow_map = shadowed.ptr<uchar>();
+  auto sensor_rows = [&](const cv::Range& rows) {
+    for (int v = rows.start; v < rows.end; ++v) {
+      std::uint16_t* dst = out.depth.depth_mm[v];
+      for (int u = 0; u < w; ++u) {
+        const std::uint64_t r = splitmix64(frame_key + static_cast<std::uint64_t>(v) * w + u);
+        const float g0 = gauss[r & 0xFFFF], g1 = gauss[(r >> 16) & 0xFFFF],
+                    g2 = gauss[(r >> 32) & 0xFFFF];
+        const double uniform = static_cast<double>(r >> 48) + 0.5;  // in (0, 65536)
 
-      int su = u, sv = v;  // pixel whose surface this measurement comes from
-      double z = out.true_depth_m(v, u);
-      if (sensor.lateral_noise) {
-        const double s = lateral_sigma_table(incidence(v, u));
-        const double fu = std::clamp(u + s * g0, 0.0, w - 1.0);
-        const double fv = std::clamp(v + s * g1, 0.0, h - 1.0);
-        su = static_cast<int>(fu + 0.5);  // fu, fv >= 0: truncation rounds
-        sv = static_cast<int>(fv + 0.5);
-        z = out.true_depth_m(sv, su);
-        const int u0 = std::min(static_cast<int>(fu), w - 2 >= 0 ? w - 2 : 0);
-        const int v0 = std::min(static_cast<int>(fv), h - 2 >= 0 ? h - 2 : 0);
-        if (w > 1 && h > 1) {
-          const int id = out.object_id(v0, u0);
-          // Within one surface the jitter moves along it smoothly; across edges it picks a side.
-          if (id >= 0 && out.object_id(v0, u0 + 1) == id && out.object_id(v0 + 1, u0) == id &&
-              out.object_id(v0 + 1, u0 + 1) == id) {
-            const double a = fu - u0, b = fv - v0;
-            z = (1 - b) * ((1 - a) * out.true_depth_m(v0, u0) + a * out.true_depth_m(v0, u0 + 1)) +
-                b * ((1 - a) * out.true_depth_m(v0 + 1, u0) + a * out.true_depth_m(v0 + 1, u0 + 1));
+        std::size_t src = static_cast<std::size_t>(v) * w + u;  // pixel the measurement samples
+        double z = z_true[src];
+        if (sensor.lateral_noise) {
+          const double s = lateral_sigma_table(theta_map[src]);
+          const double fu = std::clamp(u + s * g0, 0.0, w - 1.0);
+          const double fv = std::clamp(v + s * g1, 0.0, h - 1.0);
+          // fu, fv >= 0: truncation rounds
+          src = static_cast<std::size_t>(static_cast<int>(fv + 0.5)) * w +
+                static_cast<std::size_t>(static_cast<int>(fu + 0.5));
+          z = z_true[src];
+          if (w > 1 && h > 1) {
+            const int u0 = std::min(static_cast<int>(fu), w - 2);
+            const int v0 = std::min(static_cast<int>(fv), h - 2);
+            const std::size_t i00 = static_cast<std::size_t>(v0) * w + u0, i10 = i00 + w;
+            const int id = ids[i00];
+            // Within one surface the jitter moves along it smoothly; across edges it picks a side.
+            if (id >= 0 && ids[i00 + 1] == id && ids[i10] == id && ids[i10 + 1] == id) {
+              const double a = fu - u0, b = fv - v0;
+              z = (1 - b) * ((1 - a) * z_true[i00] + a * z_true[i00 + 1]) +
+                  b * ((1 - a) * z_true[i10] + a * z_true[i10 + 1]);
+            }
           }
         }
+        if (!(z > 0.0)) continue;
+        if (z < sensor.min_range_m || z > sensor.max_range_m) continue;
+        if (shadow_map[src]) continue;
+        const double theta = theta_map[src];
+        if (theta > sensor.max_incidence_rad) continue;
+        if (uniform < dropout_threshold) continue;
+        if (sensor.axial_noise) z += axial_sigma_m(z, theta) * g2;
+        if (sensor.quantise) {
+          const double raw_f = depth_m_to_kinect_raw(z);
+          if (!(raw_f >= 0.0)) continue;  // nearer than disparity 0
+          const std::int64_t raw = static_cast<std::int64_t>(raw_f + 0.5);
+          if (raw >= 1092) continue;  // beyond what 11 bits of disparity encode
+          z = raw_table[raw];
+        }
+        const double mm = z * 1000.0 + 0.5;
+        if (!(mm >= 1.0 && mm < 65536.0)) continue;
+        dst[u] = static_cast<std::uint16_t>(mm);
       }
-      if (!(z > 0.0)) continue;
-      if (z < sensor.min_range_m || z > sensor.max_range_m) continue;
-      if (shadowed(sv, su)) continue;
-      const double theta = incidence(sv, su);
-      if (theta > sensor.max_incidence_rad) continue;
-      if (uniform < dropout_threshold) continue;
-      if (sensor.axial_noise) z += axial_sigma_m(z, theta) * g2;
-      if (sensor.quantise) {
-        const double raw_f = depth_m_to_kinect_raw(z);
-        if (!(raw_f >= 0.0)) continue;  // nearer than disparity 0
-        const std::int64_t raw = static_cast<std::int64_t>(raw_f + 0.5);
-        if (raw >= 1092) continue;  // beyond what 11 bits of disparity encode
-        z = raw_table[raw];
-      }
-      const double mm = z * 1000.0 + 0.5;
-      if (!(mm >= 1.0 && mm < 65536.0)) continue;
-      dst[u] = static_cast<std::uint16_t>(mm);
     }
-  }
+  };
+  cv::parallel_for_(cv::Range(0, h), sensor_rows);
   return out;
 }
 

@@ -2,6 +2,7 @@
 // Analytic synthetic scenes, a Kinect-v1-like structured-light sensor model, and ground truth.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
@@ -71,17 +72,15 @@ class Scene {
  private:
   friend Rendered render_from(const Scene&, const Intrinsics&, const glm::dvec3&,
                               const SensorModel&, std::uint64_t);
-  // Bounding sphere of a finite object; renderers project them to skip objects per pixel.
+  // Corners of a box enclosing a finite object; renderers project them to skip objects per pixel.
   struct Bound {
-    glm::dvec3 c;
-    double r;
+    std::array<glm::dvec3, 8> corners;
     int id;
   };
   std::vector<Bound> finite_bounds() const;
   // As raycast/blocked, but finite objects with id < 64 are tested only when their bit in
   // `mask` is set (planes and ids >= 64 always are).
-  std::optional<Hit> raycast_masked(const glm::dvec3& o, const glm::dvec3& d,
-                                    std::uint64_t mask) const;
+  bool cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t mask, Hit& hit) const;
   bool blocked_masked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m, int skip_object,
                       std::uint64_t mask) const;
 
