@@ -1,0 +1,111 @@
+// SPDX-License-Identifier: MIT
+// Hole runs and distinct-value tables for the predictive depth codecs.
+#include "depth_transform.h"
+
+#include <algorithm>
+
+namespace telex::proto::detail {
+namespace {
+
+struct Scratch {
+  std::vector<std::uint8_t> seen = std::vector<std::uint8_t>(65536, 0);
+  std::vector<std::uint16_t> index_of = std::vector<std::uint16_t>(65536, 0);
+  Analysis analysis;
+};
+
+}  // namespace
+
+Analysis& analyse(const cv::Mat1w& img) {
+  thread_local Scratch s;
+  Analysis& a = s.analysis;
+  a.runs.clear();
+  a.table.clear();
+  a.n_valid = 0;
+  // A structured-light sensor reports few distinct depths; past a quarter of the valid pixels a
+  // table costs more than it saves, so collection stops there.
+  const std::size_t total = static_cast<std::size_t>(img.rows) * img.cols;
+  const std::size_t table_cap = std::max<std::size_t>(64, total / 4);
+  bool collecting = true;
+  bool in_valid = true;
+  std::uint32_t run = 0;
+  for (int y = 0; y < img.rows; ++y) {
+    const std::uint16_t* row = img[y];
+    for (int x = 0; x < img.cols; ++x) {
+      const std::uint16_t v = row[x];
+      const bool valid = v != 0;
+      if (valid != in_valid) {
+        a.runs.push_back(run);
+        run = 0;
+        in_valid = valid;
+      }
+      ++run;
+      if (valid && collecting && !s.seen[v]) {
+        s.seen[v] = 1;
+        a.table.push_back(v);
+        if (a.table.size() > table_cap) collecting = false;
+      }
+    }
+  }
+  a.runs.push_back(run);
+  for (std::size_t i = 0; i < a.runs.size(); i += 2) a.n_valid += a.runs[i];
+  for (std::uint16_t v : a.table) s.seen[v] = 0;
+  a.use_table =
+      collecting && !a.table.empty() && a.table.size() <= std::max<std::size_t>(16, a.n_valid / 4);
+  if (a.use_table) {
+    std::sort(a.table.begin(), a.table.end());
+    for (std::size_t i = 0; i < a.table.size(); ++i)
+      s.index_of[a.table[i]] = static_cast<std::uint16_t>(i);
+    a.index_of = s.index_of.data();
+  } else {
+    a.table.clear();
+    a.index_of = nullptr;
+  }
+  return a;
+}
+
+void put_varint(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  while (v >= 0x80) {
+    out.push_back(static_cast<std::uint8_t>(v | 0x80));
+    v >>= 7;
+  }
+  out.push_back(static_cast<std::uint8_t>(v));
+}
+
+bool get_varint(std::span<const std::uint8_t> in, std::size_t& pos, std::uint32_t& v) {
+  v = 0;
+  for (int i = 0; i < 5; ++i) {
+    if (pos >= in.size()) return false;
+    const std::uint8_t b = in[pos++];
+    if (i == 4 && b > 0x0F) return false;  // beyond 32 bits
+    v |= static_cast<std::uint32_t>(b & 0x7F) << (7 * i);
+    if (!(b & 0x80)) return true;
+  }
+  return false;
+}
+
+void put_table(std::vector<std::uint8_t>& out, const std::vector<std::uint16_t>& table) {
+  put_varint(out, static_cast<std::uint32_t>(table.size()));
+  put_varint(out, table[0]);
+  for (std::size_t i = 1; i < table.size(); ++i)
+    put_varint(out, static_cast<std::uint32_t>(table[i] - table[i - 1] - 1));
+}
+
+DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
+                       std::vector<std::uint16_t>& table) {
+  std::uint32_t n = 0, v = 0;
+  if (!get_varint(in, pos, n) || !get_varint(in, pos, v)) return DecodeStatus::Truncated;
+  if (n == 0 || n > 65535 || v == 0 || v > 65535) return DecodeStatus::Corrupt;
+  table.clear();
+  table.reserve(n);
+  table.push_back(static_cast<std::uint16_t>(v));
+  for (std::uint32_t i = 1; i < n; ++i) {
+    std::uint32_t d = 0;
+    if (!get_varint(in, pos, d)) return DecodeStatus::Truncated;
+    const std::uint64_t next = static_cast<std::uint64_t>(table.back()) + d + 1;
+    if (next > 65535) return DecodeStatus::Corrupt;
+    table.push_back(static_cast<std::uint16_t>(next));
+  }
+  return DecodeStatus::Ok;
+}
+
+}  // namespace telex::proto::detail
