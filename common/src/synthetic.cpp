@@ -200,11 +200,8 @@ const std::array<double, 1092>& raw_depth_table() {
   return table;
 }
 
-// Pixel bounds of the image of a sphere (centre relative to the viewpoint) with one pixel of
-// margin; nullopt when the sphere reaches the viewpoint's plane and must always be tested.
 struct PixelRect {
   double u0, u1, v0, v1;
-  bool contains(double u, double v) const { return u >= u0 && u <= u1 && v >= v0 && v <= v1; }
 };
 // Pixel rectangle holding the image of the convex hull of `corners` (relative to the viewpoint),
 // with one pixel of margin; nullopt when a corner is not in front (then always test the object).
@@ -584,7 +581,13 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
   // projector, so each ray is tested only against the objects whose image covers it.
   const auto bounds = scene.finite_bounds();
   std::vector<std::uint64_t> row_mask(h, ~std::uint64_t{0}), col_mask(w, ~std::uint64_t{0});
-  std::vector<std::pair<std::uint64_t, PixelRect>> projector_rects;
+  // The projector only differs from the camera along x, so a surface point seen on camera row v
+  // also lies on projector row v: each row keeps the objects whose projector rectangle spans it.
+  struct ColumnSpan {
+    std::uint64_t bit;
+    double u0, u1;
+  };
+  std::vector<std::vector<ColumnSpan>> projector_rows(h);
   std::uint64_t projector_always = ~std::uint64_t{0};
   for (const auto& b : bounds) {
     if (b.id >= 64) continue;
@@ -597,7 +600,8 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
     }
     if (const auto rp = project_bound(b.corners, projector, intr)) {
       projector_always &= ~bit;
-      projector_rects.emplace_back(bit, *rp);
+      for (int v = std::max(0, static_cast<int>(std::ceil(rp->v0))); v < h && v <= rp->v1; ++v)
+        projector_rows[v].push_back({bit, rp->u0, rp->u1});
     }
   }
 
@@ -634,10 +638,9 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
           } else {
             std::uint64_t mask = projector_always;
             if (to.z > 1e-9) {
-              const double up = intr.fx * to.x / to.z + intr.cx,
-                           vp = intr.fy * to.y / to.z + intr.cy;
-              for (const auto& [bit, rect] : projector_rects)
-                if (rect.contains(up, vp)) mask |= bit;
+              const double up = intr.fx * to.x / to.z + intr.cx;
+              for (const ColumnSpan& span : projector_rows[v])
+                if (up >= span.u0 && up <= span.u1) mask |= span.bit;
             } else {
               mask = ~std::uint64_t{0};
             }
