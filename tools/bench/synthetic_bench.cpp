@@ -26,6 +26,24 @@ void BM_Render(benchmark::State& state, const char* name, bool ideal, int thread
   cv::setNumThreads(saved_threads);
 }
 
+// The incremental renderer on the animated default scene: only the ball and its shadow are cast
+// again each frame.
+void BM_RendererMoving(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const telex::synth::Scene scene = telex::synth::Scene::named("moving");
+  telex::synth::Renderer renderer(telex::kinect_v1_intrinsics(), telex::synth::SensorModel{});
+  std::uint64_t frame = 0;
+  std::size_t recast = 0;
+  for (auto _ : state) {
+    auto r = renderer.render(scene.at_time(frame / 30.0), frame);
+    benchmark::DoNotOptimize(r.depth.depth_mm.data);
+    if (frame > 0) recast += renderer.last_recast_pixels();
+    ++frame;
+  }
+  state.counters["recast_px"] = frame > 1 ? static_cast<double>(recast) / (frame - 1) : 0.0;
+  cv::setNumThreads(-1);
+}
+
 // A yardstick for how loaded the machine is: REFERENCES.md quotes about 0.6 ms for this on an
 // idle core, so render times scale by (this measurement / 0.6 ms) to an idle machine.
 void BM_MedianBlurYardstick(benchmark::State& state) {
@@ -39,6 +57,7 @@ void BM_MedianBlurYardstick(benchmark::State& state) {
 }
 
 BENCHMARK(BM_MedianBlurYardstick)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RendererMoving)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, plane_1thread, "plane", false, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, box_1thread, "box", false, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, desk_1thread, "desk", false, 1)->Unit(benchmark::kMillisecond);
