@@ -1,17 +1,12 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-natnet: a NatNet server that answers connect requests and streams a hand motion.
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <csignal>
 #include <iostream>
+#include <thread>
 
 #include "telex/local/natnet_server.h"
-
-namespace {
-telex::local::NatNetServer* g_server = nullptr;
-extern "C" void on_signal(int) {
-  if (g_server) g_server->stop();
-}
-}  // namespace
 
 int main(int argc, char** argv) {
   using namespace telex::local;
@@ -50,18 +45,30 @@ int main(int argc, char** argv) {
     cfg.version = natnet::parse_version(version);
     NatNetMotion fn =
         motion == "press" ? NatNetMotion(natnet_press_motion) : load_natnet_csv(motion, loop);
+    // Signals are taken synchronously on this thread (sigtimedwait) rather than in a handler,
+    // because stopping the server's io_context is not async-signal-safe.
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     NatNetServer server(cfg, std::move(fn));
-    g_server = &server;
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
     std::cerr << "telex-sim-natnet: NatNet " << cfg.version.major << "." << cfg.version.minor
               << " on " << cfg.bind_address << ":" << server.command_port() << ", "
               << (cfg.multicast
                       ? "multicast " + cfg.multicast_group + ":" + std::to_string(cfg.data_port)
                       : std::string("unicast"))
               << ", " << cfg.rate_hz << " Hz for " << duration_s << " s\n";
-    server.run_for(duration_s);
-    g_server = nullptr;
+    std::atomic<bool> done{false};
+    std::thread streamer([&] {
+      server.run_for(duration_s);
+      done = true;
+    });
+    const timespec tick{0, 50'000'000};
+    while (!done) {
+      if (sigtimedwait(&stop_signals, nullptr, &tick) > 0) server.stop();
+    }
+    streamer.join();
     const auto s = server.stats();
     std::cerr << "telex-sim-natnet: sent " << s.frames_sent << " frames to " << s.clients
               << " client(s), " << s.send_errors << " send errors\n";
