@@ -130,6 +130,7 @@ int main(int argc, char** argv) {
   sigemptyset(&set);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);  // our own wake-up for the signal thread when the run ends
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
 
   try {
@@ -147,8 +148,6 @@ int main(int argc, char** argv) {
       throw;
     }
     // Wake the signal thread if the run ended by itself.
-    sigaddset(&set, SIGUSR1);
-    pthread_sigmask(SIG_BLOCK, &set, nullptr);
     pthread_kill(signals.native_handle(), SIGUSR1);
     signals.join();
     std::fprintf(stderr,
