@@ -11,6 +11,8 @@
 #include <random>
 #include <sstream>
 
+#include "telex/common/bilateral.h"
+#include "telex/common/normals.h"
 #include "telex/common/synthetic.h"
 
 namespace telex {
@@ -684,6 +686,17 @@ std::vector<StabilityCaseResult> accuracy_cases(bool with_sensor_noise) {
         noisy.frames.push_back(snapshot(depth_m_from_mm(r.depth.depth_mm), kin, 0, 1));
       }
       v.push_back(std::move(noisy));
+      // The same frames through the local daemon's surface stage with its default options
+      // (hole-aware bilateral filter, box-averaged normals): the figure the operator feels.
+      Variant filtered{"sensor-filtered", {}, false};
+      for (int i = 0; i < kNoisyFrames; ++i) {
+        const synth::Rendered r = synth::render(scene, kin, synth::SensorModel{}, i);
+        cv::Mat1f depth_m = bilateral_filter_depth(r.depth.depth_mm);
+        cv::Mat3f normals = compute_normals(depth_m, kin);
+        filtered.frames.push_back(std::make_shared<const Surface>(
+            make_surface(std::move(depth_m), kin, 0, 1, std::move(normals))));
+      }
+      v.push_back(std::move(filtered));
     }
     return v;
   };
