@@ -403,7 +403,14 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
     FingertipForce& fo = out[i];
     const bool finite = finite3(fin.p_camera) && finite3(fin.axis_camera);
     if (!finite) ++counters_.nonfinite_inputs;
-    const bool tracked = fin.tracked && finite && std::abs(fin.p_camera.x) < 1e3 &&
+    bool sample_fresh = true;
+    if (fin.sample_ns != FingertipInput::kUnknownTime) {
+      const double age_s =
+          (static_cast<double>(now_ns) - static_cast<double>(fin.sample_ns)) * 1e-9;
+      sample_fresh = std::abs(age_s) <= params_.stale_limit_s;
+      if (!sample_fresh) ++counters_.stale_tracking;
+    }
+    const bool tracked = fin.tracked && finite && sample_fresh && std::abs(fin.p_camera.x) < 1e3 &&
                          std::abs(fin.p_camera.y) < 1e3 && std::abs(fin.p_camera.z) < 1e3;
 
     const double target = (tracked && fresh) ? 1.0 : 0.0;

@@ -415,3 +415,38 @@ TEST(HapticModel, CrossfadeAcrossResolutionChange) {
 
 }  // namespace
 }  // namespace telex
+
+namespace telex {
+namespace {
+
+TEST(HapticModel, StaleTrackingSampleFadesToZero) {
+  HapticParams p = bare();
+  p.stale_limit_s = 0.2;
+  p.fade_out_s = 0.05;
+  HapticModel model(p, 1);
+  auto s = wall(0.8, 0, 1);
+  FingertipInput in;
+  FingertipForce out;
+  std::int64_t now = 0;
+  auto tick = [&](double z, std::int64_t sample_ns) {
+    now += kMs;
+    in.p_camera = {0, 0, z};
+    in.sample_ns = sample_ns;
+    model.tick(now, restamp(s, now, static_cast<std::uint64_t>(now / kMs) + 1), std::span(&in, 1),
+               std::span(&out, 1));
+  };
+  tick(0.79, kMs);
+  for (int i = 0; i < 10; ++i) tick(0.79 + 0.002 * (i + 1), now + kMs);
+  EXPECT_NEAR(out.normal_force_N, p.stiffness_N_per_m * 0.01, kForceTol);
+  // The tracker stops: the same pose keeps arriving with its old timestamp.
+  const std::int64_t last_sample = now;
+  for (int i = 0; i < 200; ++i) tick(0.81, last_sample);
+  EXPECT_EQ(out.status, FingertipStatus::Ok);  // 200 ms old: still within the limit
+  for (int i = 0; i < 51; ++i) tick(0.81, last_sample);
+  EXPECT_EQ(out.status, FingertipStatus::TrackingLost);
+  EXPECT_EQ(glm::length(out.force_N), 0.0);
+  EXPECT_GT(model.counters().stale_tracking, 0u);
+}
+
+}  // namespace
+}  // namespace telex

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <climits>
 #include <cstdint>
 #include <glm/vec3.hpp>
 #include <memory>
@@ -52,13 +53,17 @@ struct FingertipInput {
   // Unit direction along the finger, for displays that render shear in one direction only.
   glm::dvec3 axis_camera{0.0, -1.0, 0.0};
   bool tracked = true;  // false when the tracker says it lost this fingertip
+  // When the tracker sampled this position. A sample older than stale_limit_s is tracking loss
+  // (a tracker that stopped reporting keeps repeating its last pose). kUnknownTime: not checked.
+  std::int64_t sample_ns = kUnknownTime;
+  static constexpr std::int64_t kUnknownTime = INT64_MIN;
 };
 
 enum class FingertipStatus : std::uint8_t {
   Ok,
   NoSurface,     // no snapshot received yet
   StaleSurface,  // the newest snapshot is older than stale_limit_s: fading out
-  TrackingLost,  // tracker flag or NaN/Inf position: holding the last force and fading out
+  TrackingLost,  // tracker flag, NaN/Inf or stale sample: holding the last force and fading out
   OutsideImage,  // fingertip projects outside the depth image (not contact)
   Hole,          // no depth under the fingertip (not contact)
   BehindCamera,  // z <= 0: cannot project (not contact)
@@ -96,8 +101,9 @@ struct HapticCounters {
   std::uint64_t surfaces_out_of_order = 0;  // older or repeated frame ids: ignored
   std::uint64_t nonfinite_inputs = 0;       // NaN/Inf fingertip positions (tracking loss)
   std::uint64_t stale_ticks = 0;
-  std::uint64_t clamped = 0;       // force limited to max_force_N
-  std::uint64_t rate_limited = 0;  // force change limited to max_force_step_N
+  std::uint64_t stale_tracking = 0;  // fingertip samples older than stale_limit_s
+  std::uint64_t clamped = 0;         // force limited to max_force_N
+  std::uint64_t rate_limited = 0;    // force change limited to max_force_step_N
   std::uint64_t observer_active = 0;
 };
 
