@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: MIT
+// Haptic display interface: per-fingertip pressure and shear to a device, a network sink or a log.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+
+namespace telex::local {
+
+struct FingerForce {
+  int finger = 0;           // 0 thumb .. 4 little
+  double pressure_N = 0.0;  // into the finger pad, >= 0
+  double shear_N = 0.0;     // along the finger axis, + toward the fingertip
+  bool contact = false;
+};
+
+struct DisplayStats {
+  std::uint64_t writes = 0;
+  std::uint64_t sent = 0;     // reports / datagrams / records handed to the device or file
+  std::uint64_t dropped = 0;  // writes that could not be delivered (full ring, EAGAIN, I/O error)
+  std::uint64_t errors = 0;   // device or socket errors
+  double max_pressure_N = 0.0;
+  double max_shear_N = 0.0;
+};
+
+struct DisplayConfig {
+  // Gravity Grabber calibration and limits (JSON, docs/HARDWARE.md); empty = defaults.
+  std::string gravity_grabber_config_path;
+  int udp_default_port = 1234;
+  std::size_t sim_ring_capacity = 8192;  // records buffered between the haptic and writer threads
+};
+
+class HapticDisplay {
+ public:
+  virtual ~HapticDisplay();
+  // Called from the 1 kHz haptic thread: must not block, allocate or throw. Fingers missing from
+  // `forces` are released (zero force).
+  virtual void write(std::int64_t now_ns, std::span<const FingerForce> forces) = 0;
+  virtual std::string name() const = 0;
+  virtual DisplayStats stats() const = 0;
+};
+
+// Spec grammar (docs/HARDWARE.md): "sim", "sim:CSV", "gravity-grabber:HIDPATH", "udp:HOST[:PORT]".
+// Throws std::invalid_argument for a malformed spec (naming it and the valid forms) and
+// std::runtime_error when the device or file cannot be opened (naming it and what to try).
+std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config);
+
+}  // namespace telex::local

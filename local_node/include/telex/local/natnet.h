@@ -1,0 +1,136 @@
+// SPDX-License-Identifier: MIT
+// OptiTrack NatNet subset: packet framing, server info, FRAMEOFDATA for NatNet 2.x-4.x (pure).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace telex::local::natnet {
+
+enum MessageId : std::uint16_t {
+  kPing = 0,  // NAT_CONNECT in NatNet 4 naming
+  kPingResponse = 1,
+  kRequest = 2,
+  kResponse = 3,
+  kRequestModelDef = 4,
+  kModelDef = 5,
+  kRequestFrameOfData = 6,
+  kFrameOfData = 7,
+  kMessageString = 8,
+};
+
+inline constexpr int kCommandPort = 1510;
+inline constexpr int kDataPort = 1511;
+inline constexpr const char* kMulticastGroup = "239.255.42.99";
+inline constexpr std::size_t kMaxPacketBytes = 65507;  // largest UDP payload over IPv4
+
+struct Version {
+  int major = 3;
+  int minor = 1;
+  bool at_least(int ma, int mi) const { return major > ma || (major == ma && minor >= mi); }
+  bool operator==(const Version&) const = default;
+};
+
+struct Vec3f {
+  float x = 0, y = 0, z = 0;
+  bool operator==(const Vec3f&) const = default;
+};
+
+struct RigidBody {
+  std::int32_t id = 0;
+  Vec3f p_m;
+  float qx = 0, qy = 0, qz = 0, qw = 1;
+  std::vector<Vec3f> markers;  // only sent before NatNet 3.0
+  float mean_error_m = 0;      // 2.0+
+  bool tracking_valid = true;  // params bit 0, 2.6+ (always true before)
+};
+
+struct MarkerSet {
+  std::string name;
+  std::vector<Vec3f> markers;
+};
+
+struct Skeleton {
+  std::int32_t id = 0;
+  std::vector<RigidBody> bones;
+};
+
+struct LabeledMarker {
+  std::int32_t id = 0;  // model id << 16 | marker id
+  Vec3f p_m;
+  float size_m = 0;
+  std::int16_t params = 0;  // 2.6+
+  float residual_m = 0;     // 3.0+
+};
+
+struct AnalogDevice {  // force plates and other devices share this layout
+  std::int32_t id = 0;
+  std::vector<std::vector<float>> channels;  // per channel, its sub-frames
+};
+
+struct Frame {
+  std::uint32_t frame_number = 0;
+  std::vector<MarkerSet> marker_sets;
+  std::vector<Vec3f> unlabeled_markers;
+  std::vector<RigidBody> rigid_bodies;
+  std::vector<Skeleton> skeletons;        // 2.1+
+  std::uint32_t asset_section_bytes = 0;  // 4.1+: skipped by byte count, not parsed
+  std::int32_t asset_count = 0;
+  std::vector<LabeledMarker> labeled_markers;  // 2.3+
+  std::vector<AnalogDevice> force_plates;      // 2.9+
+  std::vector<AnalogDevice> devices;           // 2.11+
+  std::uint32_t timecode = 0;
+  std::uint32_t timecode_sub = 0;
+  double timestamp_s = 0;  // f32 before 2.7
+  std::uint64_t stamp_mid_exposure = 0, stamp_data_received = 0, stamp_transmit = 0;  // 3.0+
+  std::uint32_t precision_s = 0, precision_frac = 0;                                  // 4.0+
+  std::int16_t params = 0;  // bit 0 recording, bit 1 tracked models changed
+
+  void clear();  // keeps capacity so a reused Frame stops allocating
+  const RigidBody* find_body(std::int32_t id) const;
+};
+
+struct ServerInfo {
+  std::string app_name;
+  std::array<std::uint8_t, 4> app_version{};
+  Version natnet_version;
+  std::array<std::uint8_t, 4> natnet_version_bytes{};
+};
+
+// Why a packet was rejected; nullptr reason = accepted. `offset` is where parsing stopped.
+struct ParseStatus {
+  const char* reason = nullptr;
+  std::size_t offset = 0;
+  bool ok() const { return reason == nullptr; }
+};
+
+struct PacketView {
+  std::uint16_t message_id = 0;
+  std::span<const std::uint8_t> payload;  // exactly the header's byte count
+};
+
+// Splits a datagram into message id and payload; rejects a datagram shorter than its header says.
+ParseStatus parse_packet(std::span<const std::uint8_t> datagram, PacketView& out);
+
+// FRAMEOFDATA payload (after the 4-byte header) in the layout of `version`. Never reads outside
+// `payload`; every count is checked against the bytes left before anything is allocated.
+ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version version, Frame& out);
+
+// PINGRESPONSE payload: app name[256], app version[4], NatNet version[4] (more bytes ignored).
+ParseStatus parse_server_info(std::span<const std::uint8_t> payload, ServerInfo& out);
+
+// Builders for the client's connect request and for the simulator's replies and frames.
+std::vector<std::uint8_t> make_ping(std::string_view app_name);
+std::vector<std::uint8_t> make_server_info(const ServerInfo& info);
+// Complete FRAMEOFDATA datagram (header + payload) in `version`'s layout.
+std::vector<std::uint8_t> encode_frame(const Frame& frame, Version version);
+
+// "2", "3.1", "4.1.0.0" -> Version; throws std::invalid_argument naming the text and 2.0-4.x.
+Version parse_version(std::string_view text);
+bool supported(Version v);  // 2.0 .. 4.x
+
+}  // namespace telex::local::natnet

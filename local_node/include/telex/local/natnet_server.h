@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// A NatNet server (what telex-sim-natnet runs): answers connect requests and streams frames.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "telex/local/natnet.h"
+
+namespace telex::local {
+
+struct NatNetServerConfig {
+  std::string bind_address = "127.0.0.1";
+  int command_port = natnet::kCommandPort;  // 0 = any free port (tests); see command_port()
+  bool multicast = false;  // true: frames to group:data_port; false: to each connected client
+  std::string multicast_group = natnet::kMulticastGroup;
+  std::string multicast_interface = "127.0.0.1";
+  int data_port = natnet::kDataPort;
+  natnet::Version version{3, 1};
+  double rate_hz = 120.0;
+  std::string app_name = "telex-sim-natnet";
+};
+
+// Fills frame.rigid_bodies (and anything else) for time t_s since the start of streaming.
+using NatNetMotion = std::function<void(double t_s, natnet::Frame& frame)>;
+
+// Rigid body ids of the built-in motions.
+inline constexpr std::int32_t kSimHeadId = 1;
+inline constexpr std::int32_t kSimRightHandId = 2;
+inline constexpr std::int32_t kSimRightShoulderId = 3;
+
+// Operator standing still (head at 1.6 m, Motive axes, looking along -z); the right hand starts
+// 0.25 m in front of the eyes and pushes to 0.55 m and back, period 4 s. Palm faces forward-down so
+// the index points into the scene.
+void natnet_press_motion(double t_s, natnet::Frame& frame);
+
+// A recorded motion: CSV with header "time_s,body_id,x,y,z,qx,qy,qz,qw", one body per line, lines
+// sorted by time; a frame plays every body whose newest line is at or before t (looping when
+// `loop`). Throws std::runtime_error naming the file and line on bad input.
+NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop);
+
+struct NatNetServerStats {
+  std::uint64_t frames_sent = 0;
+  std::uint64_t pings_answered = 0;
+  std::uint64_t clients = 0;
+  std::uint64_t send_errors = 0;
+};
+
+class NatNetServer {
+ public:
+  // Binds the command socket; throws std::runtime_error naming address and port on failure.
+  NatNetServer(NatNetServerConfig config, NatNetMotion motion);
+  ~NatNetServer();
+  int command_port() const;  // actually bound
+  // Streams until `duration_s` has passed or stop() is called; blocks the calling thread.
+  void run_for(double duration_s);
+  void stop();  // thread-safe
+  NatNetServerStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace telex::local

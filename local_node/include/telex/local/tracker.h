@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: MIT
+// Hand tracker interface: fingertip states in the remote camera's frame, from any input device.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <glm/glm.hpp>
+#include <memory>
+#include <string>
+
+#include "telex/local/hand_model.h"
+
+namespace telex::local {
+
+inline constexpr int kFingerCount = 5;  // 0 thumb, 1 index, 2 middle, 3 ring, 4 little
+
+struct Fingertip {
+  int finger = 0;
+  glm::dvec3 p_camera_m{0.0};
+  glm::dvec3 v_camera_mps{0.0};
+  // Unit vector along the distal phalanx, pointing out of the fingertip: shear "along the finger"
+  // is measured against it.
+  glm::dvec3 axis_camera{0.0, 0.0, 1.0};
+  bool valid = false;
+};
+
+// One tracker sample, everything in the remote camera frame (x right, y down, z forward, metres).
+struct HandState {
+  std::int64_t time_ns = 0;  // when the sample was taken, on the caller's clock (poll's now_ns)
+  std::array<Fingertip, kFingerCount> tips{};
+  // Joint chain per finger for drawing: knuckle (MCP), PIP, DIP, tip. Valid when skeleton_valid.
+  std::array<std::array<glm::dvec3, 4>, kFingerCount> joints_camera{};
+  glm::dvec3 wrist_camera{0.0};
+  glm::dvec3 shoulder_camera{0.0};  // valid when shoulder_valid (NatNet with a shoulder body)
+  bool skeleton_valid = false;
+  bool shoulder_valid = false;
+};
+
+struct TrackerStats {
+  std::uint64_t polls = 0;           // calls to poll()
+  std::uint64_t updates = 0;         // polls that returned a new state
+  std::uint64_t frames_in = 0;       // device frames received (packets, reports)
+  std::uint64_t frames_dropped = 0;  // frames overwritten before a poll took them
+  std::uint64_t parse_errors = 0;    // malformed packets / reports rejected
+  std::uint64_t io_errors = 0;       // socket or device read failures
+};
+
+// Everything a tracker spec may need beyond its own string.
+struct TrackerConfig {
+  // Depth (m) of the surface at the image centre; scripted hands aim at it. The daemon sets it
+  // from the first received surface before creating a script tracker.
+  double surface_depth_m = 0.8;
+  bool repeat = false;  // scripts: loop instead of running once
+
+  // NatNet rigid body ids (-1 = not streamed).
+  int head_body_id = 1;
+  int right_hand_body_id = 2;
+  int left_hand_body_id = -1;
+  int right_shoulder_body_id = 3;
+  int left_shoulder_body_id = -1;
+  bool use_left_hand = false;
+  int natnet_command_port = 1510;
+  int natnet_data_port = 1511;
+  std::string natnet_multicast_group = "239.255.42.99";
+  std::string natnet_local_address = "0.0.0.0";  // interface to join the group on
+
+  HandModelConfig hand;  // segment lengths and head-to-camera offset
+  // Finger bends (0 straight .. 1 fist) used when no glove is attached.
+  std::array<double, kFingerCount> default_bend{0.3, 0.1, 0.3, 0.4, 0.4};
+  // Glove spec combined with a NatNet wrist: "" (none), "5dt-usb[:PATH]", "5dt-serial:DEV".
+  std::string glove_spec;
+  std::string glove_calibration_path;  // JSON from docs/HARDWARE.md; empty = full sensor range
+  // Wrist pose in the camera frame for a glove used without NatNet.
+  glm::dvec3 glove_wrist_p_camera_m{0.0, 0.05, 0.45};
+};
+
+class HandTracker {
+ public:
+  virtual ~HandTracker();
+  // Non-blocking: fills `out` with the newest state and returns true when a state newer than the
+  // last one returned is available. Never throws, never allocates on the steady path.
+  virtual bool poll(std::int64_t now_ns, HandState& out) = 0;
+  virtual std::string name() const = 0;
+  virtual TrackerStats stats() const = 0;
+};
+
+// Spec grammar (docs/HARDWARE.md):
+//   script:press | script:stroke | script:tap | script:FILE
+//   natnet:SERVER_IP[,multicast|,unicast][,local=IP]      (glove from config.glove_spec)
+//   5dt-usb[:HIDPATH] | 5dt-serial:DEV                     (glove alone, wrist fixed)
+// Throws std::invalid_argument naming the spec and the valid forms; std::runtime_error when a
+// device cannot be opened (the message names it and says what to try).
+std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const TrackerConfig& config);
+
+}  // namespace telex::local

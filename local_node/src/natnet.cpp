@@ -1,0 +1,474 @@
+// SPDX-License-Identifier: MIT
+// NatNet packet parsing and building: bounds-checked little-endian cursor over one datagram.
+#include "telex/local/natnet.h"
+
+#include <charconv>
+#include <cstring>
+#include <stdexcept>
+
+namespace telex::local::natnet {
+
+void Frame::clear() {
+  frame_number = 0;
+  marker_sets.clear();
+  unlabeled_markers.clear();
+  rigid_bodies.clear();
+  skeletons.clear();
+  asset_section_bytes = 0;
+  asset_count = 0;
+  labeled_markers.clear();
+  force_plates.clear();
+  devices.clear();
+  timecode = timecode_sub = 0;
+  timestamp_s = 0;
+  stamp_mid_exposure = stamp_data_received = stamp_transmit = 0;
+  precision_s = precision_frac = 0;
+  params = 0;
+}
+
+const RigidBody* Frame::find_body(std::int32_t id) const {
+  for (const auto& b : rigid_bodies)
+    if (b.id == id) return &b;
+  return nullptr;
+}
+
+bool supported(Version v) { return v.major >= 2 && v.major <= 4 && v.minor >= 0; }
+
+Version parse_version(std::string_view text) {
+  Version v{0, 0};
+  const char* p = text.data();
+  const char* end = text.data() + text.size();
+  auto r = std::from_chars(p, end, v.major);
+  if (r.ec == std::errc{} && r.ptr != end && *r.ptr == '.') {
+    r = std::from_chars(r.ptr + 1, end, v.minor);
+    // Build and revision numbers do not change the layout: accept and ignore them.
+    while (r.ec == std::errc{} && r.ptr != end && *r.ptr == '.') {
+      int ignored = 0;
+      r = std::from_chars(r.ptr + 1, end, ignored);
+    }
+  }
+  if (r.ec != std::errc{} || r.ptr != end || !supported(v))
+    throw std::invalid_argument("NatNet version '" + std::string(text) +
+                                "' is not one this client parses (2.0 .. 4.x, e.g. 3.1)");
+  return v;
+}
+
+namespace {
+
+class Reader {
+ public:
+  explicit Reader(std::span<const std::uint8_t> b) : b_(b) {}
+  std::size_t offset() const { return pos_; }
+  std::size_t left() const { return b_.size() - pos_; }
+
+  template <typename T>
+  bool get(T& v) {
+    if (left() < sizeof(T)) return false;
+    std::memcpy(&v, b_.data() + pos_, sizeof(T));  // wire and host are little-endian (x86, ARM)
+    pos_ += sizeof(T);
+    return true;
+  }
+  bool vec3(Vec3f& v) { return get(v.x) && get(v.y) && get(v.z); }
+  bool skip(std::size_t n) {
+    if (left() < n) return false;
+    pos_ += n;
+    return true;
+  }
+  bool cstring(std::string& s) {
+    const auto* start = b_.data() + pos_;
+    const void* nul = std::memchr(start, 0, left());
+    if (nul == nullptr) return false;
+    const auto n = static_cast<std::size_t>(static_cast<const std::uint8_t*>(nul) - start);
+    s.assign(reinterpret_cast<const char*>(start), n);
+    pos_ += n + 1;
+    return true;
+  }
+
+ private:
+  std::span<const std::uint8_t> b_;
+  std::size_t pos_ = 0;
+};
+
+#define TELEX_NN_FAIL(why) \
+  return ParseStatus { why, r.offset() }
+#define TELEX_NN_NEED(expr, why)     \
+  do {                               \
+    if (!(expr)) TELEX_NN_FAIL(why); \
+  } while (0)
+
+// Reads a count and checks it against the bytes left, so a corrupt count cannot make us loop or
+// allocate far beyond the datagram.
+ParseStatus read_count(Reader& r, std::size_t min_item_bytes, std::int32_t& n, const char* what) {
+  TELEX_NN_NEED(r.get(n), what);
+  TELEX_NN_NEED(n >= 0, "negative count");
+  TELEX_NN_NEED(static_cast<std::size_t>(n) <= r.left() / min_item_bytes,
+                "count exceeds the bytes left in the packet");
+  return {};
+}
+
+// NatNet 4.1+ prefixes every section's items with their byte count.
+struct Section {
+  bool sized = false;
+  std::uint32_t bytes = 0;
+  std::size_t start = 0;
+};
+
+ParseStatus open_section(Reader& r, Version v, Section& s) {
+  s.sized = v.at_least(4, 1);
+  if (s.sized) {
+    TELEX_NN_NEED(r.get(s.bytes), "truncated section byte count");
+    TELEX_NN_NEED(s.bytes <= r.left(), "section byte count exceeds the packet");
+  }
+  s.start = r.offset();
+  return {};
+}
+
+ParseStatus close_section(const Reader& r, const Section& s) {
+  if (s.sized && r.offset() - s.start != s.bytes)
+    return ParseStatus{"section byte count does not match its contents", r.offset()};
+  return {};
+}
+
+ParseStatus read_rigid_body(Reader& r, Version v, RigidBody& b) {
+  TELEX_NN_NEED(r.get(b.id) && r.vec3(b.p_m), "truncated rigid body");
+  TELEX_NN_NEED(r.get(b.qx) && r.get(b.qy) && r.get(b.qz) && r.get(b.qw), "truncated rigid body");
+  b.markers.clear();
+  if (v.major < 3) {
+    std::int32_t n = 0;
+    const std::size_t per_marker = v.major >= 2 ? 20 : 12;
+    if (auto s = read_count(r, per_marker, n, "truncated rigid body marker count"); !s.ok())
+      return s;
+    b.markers.resize(static_cast<std::size_t>(n));
+    for (auto& m : b.markers) TELEX_NN_NEED(r.vec3(m), "truncated rigid body marker");
+    if (v.major >= 2)  // marker ids (i32) and sizes (f32): not used by the hand model
+      TELEX_NN_NEED(r.skip(static_cast<std::size_t>(n) * 8), "truncated rigid body marker ids");
+  }
+  b.mean_error_m = 0;
+  if (v.major >= 2) TELEX_NN_NEED(r.get(b.mean_error_m), "truncated rigid body mean error");
+  b.tracking_valid = true;
+  if (v.at_least(2, 6)) {
+    std::int16_t params = 0;
+    TELEX_NN_NEED(r.get(params), "truncated rigid body params");
+    b.tracking_valid = (params & 1) != 0;
+  }
+  return {};
+}
+
+ParseStatus read_analog(Reader& r, std::vector<AnalogDevice>& out, Version v, const char* what) {
+  std::int32_t n = 0;
+  if (auto s = read_count(r, 8, n, what); !s.ok()) return s;
+  Section sec;
+  if (auto s = open_section(r, v, sec); !s.ok()) return s;
+  out.resize(static_cast<std::size_t>(n));
+  for (auto& d : out) {
+    std::int32_t channels = 0;
+    TELEX_NN_NEED(r.get(d.id), "truncated analog device id");
+    if (auto s = read_count(r, 4, channels, "truncated analog channel count"); !s.ok()) return s;
+    d.channels.resize(static_cast<std::size_t>(channels));
+    for (auto& ch : d.channels) {
+      std::int32_t frames = 0;
+      if (auto s = read_count(r, 4, frames, "truncated analog frame count"); !s.ok()) return s;
+      ch.resize(static_cast<std::size_t>(frames));
+      for (auto& f : ch) TELEX_NN_NEED(r.get(f), "truncated analog sample");
+    }
+  }
+  return close_section(r, sec);
+}
+
+}  // namespace
+
+ParseStatus parse_packet(std::span<const std::uint8_t> datagram, PacketView& out) {
+  Reader r(datagram);
+  std::uint16_t id = 0, n = 0;
+  TELEX_NN_NEED(r.get(id) && r.get(n), "datagram shorter than the 4-byte NatNet header");
+  TELEX_NN_NEED(r.left() >= n, "datagram shorter than its header's byte count");
+  out.message_id = id;
+  out.payload = datagram.subspan(4, n);
+  return {};
+}
+
+ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version v, Frame& out) {
+  Reader r(payload);
+  if (!supported(v)) TELEX_NN_FAIL("unsupported NatNet version (2.0 .. 4.x parsed)");
+  out.clear();
+  TELEX_NN_NEED(r.get(out.frame_number), "truncated frame number");
+
+  std::int32_t n = 0;
+  // Marker sets: name, count, xyz each.
+  if (auto s = read_count(r, 5, n, "truncated marker set count"); !s.ok()) return s;
+  {
+    Section sec;
+    if (auto s = open_section(r, v, sec); !s.ok()) return s;
+    out.marker_sets.resize(static_cast<std::size_t>(n));
+    for (auto& ms : out.marker_sets) {
+      TELEX_NN_NEED(r.cstring(ms.name), "marker set name without terminating NUL");
+      std::int32_t m = 0;
+      if (auto s = read_count(r, 12, m, "truncated marker set size"); !s.ok()) return s;
+      ms.markers.resize(static_cast<std::size_t>(m));
+      for (auto& p : ms.markers) TELEX_NN_NEED(r.vec3(p), "truncated marker");
+    }
+    if (auto s = close_section(r, sec); !s.ok()) return s;
+  }
+  // Unlabeled ("other") markers.
+  if (auto s = read_count(r, 12, n, "truncated unlabeled marker count"); !s.ok()) return s;
+  {
+    Section sec;
+    if (auto s = open_section(r, v, sec); !s.ok()) return s;
+    out.unlabeled_markers.resize(static_cast<std::size_t>(n));
+    for (auto& p : out.unlabeled_markers) TELEX_NN_NEED(r.vec3(p), "truncated unlabeled marker");
+    if (auto s = close_section(r, sec); !s.ok()) return s;
+  }
+  // Rigid bodies.
+  if (auto s = read_count(r, 32, n, "truncated rigid body count"); !s.ok()) return s;
+  {
+    Section sec;
+    if (auto s = open_section(r, v, sec); !s.ok()) return s;
+    out.rigid_bodies.resize(static_cast<std::size_t>(n));
+    for (auto& b : out.rigid_bodies)
+      if (auto s = read_rigid_body(r, v, b); !s.ok()) return s;
+    if (auto s = close_section(r, sec); !s.ok()) return s;
+  }
+  // Skeletons: id, bone count, bones laid out as rigid bodies.
+  if (v.at_least(2, 1)) {
+    if (auto s = read_count(r, 8, n, "truncated skeleton count"); !s.ok()) return s;
+    Section sec;
+    if (auto s = open_section(r, v, sec); !s.ok()) return s;
+    out.skeletons.resize(static_cast<std::size_t>(n));
+    for (auto& sk : out.skeletons) {
+      std::int32_t bones = 0;
+      TELEX_NN_NEED(r.get(sk.id), "truncated skeleton id");
+      if (auto s = read_count(r, 32, bones, "truncated skeleton bone count"); !s.ok()) return s;
+      sk.bones.resize(static_cast<std::size_t>(bones));
+      for (auto& b : sk.bones)
+        if (auto s = read_rigid_body(r, v, b); !s.ok()) return s;
+    }
+    if (auto s = close_section(r, sec); !s.ok()) return s;
+  }
+  // Assets (Motive 3.1 / NatNet 4.1+): the byte count lets us step over them unparsed.
+  if (v.at_least(4, 1)) {
+    TELEX_NN_NEED(r.get(out.asset_count), "truncated asset count");
+    TELEX_NN_NEED(out.asset_count >= 0, "negative count");
+    TELEX_NN_NEED(r.get(out.asset_section_bytes), "truncated section byte count");
+    TELEX_NN_NEED(r.skip(out.asset_section_bytes), "section byte count exceeds the packet");
+  }
+  // Labeled markers.
+  if (v.at_least(2, 3)) {
+    if (auto s = read_count(r, 20, n, "truncated labeled marker count"); !s.ok()) return s;
+    Section sec;
+    if (auto s = open_section(r, v, sec); !s.ok()) return s;
+    out.labeled_markers.resize(static_cast<std::size_t>(n));
+    for (auto& m : out.labeled_markers) {
+      TELEX_NN_NEED(r.get(m.id) && r.vec3(m.p_m) && r.get(m.size_m), "truncated labeled marker");
+      m.params = 0;
+      m.residual_m = 0;
+      if (v.at_least(2, 6)) TELEX_NN_NEED(r.get(m.params), "truncated labeled marker params");
+      if (v.major >= 3) TELEX_NN_NEED(r.get(m.residual_m), "truncated labeled marker residual");
+    }
+    if (auto s = close_section(r, sec); !s.ok()) return s;
+  }
+  if (v.at_least(2, 9))
+    if (auto s = read_analog(r, out.force_plates, v, "truncated force plate count"); !s.ok())
+      return s;
+  if (v.at_least(2, 11))
+    if (auto s = read_analog(r, out.devices, v, "truncated device count"); !s.ok()) return s;
+
+  TELEX_NN_NEED(r.get(out.timecode) && r.get(out.timecode_sub), "truncated timecode");
+  if (v.at_least(2, 7)) {
+    TELEX_NN_NEED(r.get(out.timestamp_s), "truncated timestamp");
+  } else {
+    float ts = 0;
+    TELEX_NN_NEED(r.get(ts), "truncated timestamp");
+    out.timestamp_s = ts;
+  }
+  if (v.major >= 3)
+    TELEX_NN_NEED(r.get(out.stamp_mid_exposure) && r.get(out.stamp_data_received) &&
+                      r.get(out.stamp_transmit),
+                  "truncated high-resolution stamps");
+  if (v.major >= 4)
+    TELEX_NN_NEED(r.get(out.precision_s) && r.get(out.precision_frac),
+                  "truncated precision timestamp");
+  TELEX_NN_NEED(r.get(out.params), "truncated frame params");
+  std::uint32_t eod = 0;
+  TELEX_NN_NEED(r.get(eod), "missing end-of-data marker");
+  TELEX_NN_NEED(eod == 0, "end-of-data marker is not zero");
+  return {};
+}
+
+ParseStatus parse_server_info(std::span<const std::uint8_t> payload, ServerInfo& out) {
+  Reader r(payload);
+  TELEX_NN_NEED(payload.size() >= 264, "server info shorter than 264 bytes");
+  const auto* name = reinterpret_cast<const char*>(payload.data());
+  out.app_name.assign(name, strnlen(name, 256));
+  r.skip(256);
+  for (auto& b : out.app_version) r.get(b);
+  for (auto& b : out.natnet_version_bytes) r.get(b);
+  out.natnet_version = Version{out.natnet_version_bytes[0], out.natnet_version_bytes[1]};
+  TELEX_NN_NEED(supported(out.natnet_version), "server NatNet version outside 2.0 .. 4.x");
+  return {};
+}
+
+#undef TELEX_NN_NEED
+#undef TELEX_NN_FAIL
+
+namespace {
+
+class Writer {
+ public:
+  template <typename T>
+  void put(T v) {
+    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
+    b.insert(b.end(), p, p + sizeof(T));
+  }
+  void vec3(const Vec3f& v) {
+    put(v.x);
+    put(v.y);
+    put(v.z);
+  }
+  void cstring(const std::string& s) {
+    b.insert(b.end(), s.begin(), s.end());
+    b.push_back(0);
+  }
+  // 4.1+: reserve a byte count and fill it in when the section ends.
+  std::size_t open_section(Version v) {
+    if (!v.at_least(4, 1)) return 0;
+    put(std::uint32_t{0});
+    return b.size();
+  }
+  void close_section(Version v, std::size_t start) {
+    if (!v.at_least(4, 1)) return;
+    const auto n = static_cast<std::uint32_t>(b.size() - start);
+    std::memcpy(b.data() + start - 4, &n, 4);
+  }
+  std::vector<std::uint8_t> b;
+};
+
+void write_rigid_body(Writer& w, const RigidBody& rb, Version v) {
+  w.put(rb.id);
+  w.vec3(rb.p_m);
+  w.put(rb.qx);
+  w.put(rb.qy);
+  w.put(rb.qz);
+  w.put(rb.qw);
+  if (v.major < 3) {
+    w.put(static_cast<std::int32_t>(rb.markers.size()));
+    for (const auto& m : rb.markers) w.vec3(m);
+    if (v.major >= 2) {
+      for (std::size_t i = 0; i < rb.markers.size(); ++i) w.put(static_cast<std::int32_t>(i + 1));
+      for (std::size_t i = 0; i < rb.markers.size(); ++i) w.put(0.014f);
+    }
+  }
+  if (v.major >= 2) w.put(rb.mean_error_m);
+  if (v.at_least(2, 6)) w.put(static_cast<std::int16_t>(rb.tracking_valid ? 1 : 0));
+}
+
+void write_analog(Writer& w, const std::vector<AnalogDevice>& devs, Version v) {
+  w.put(static_cast<std::int32_t>(devs.size()));
+  const auto sec = w.open_section(v);
+  for (const auto& d : devs) {
+    w.put(d.id);
+    w.put(static_cast<std::int32_t>(d.channels.size()));
+    for (const auto& ch : d.channels) {
+      w.put(static_cast<std::int32_t>(ch.size()));
+      for (float f : ch) w.put(f);
+    }
+  }
+  w.close_section(v, sec);
+}
+
+std::vector<std::uint8_t> with_header(std::uint16_t id, std::vector<std::uint8_t> payload) {
+  if (payload.size() > 0xFFFF) throw std::length_error("NatNet payload exceeds 65535 bytes");
+  const auto n = static_cast<std::uint16_t>(payload.size());
+  std::vector<std::uint8_t> out(4 + payload.size());
+  std::memcpy(out.data(), &id, 2);
+  std::memcpy(out.data() + 2, &n, 2);
+  if (!payload.empty()) std::memcpy(out.data() + 4, payload.data(), payload.size());
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> make_ping(std::string_view app_name) {
+  std::vector<std::uint8_t> p(app_name.begin(), app_name.end());
+  p.push_back(0);
+  return with_header(kPing, std::move(p));
+}
+
+std::vector<std::uint8_t> make_server_info(const ServerInfo& info) {
+  std::vector<std::uint8_t> p(264, 0);
+  std::memcpy(p.data(), info.app_name.data(), std::min<std::size_t>(info.app_name.size(), 255));
+  std::memcpy(p.data() + 256, info.app_version.data(), 4);
+  const std::array<std::uint8_t, 4> nn{static_cast<std::uint8_t>(info.natnet_version.major),
+                                       static_cast<std::uint8_t>(info.natnet_version.minor), 0, 0};
+  std::memcpy(p.data() + 260, nn.data(), 4);
+  return with_header(kPingResponse, std::move(p));
+}
+
+std::vector<std::uint8_t> encode_frame(const Frame& f, Version v) {
+  if (!supported(v)) throw std::invalid_argument("encode_frame: NatNet version outside 2.0 .. 4.x");
+  Writer w;
+  w.put(f.frame_number);
+  w.put(static_cast<std::int32_t>(f.marker_sets.size()));
+  auto sec = w.open_section(v);
+  for (const auto& ms : f.marker_sets) {
+    w.cstring(ms.name);
+    w.put(static_cast<std::int32_t>(ms.markers.size()));
+    for (const auto& m : ms.markers) w.vec3(m);
+  }
+  w.close_section(v, sec);
+  w.put(static_cast<std::int32_t>(f.unlabeled_markers.size()));
+  sec = w.open_section(v);
+  for (const auto& m : f.unlabeled_markers) w.vec3(m);
+  w.close_section(v, sec);
+  w.put(static_cast<std::int32_t>(f.rigid_bodies.size()));
+  sec = w.open_section(v);
+  for (const auto& rb : f.rigid_bodies) write_rigid_body(w, rb, v);
+  w.close_section(v, sec);
+  if (v.at_least(2, 1)) {
+    w.put(static_cast<std::int32_t>(f.skeletons.size()));
+    sec = w.open_section(v);
+    for (const auto& sk : f.skeletons) {
+      w.put(sk.id);
+      w.put(static_cast<std::int32_t>(sk.bones.size()));
+      for (const auto& b : sk.bones) write_rigid_body(w, b, v);
+    }
+    w.close_section(v, sec);
+  }
+  if (v.at_least(4, 1)) {
+    w.put(std::int32_t{0});  // no assets
+    w.put(std::uint32_t{0});
+  }
+  if (v.at_least(2, 3)) {
+    w.put(static_cast<std::int32_t>(f.labeled_markers.size()));
+    sec = w.open_section(v);
+    for (const auto& m : f.labeled_markers) {
+      w.put(m.id);
+      w.vec3(m.p_m);
+      w.put(m.size_m);
+      if (v.at_least(2, 6)) w.put(m.params);
+      if (v.major >= 3) w.put(m.residual_m);
+    }
+    w.close_section(v, sec);
+  }
+  if (v.at_least(2, 9)) write_analog(w, f.force_plates, v);
+  if (v.at_least(2, 11)) write_analog(w, f.devices, v);
+  w.put(f.timecode);
+  w.put(f.timecode_sub);
+  if (v.at_least(2, 7))
+    w.put(f.timestamp_s);
+  else
+    w.put(static_cast<float>(f.timestamp_s));
+  if (v.major >= 3) {
+    w.put(f.stamp_mid_exposure);
+    w.put(f.stamp_data_received);
+    w.put(f.stamp_transmit);
+  }
+  if (v.major >= 4) {
+    w.put(f.precision_s);
+    w.put(f.precision_frac);
+  }
+  w.put(f.params);
+  w.put(std::uint32_t{0});
+  return with_header(kFrameOfData, std::move(w.b));
+}
+
+}  // namespace telex::local::natnet

@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: MIT
+// NatNet client on Boost.Asio: connect request, server info, FRAMEOFDATA to rigid-body samples.
+#include "telex/local/natnet_client.h"
+
+// clang-format off
+// Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
+#include <utility>
+// clang-format on
+#include <boost/asio.hpp>
+#include <chrono>
+#include <mutex>
+#include <stdexcept>
+
+namespace telex::local {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+
+const NatNetSample::Body* NatNetSample::find(std::int32_t id) const {
+  for (const auto& b : bodies)
+    if (b.id == id && b.present) return &b;
+  return nullptr;
+}
+
+struct NatNetClient::Impl {
+  explicit Impl(NatNetClientConfig c, TripleBuffer<NatNetSample>& out)
+      : cfg(std::move(c)), samples(out), command(io), ping_timer(io) {}
+
+  NatNetClientConfig cfg;
+  TripleBuffer<NatNetSample>& samples;
+  asio::io_context io;
+  udp::socket command;
+  std::unique_ptr<udp::socket> data;
+  udp::endpoint server;
+  asio::steady_timer ping_timer;
+  std::vector<std::uint8_t> ping;
+  std::array<std::uint8_t, natnet::kMaxPacketBytes> cmd_buf{};
+  std::array<std::uint8_t, natnet::kMaxPacketBytes> data_buf{};
+  udp::endpoint cmd_from, data_from;
+  natnet::Frame frame;  // reused: parsing stops allocating once capacities settle
+
+  std::atomic<int> version_major{0}, version_minor{0};
+  mutable std::mutex info_mu;  // server info and last error; never touched by the haptic thread
+  std::optional<natnet::ServerInfo> info;
+  std::string last_error;
+
+  std::atomic<std::uint64_t> datagrams{0}, frames{0}, parse_errors{0}, before_version{0},
+      pings_sent{0}, io_errors{0};
+
+  void open() {
+    boost::system::error_code ec;
+    const auto server_addr = asio::ip::make_address(cfg.server_ip, ec);
+    if (ec)
+      throw std::runtime_error("NatNet server address '" + cfg.server_ip +
+                               "' is not an IPv4/IPv6 address (give the Motive PC's IP)");
+    server = udp::endpoint(server_addr, static_cast<unsigned short>(cfg.command_port));
+    command.open(udp::v4());
+    command.bind(udp::endpoint(udp::v4(), 0), ec);
+    if (ec) throw std::runtime_error("NatNet command socket: cannot bind: " + ec.message());
+    // Motive bursts large frames; a bigger receive buffer rides them out (capped by rmem_max).
+    command.set_option(asio::socket_base::receive_buffer_size(1 << 20), ec);
+    if (cfg.multicast) {
+      data = std::make_unique<udp::socket>(io);
+      data->open(udp::v4());
+      data->set_option(asio::socket_base::reuse_address(true));
+      data->bind(udp::endpoint(udp::v4(), static_cast<unsigned short>(cfg.data_port)), ec);
+      if (ec)
+        throw std::runtime_error("NatNet data port " + std::to_string(cfg.data_port) +
+                                 ": cannot bind: " + ec.message() +
+                                 " (another client without SO_REUSEADDR? try unicast)");
+      const auto group = asio::ip::make_address_v4(cfg.multicast_group, ec);
+      if (ec || !group.is_multicast())
+        throw std::runtime_error(
+            "NatNet multicast group '" + cfg.multicast_group +
+            "' is not an IPv4 multicast address (Motive default 239.255.42.99)");
+      const auto iface = asio::ip::make_address_v4(cfg.local_address, ec);
+      if (ec)
+        throw std::runtime_error("NatNet local interface '" + cfg.local_address +
+                                 "' is not an IPv4 address");
+      data->set_option(asio::ip::multicast::join_group(group, iface), ec);
+      if (ec)
+        throw std::runtime_error("NatNet: cannot join " + cfg.multicast_group + " on " +
+                                 cfg.local_address + ": " + ec.message() +
+                                 " (check the interface address, or use unicast)");
+      data->set_option(asio::socket_base::receive_buffer_size(1 << 20), ec);
+    }
+    if (cfg.version) {
+      version_major = cfg.version->major;
+      version_minor = cfg.version->minor;
+    }
+    ping = natnet::make_ping(cfg.app_name);
+  }
+
+  void start() {
+    send_ping();
+    receive_command();
+    if (data) receive_data();
+  }
+
+  // The connect request is repeated until the server answers, so a client started before Motive
+  // still connects; in unicast the repeats also keep the server sending to us.
+  void send_ping() {
+    if (!info_known() || !cfg.multicast) {
+      boost::system::error_code ec;
+      command.send_to(asio::buffer(ping), server, 0, ec);
+      if (ec)
+        ++io_errors;
+      else
+        ++pings_sent;
+    }
+    ping_timer.expires_after(std::chrono::seconds(1));
+    ping_timer.async_wait([this](boost::system::error_code ec) {
+      if (!ec) send_ping();
+    });
+  }
+
+  bool info_known() {
+    std::lock_guard lock(info_mu);
+    return info.has_value();
+  }
+
+  void receive_command() {
+    command.async_receive_from(asio::buffer(cmd_buf), cmd_from,
+                               [this](boost::system::error_code ec, std::size_t n) {
+                                 if (ec == asio::error::operation_aborted) return;
+                                 if (ec)
+                                   ++io_errors;
+                                 else
+                                   handle(std::span(cmd_buf.data(), n));
+                                 receive_command();
+                               });
+  }
+
+  void receive_data() {
+    data->async_receive_from(asio::buffer(data_buf), data_from,
+                             [this](boost::system::error_code ec, std::size_t n) {
+                               if (ec == asio::error::operation_aborted) return;
+                               if (ec)
+                                 ++io_errors;
+                               else
+                                 handle(std::span(data_buf.data(), n));
+                               receive_data();
+                             });
+  }
+
+  void reject(const char* why) {
+    ++parse_errors;
+    std::lock_guard lock(info_mu);
+    last_error = why;
+  }
+
+  void handle(std::span<const std::uint8_t> datagram) {
+    ++datagrams;
+    natnet::PacketView pkt;
+    if (auto st = natnet::parse_packet(datagram, pkt); !st.ok()) return reject(st.reason);
+    if (pkt.message_id == natnet::kPingResponse) {
+      natnet::ServerInfo si;
+      if (auto st = natnet::parse_server_info(pkt.payload, si); !st.ok()) return reject(st.reason);
+      if (!cfg.version) {
+        version_major = si.natnet_version.major;
+        version_minor = si.natnet_version.minor;
+      }
+      std::lock_guard lock(info_mu);
+      info = std::move(si);
+      return;
+    }
+    if (pkt.message_id != natnet::kFrameOfData) return;  // model defs, messages: not needed
+    const natnet::Version v{version_major.load(), version_minor.load()};
+    if (v.major == 0) {
+      ++before_version;
+      return;
+    }
+    if (auto st = natnet::parse_frame(pkt.payload, v, frame); !st.ok()) return reject(st.reason);
+    ++frames;
+    NatNetSample s;
+    s.frame_number = frame.frame_number;
+    s.timestamp_s = frame.timestamp_s;
+    s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                        std::chrono::steady_clock::now().time_since_epoch())
+                        .count();
+    const std::size_t n = std::min<std::size_t>(cfg.body_ids.size(), NatNetSample::kMaxBodies);
+    for (std::size_t i = 0; i < n; ++i) {
+      auto& b = s.bodies[i];
+      b.id = cfg.body_ids[i];
+      if (const natnet::RigidBody* rb = frame.find_body(b.id)) {
+        b.present = true;
+        b.valid = rb->tracking_valid;
+        b.pose.p_m = {rb->p_m.x, rb->p_m.y, rb->p_m.z};
+        b.pose.q = glm::normalize(glm::dquat(rb->qw, rb->qx, rb->qy, rb->qz));
+      }
+    }
+    samples.publish(s);
+  }
+};
+
+NatNetClient::NatNetClient(NatNetClientConfig config)
+    : impl_(std::make_unique<Impl>(std::move(config), samples_)) {
+  impl_->open();
+  impl_->start();
+  thread_ = std::thread([this] { impl_->io.run(); });
+}
+
+NatNetClient::~NatNetClient() {
+  impl_->io.stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+std::optional<natnet::ServerInfo> NatNetClient::server_info() const {
+  std::lock_guard lock(impl_->info_mu);
+  return impl_->info;
+}
+
+std::string NatNetClient::last_error() const {
+  std::lock_guard lock(impl_->info_mu);
+  return impl_->last_error;
+}
+
+NatNetClientStats NatNetClient::stats() const {
+  NatNetClientStats s;
+  s.datagrams = impl_->datagrams;
+  s.frames = impl_->frames;
+  s.parse_errors = impl_->parse_errors;
+  s.before_version = impl_->before_version;
+  s.pings_sent = impl_->pings_sent;
+  s.io_errors = impl_->io_errors;
+  return s;
+}
+
+}  // namespace telex::local

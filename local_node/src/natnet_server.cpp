@@ -1,0 +1,240 @@
+// SPDX-License-Identifier: MIT
+// NatNet server simulator: Asio timer-driven frame stream, built-in and recorded motions.
+#include "telex/local/natnet_server.h"
+
+// clang-format off
+// Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
+#include <utility>
+// clang-format on
+#include <algorithm>
+#include <boost/asio.hpp>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+namespace telex::local {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+
+namespace {
+natnet::RigidBody body(std::int32_t id, double x, double y, double z, double qx, double qy,
+                       double qz, double qw) {
+  natnet::RigidBody b;
+  b.id = id;
+  b.p_m = {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
+  b.qx = static_cast<float>(qx);
+  b.qy = static_cast<float>(qy);
+  b.qz = static_cast<float>(qz);
+  b.qw = static_cast<float>(qw);
+  b.mean_error_m = 0.0003f;
+  return b;
+}
+}  // namespace
+
+void natnet_press_motion(double t_s, natnet::Frame& frame) {
+  frame.rigid_bodies.clear();
+  frame.rigid_bodies.push_back(body(kSimHeadId, 0.0, 1.6, 0.0, 0, 0, 0, 1));
+  // Hand frame x (fingers) -> world -z, y (back of hand) -> world +y: 90 deg about +y.
+  const double s = std::sin(std::numbers::pi / 4), c = std::cos(std::numbers::pi / 4);
+  const double reach_m = 0.25 + 0.15 * (1.0 - std::cos(2.0 * std::numbers::pi * t_s / 4.0));
+  frame.rigid_bodies.push_back(body(kSimRightHandId, 0.03, 1.5, -reach_m, 0, s, 0, c));
+  frame.rigid_bodies.push_back(body(kSimRightShoulderId, 0.2, 1.45, 0.05, 0, 0, 0, 1));
+}
+
+NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("NatNet recording " + path.string() + ": cannot open");
+  struct Key {
+    double t_s;
+    natnet::RigidBody b;
+  };
+  std::map<std::int32_t, std::vector<Key>> tracks;
+  std::string line;
+  int line_no = 0;
+  double t_end = 0.0;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      if (line.rfind("time_s,body_id,x,y,z,qx,qy,qz,qw", 0) != 0)
+        throw std::runtime_error("NatNet recording " + path.string() + " line " +
+                                 std::to_string(line_no) +
+                                 ": expected header time_s,body_id,x,y,z,qx,qy,qz,qw");
+      header = true;
+      continue;
+    }
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ls(line);
+    double t, x, y, z, qx, qy, qz, qw;
+    std::int32_t id;
+    std::string extra;
+    if (!(ls >> t >> id >> x >> y >> z >> qx >> qy >> qz >> qw) || (ls >> extra) ||
+        !std::isfinite(t) || t < t_end)
+      throw std::runtime_error("NatNet recording " + path.string() + " line " +
+                               std::to_string(line_no) +
+                               ": expected 9 numbers with non-decreasing time_s");
+    t_end = t;
+    tracks[id].push_back({t, body(id, x, y, z, qx, qy, qz, qw)});
+  }
+  if (tracks.empty()) throw std::runtime_error("NatNet recording " + path.string() + ": no poses");
+  return [tracks = std::move(tracks), t_end, loop](double t_s, natnet::Frame& frame) {
+    frame.rigid_bodies.clear();
+    const double t = (loop && t_end > 0.0) ? std::fmod(t_s, t_end) : t_s;
+    for (const auto& [id, keys] : tracks) {
+      auto it = std::upper_bound(keys.begin(), keys.end(), t,
+                                 [](double v, const Key& k) { return v < k.t_s; });
+      if (it == keys.begin()) continue;  // body not seen yet at this time
+      frame.rigid_bodies.push_back(std::prev(it)->b);
+    }
+  };
+}
+
+struct NatNetServer::Impl {
+  Impl(NatNetServerConfig c, NatNetMotion m)
+      : cfg(std::move(c)), motion(std::move(m)), command(io), data(io), tick(io), deadline(io) {}
+
+  NatNetServerConfig cfg;
+  NatNetMotion motion;
+  asio::io_context io;
+  udp::socket command;
+  udp::socket data;
+  udp::endpoint group;
+  asio::steady_timer tick, deadline;
+  std::array<std::uint8_t, 2048> buf{};
+  udp::endpoint from;
+  std::vector<udp::endpoint> clients;
+  natnet::Frame frame;
+  std::chrono::steady_clock::time_point start;
+  std::uint32_t frame_number = 0;
+  mutable std::mutex mu;
+  NatNetServerStats stats;
+
+  void open() {
+    boost::system::error_code ec;
+    const auto addr = asio::ip::make_address(cfg.bind_address, ec);
+    if (ec) throw std::runtime_error("NatNet server: bad bind address '" + cfg.bind_address + "'");
+    command.open(udp::v4());
+    command.bind(udp::endpoint(addr, static_cast<unsigned short>(cfg.command_port)), ec);
+    if (ec)
+      throw std::runtime_error("NatNet server: cannot bind " + cfg.bind_address + ":" +
+                               std::to_string(cfg.command_port) + ": " + ec.message() +
+                               " (is Motive or another simulator running? pick --command-port)");
+    if (cfg.multicast) {
+      const auto g = asio::ip::make_address_v4(cfg.multicast_group, ec);
+      if (ec || !g.is_multicast())
+        throw std::runtime_error("NatNet server: '" + cfg.multicast_group +
+                                 "' is not an IPv4 multicast group");
+      group = udp::endpoint(g, static_cast<unsigned short>(cfg.data_port));
+      data.open(udp::v4());
+      data.set_option(asio::ip::multicast::outbound_interface(
+          asio::ip::make_address_v4(cfg.multicast_interface)));
+      data.set_option(asio::ip::multicast::enable_loopback(true));
+      data.set_option(asio::ip::multicast::hops(1));
+    }
+  }
+
+  void receive() {
+    command.async_receive_from(asio::buffer(buf), from,
+                               [this](boost::system::error_code ec, std::size_t n) {
+                                 if (ec == asio::error::operation_aborted) return;
+                                 if (!ec) on_command(n);
+                                 receive();
+                               });
+  }
+
+  void on_command(std::size_t n) {
+    natnet::PacketView pkt;
+    if (!natnet::parse_packet(std::span(buf.data(), n), pkt).ok()) return;
+    if (pkt.message_id != natnet::kPing) return;
+    natnet::ServerInfo info;
+    info.app_name = cfg.app_name;
+    info.app_version = {1, 0, 0, 0};
+    info.natnet_version = cfg.version;
+    const auto reply = natnet::make_server_info(info);
+    boost::system::error_code ec;
+    command.send_to(asio::buffer(reply), from, 0, ec);
+    std::lock_guard lock(mu);
+    if (ec) {
+      ++stats.send_errors;
+      return;
+    }
+    ++stats.pings_answered;
+    if (std::find(clients.begin(), clients.end(), from) == clients.end()) {
+      clients.push_back(from);
+      ++stats.clients;
+    }
+  }
+
+  void schedule(std::chrono::steady_clock::time_point when) {
+    tick.expires_at(when);
+    tick.async_wait([this, when](boost::system::error_code ec) {
+      if (ec) return;
+      send_frame(when);
+      // Absolute deadlines keep the mean rate exact even when one send runs late.
+      const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(1.0 / cfg.rate_hz));
+      schedule(when + period);
+    });
+  }
+
+  void send_frame(std::chrono::steady_clock::time_point when) {
+    const double t_s = std::chrono::duration<double>(when - start).count();
+    frame.clear();
+    motion(t_s, frame);
+    frame.frame_number = ++frame_number;
+    frame.timestamp_s = t_s;
+    frame.stamp_transmit = static_cast<std::uint64_t>(t_s * 1e7);
+    const auto bytes = natnet::encode_frame(frame, cfg.version);
+    boost::system::error_code ec;
+    std::lock_guard lock(mu);
+    if (cfg.multicast) {
+      data.send_to(asio::buffer(bytes), group, 0, ec);
+      ec ? ++stats.send_errors : ++stats.frames_sent;
+    } else {
+      for (const auto& c : clients) {
+        command.send_to(asio::buffer(bytes), c, 0, ec);
+        ec ? ++stats.send_errors : ++stats.frames_sent;
+      }
+    }
+  }
+};
+
+NatNetServer::NatNetServer(NatNetServerConfig config, NatNetMotion motion)
+    : impl_(std::make_unique<Impl>(std::move(config), std::move(motion))) {
+  if (!(impl_->cfg.rate_hz > 0.0 && impl_->cfg.rate_hz <= 10000.0))
+    throw std::invalid_argument("NatNet server: rate must be in (0, 10000] Hz");
+  if (!natnet::supported(impl_->cfg.version))
+    throw std::invalid_argument("NatNet server: version must be 2.0 .. 4.x");
+  impl_->open();
+}
+
+NatNetServer::~NatNetServer() = default;
+
+int NatNetServer::command_port() const { return impl_->command.local_endpoint().port(); }
+
+void NatNetServer::run_for(double duration_s) {
+  impl_->start = std::chrono::steady_clock::now();
+  impl_->receive();
+  impl_->schedule(impl_->start);
+  impl_->deadline.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(duration_s)));
+  impl_->deadline.async_wait([this](boost::system::error_code ec) {
+    if (!ec) impl_->io.stop();
+  });
+  impl_->io.run();
+}
+
+void NatNetServer::stop() { impl_->io.stop(); }
+
+NatNetServerStats NatNetServer::stats() const {
+  std::lock_guard lock(impl_->mu);
+  return impl_->stats;
+}
+
+}  // namespace telex::local

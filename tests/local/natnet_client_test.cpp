@@ -1,0 +1,161 @@
+// SPDX-License-Identifier: MIT
+// NatNet client against the in-process server simulator on loopback, unicast and multicast.
+#include "telex/local/natnet_client.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include "telex/local/natnet_server.h"
+
+namespace telex::local {
+namespace {
+
+// Waits for a sample without asserting on time: the bound only stops a broken test from hanging.
+bool wait_sample(NatNetClient& c, NatNetSample& s, int max_wait_ms = 10000) {
+  for (int i = 0; i < max_wait_ms / 5; ++i) {
+    if (c.latest(s)) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return false;
+}
+
+void expect_matches_motion(const NatNetSample& s) {
+  natnet::Frame truth;
+  natnet_press_motion(s.timestamp_s, truth);
+  for (std::int32_t id : {kSimHeadId, kSimRightHandId, kSimRightShoulderId}) {
+    const auto* b = s.find(id);
+    ASSERT_NE(b, nullptr) << "body " << id;
+    EXPECT_TRUE(b->valid);
+    const auto* t = truth.find_body(id);
+    EXPECT_NEAR(b->pose.p_m.x, t->p_m.x, 1e-6);
+    EXPECT_NEAR(b->pose.p_m.y, t->p_m.y, 1e-6);
+    EXPECT_NEAR(b->pose.p_m.z, t->p_m.z, 1e-6);
+    EXPECT_NEAR(b->pose.q.w, t->qw, 1e-6);
+    EXPECT_NEAR(b->pose.q.y, t->qy, 1e-6);
+  }
+}
+
+class NatNetLoopback : public ::testing::TestWithParam<natnet::Version> {};
+
+TEST_P(NatNetLoopback, UnicastPosesArriveAndMatchTheScriptedMotion) {
+  NatNetServerConfig scfg;
+  scfg.command_port = 0;
+  scfg.version = GetParam();
+  scfg.rate_hz = 200.0;
+  NatNetServer server(scfg, natnet_press_motion);
+  std::thread srv([&] { server.run_for(20.0); });
+
+  NatNetClientConfig ccfg;
+  ccfg.multicast = false;
+  ccfg.command_port = server.command_port();
+  ccfg.body_ids = {kSimHeadId, kSimRightHandId, kSimRightShoulderId};
+  {
+    NatNetClient client(ccfg);
+    NatNetSample s1, s2;
+    ASSERT_TRUE(wait_sample(client, s1));
+    expect_matches_motion(s1);
+    ASSERT_TRUE(wait_sample(client, s2));
+    EXPECT_GT(s2.frame_number, s1.frame_number);
+    EXPECT_GT(s2.timestamp_s, s1.timestamp_s);
+    expect_matches_motion(s2);
+    const auto info = client.server_info();
+    ASSERT_TRUE(info.has_value());
+    EXPECT_EQ(info->natnet_version, GetParam());
+    EXPECT_EQ(info->app_name, "telex-sim-natnet");
+    EXPECT_EQ(client.stats().parse_errors, 0u);
+    EXPECT_GE(client.stats().frames, 2u);
+  }
+  server.stop();
+  srv.join();
+  EXPECT_GE(server.stats().pings_answered, 1u);
+  EXPECT_EQ(server.stats().clients, 1u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Versions, NatNetLoopback,
+                         ::testing::Values(natnet::Version{2, 11}, natnet::Version{3, 1},
+                                           natnet::Version{4, 1}),
+                         [](const auto& info) {
+                           return "v" + std::to_string(info.param.major) + "_" +
+                                  std::to_string(info.param.minor);
+                         });
+
+TEST(NatNetLoopbackMulticast, GroupOnLoopbackDeliversFrames) {
+  // A per-process data port keeps concurrent test runs on this machine apart.
+  const int data_port = 30000 + static_cast<int>(getpid() % 20000);
+  NatNetServerConfig scfg;
+  scfg.command_port = 0;
+  scfg.multicast = true;
+  scfg.data_port = data_port;
+  scfg.version = {4, 1};
+  NatNetServer server(scfg, natnet_press_motion);
+  std::thread srv([&] { server.run_for(20.0); });
+  NatNetClientConfig ccfg;
+  ccfg.multicast = true;
+  ccfg.local_address = "127.0.0.1";
+  ccfg.data_port = data_port;
+  ccfg.command_port = server.command_port();
+  ccfg.body_ids = {kSimHeadId, kSimRightHandId, kSimRightShoulderId};
+  {
+    NatNetClient client(ccfg);
+    NatNetSample s;
+    // Frames sent before the server info arrived are dropped; the first parsed one is checked.
+    ASSERT_TRUE(wait_sample(client, s));
+    expect_matches_motion(s);
+  }
+  server.stop();
+  srv.join();
+}
+
+TEST(NatNetClientErrors, BadAddressesNameTheProblem) {
+  NatNetClientConfig c;
+  c.server_ip = "motive.local";
+  try {
+    NatNetClient client(c);
+    FAIL() << "accepted a host name";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("motive.local"), std::string::npos);
+  }
+  c.server_ip = "127.0.0.1";
+  c.multicast_group = "10.0.0.1";
+  c.data_port = 30000 + static_cast<int>((getpid() + 7) % 20000);
+  EXPECT_THROW(NatNetClient{c}, std::runtime_error);
+}
+
+TEST(NatNetRecording, CsvPlaysBackAndRejectsBadLines) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("telex_natnet_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto good = dir / "good.csv";
+  std::ofstream(good) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
+                         "0.0,1,0,1.6,0,0,0,0,1\n"
+                         "0.0,2,0.1,1.5,-0.3,0,0,0,1\n"
+                         "0.5,2,0.1,1.5,-0.4,0,0,0,1\n";
+  auto motion = load_natnet_csv(good, false);
+  natnet::Frame f;
+  motion(0.25, f);
+  ASSERT_EQ(f.rigid_bodies.size(), 2u);
+  EXPECT_FLOAT_EQ(f.find_body(2)->p_m.z, -0.3f);
+  motion(0.75, f);
+  EXPECT_FLOAT_EQ(f.find_body(2)->p_m.z, -0.4f);
+  auto looped = load_natnet_csv(good, true);
+  looped(0.75, f);  // 0.75 mod 0.5 = 0.25
+  EXPECT_FLOAT_EQ(f.find_body(2)->p_m.z, -0.3f);
+
+  const auto bad = dir / "bad.csv";
+  std::ofstream(bad) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n0,1,0,0,0,0,0,0,1\n0.1,1,0,0,zero\n";
+  try {
+    load_natnet_csv(bad, false);
+    FAIL() << "accepted a bad line";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("line 3"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(load_natnet_csv(dir / "missing.csv", false), std::runtime_error);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace telex::local
