@@ -14,7 +14,6 @@ namespace {
 
 constexpr std::uint8_t kFlagTable = 0x01;
 constexpr int kBitsShift = 1;  // bits 1-2: log2 of the packed symbol width (1..3)
-constexpr std::size_t kZipHeader = 5;
 
 // One deflate state per thread, reset between calls: deflateInit costs far more than a tile.
 struct Deflater {
@@ -30,7 +29,7 @@ struct Deflater {
       // Level 0 selects Huffman-only deflate: on packed residuals LZ77 matching costs time and
       // gains nothing (docs/BENCHMARKS.md "## Codecs").
       const int strategy = want == 0 ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY;
-      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, 15, 8, strategy) != Z_OK)
+      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, -15, 8, strategy) != Z_OK)
         throw std::runtime_error("zip codec: deflateInit2 failed");
       level = want;
     } else {
@@ -49,7 +48,7 @@ struct Inflater {
   z_stream* get() {
     if (!ready) {
       zs = z_stream{};
-      if (inflateInit(&zs) != Z_OK) return nullptr;
+      if (inflateInit2(&zs, -15) != Z_OK) return nullptr;
       ready = true;
     } else {
       inflateReset(&zs);
@@ -148,17 +147,21 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);
-  std::vector<std::uint8_t> out(kZipHeader + deflateBound(&zs, body.size()));
+  // Header: flags, varint body length; then raw deflate (RFC 1951). The message CRC32C already
+  // guards the bytes, so zlib's wrapper and Adler-32 would be 6 bytes per tile for nothing.
+  std::vector<std::uint8_t> out;
+  out.push_back(0);
+  put_varint(out, static_cast<std::uint32_t>(body.size()));
+  const std::size_t header = out.size();
+  out.resize(header + deflateBound(&zs, body.size()));
   const int bits_code = bits == 2 ? 1 : bits == 4 ? 2 : 3;
   out[0] = static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | (bits_code << kBitsShift));
-  const auto body_len = static_cast<std::uint32_t>(body.size());
-  for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<std::uint8_t>(body_len >> (8 * i));
   zs.next_in = body.data();
   zs.avail_in = static_cast<uInt>(body.size());
-  zs.next_out = out.data() + kZipHeader;
-  zs.avail_out = static_cast<uInt>(out.size() - kZipHeader);
+  zs.next_out = out.data() + header;
+  zs.avail_out = static_cast<uInt>(out.size() - header);
   if (deflate(&zs, Z_FINISH) != Z_STREAM_END) throw std::runtime_error("zip codec: deflate failed");
-  out.resize(kZipHeader + zs.total_out);
+  out.resize(header + zs.total_out);
   return out;
 }
 
@@ -193,14 +196,16 @@ DecodeStatus unpack(ZipScratch& s, std::span<const std::uint8_t> body, const std
 }  // namespace
 
 DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::Mat1w& out) {
-  if (bytes.size() < kZipHeader) return DecodeStatus::Truncated;
+  if (bytes.empty()) return DecodeStatus::Truncated;
   const std::uint8_t flags = bytes[0];
   if (flags & ~0x07u) return DecodeStatus::Corrupt;
   const int bits_code = (flags >> kBitsShift) & 3;
   if (bits_code == 0) return DecodeStatus::Corrupt;
   const int bits = 1 << bits_code;
   const bool use_table = flags & kFlagTable;
-  const std::uint32_t body_len = load_u32(bytes.data() + 1);
+  std::size_t header = 1;
+  std::uint32_t body_len = 0;
+  if (!get_varint(bytes, header, body_len)) return DecodeStatus::Truncated;
   const std::size_t total = static_cast<std::size_t>(w) * h;
   // Largest body a w x h tile can need: a 5-byte varint per run, a full table, one byte of
   // packed symbols and a 5-byte overflow varint per pixel.
@@ -212,8 +217,8 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   thread_local Inflater inflater;
   z_stream* zs = inflater.get();
   if (!zs) return DecodeStatus::Corrupt;
-  zs->next_in = const_cast<Bytef*>(bytes.data() + kZipHeader);
-  zs->avail_in = static_cast<uInt>(bytes.size() - kZipHeader);
+  zs->next_in = const_cast<Bytef*>(bytes.data() + header);
+  zs->avail_in = static_cast<uInt>(bytes.size() - header);
   zs->next_out = s.body.data();
   zs->avail_out = body_len;
   const int ret = inflate(zs, Z_FINISH);

@@ -146,13 +146,25 @@ TEST(DepthCodec, RejectsTruncatedAndOversizedStreams) {
   EXPECT_EQ(decode_depth({}, 10, 10, static_cast<Codec>(7), out), DecodeStatus::UnknownCodec);
 }
 
+// Replaces the zip header's varint body length (after the flags byte) with `claimed`.
+std::vector<std::uint8_t> with_body_length(std::vector<std::uint8_t> bytes, std::uint32_t claimed) {
+  std::size_t end = 1;
+  while (bytes[end] & 0x80) ++end;
+  ++end;
+  std::vector<std::uint8_t> varint;
+  do {
+    varint.push_back(static_cast<std::uint8_t>((claimed & 0x7F) | (claimed > 0x7F ? 0x80 : 0)));
+    claimed >>= 7;
+  } while (claimed);
+  bytes.erase(bytes.begin() + 1, bytes.begin() + static_cast<std::ptrdiff_t>(end));
+  bytes.insert(bytes.begin() + 1, varint.begin(), varint.end());
+  return bytes;
+}
+
 TEST(DepthCodec, ZipRejectsAClaimedBodyBeyondTheTile) {
-  // A 10x10 all-holes tile compresses to a few bytes; rewrite its body length to 1 GiB.
-  auto bytes = encode_depth(cv::Mat1w(10, 10, std::uint16_t{0}), Codec::Zip);
-  bytes[1] = 0;
-  bytes[2] = 0;
-  bytes[3] = 0;
-  bytes[4] = 0x40;
+  // A 10x10 all-holes tile compresses to a few bytes; claim a 1 GiB body instead.
+  const auto bytes =
+      with_body_length(encode_depth(cv::Mat1w(10, 10, std::uint16_t{0}), Codec::Zip), 1u << 30);
   cv::Mat1w out;
   EXPECT_EQ(decode_depth(bytes, 10, 10, Codec::Zip, out), DecodeStatus::DecompressionBomb);
 }
@@ -160,9 +172,7 @@ TEST(DepthCodec, ZipRejectsAClaimedBodyBeyondTheTile) {
 TEST(DepthCodec, ZipStopsAtTheClaimedBodyLength) {
   // Body of a 64x64 frame, decoded as a 2x2 tile with its body length shrunk: inflate must stop
   // at the claimed size rather than write the whole stream.
-  auto bytes = encode_depth(structured_frame(64, 64, 9), Codec::Zip);
-  bytes[1] = 16;
-  bytes[2] = bytes[3] = bytes[4] = 0;
+  const auto bytes = with_body_length(encode_depth(structured_frame(64, 64, 9), Codec::Zip), 16);
   cv::Mat1w out;
   EXPECT_EQ(decode_depth(bytes, 2, 2, Codec::Zip, out), DecodeStatus::DecompressionBomb);
 }
