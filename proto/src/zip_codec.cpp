@@ -59,6 +59,8 @@ struct Inflater {
 
 struct ZipScratch {
   std::vector<std::uint8_t> body;
+  std::vector<std::uint8_t> packed2;
+  std::vector<std::uint8_t> over2;
   std::vector<std::uint32_t> residuals;
   std::vector<std::int32_t> rows;
   std::vector<std::uint32_t> runs;
@@ -79,22 +81,6 @@ namespace {
 // deflate's byte-wise Huffman code them jointly, below its one-bit-per-symbol floor.
 std::size_t varint_len(std::uint32_t v) {
   return v < (1u << 7) ? 1 : v < (1u << 14) ? 2 : v < (1u << 21) ? 3 : v < (1u << 28) ? 4 : 5;
-}
-
-// Body bytes (before deflate) of the packed symbols plus overflow for widths 2, 4 and 8.
-std::array<std::size_t, 3> packed_costs(const std::vector<std::uint32_t>& z) {
-  std::array<std::size_t, 3> over{0, 0, 0};
-  for (std::uint32_t v : z) {
-    if (v >= 3) {
-      over[0] += varint_len(v - 3);
-      if (v >= 15) {
-        over[1] += varint_len(v - 15);
-        if (v >= 255) over[2] += varint_len(v - 255);
-      }
-    }
-  }
-  const std::size_t n = z.size();
-  return {(n * 2 + 7) / 8 + over[0], (n * 4 + 7) / 8 + over[1], n + over[2]};
 }
 
 template <int Bits>
@@ -120,30 +106,61 @@ void pack(const std::vector<std::uint32_t>& z, std::uint8_t* out) {
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   ZipScratch& s = scratch();
   const Analysis& a = analyse(img);
-  s.residuals.resize(a.n_valid);
   s.runs.clear();
-  std::uint32_t* res = s.residuals.data();
+  // Speculate on 2-bit symbols (what structured-light depth picks): pack them during the
+  // prediction pass itself and only tally what 4- and 8-bit packing would cost.
+  s.packed2.resize((a.n_valid * 2 + 7) / 8 + 1);
+  s.over2.clear();
+  std::uint8_t* pk = s.packed2.data();
+  std::uint32_t acc = 0;
+  int filled = 0;
+  std::size_t over4 = 0, over8 = 0;
   predict(
-      img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; },
+      img, a.index_of, s.rows,
+      [&](std::uint32_t z) {
+        acc |= std::min(z, 3u) << (2 * filled);
+        if (++filled == 4) {
+          *pk++ = static_cast<std::uint8_t>(acc);
+          acc = 0;
+          filled = 0;
+        }
+        if (z >= 3) {
+          put_varint(s.over2, z - 3);
+          if (z >= 15) {
+            over4 += varint_len(z - 15);
+            if (z >= 255) over8 += varint_len(z - 255);
+          }
+        }
+      },
       [&](std::uint32_t r) { s.runs.push_back(r); });
+  if (filled) *pk++ = static_cast<std::uint8_t>(acc);
+  const std::size_t n = a.n_valid;
+  const std::size_t cost2 = (n * 2 + 7) / 8 + s.over2.size();
+  const std::size_t cost4 = (n * 4 + 7) / 8 + over4;
+  const std::size_t cost8 = n + over8;
+  const int bits = cost2 <= cost4 && cost2 <= cost8 ? 2 : cost4 <= cost8 ? 4 : 8;
 
   std::vector<std::uint8_t>& body = s.body;
   body.clear();
   for (std::uint32_t r : s.runs) put_varint(body, r);
   if (a.use_table) put_table(body, a.table);
-  // Packed width by the size before deflate; 2 wins on structured-light depth, 8 on noise.
-  const auto costs = packed_costs(s.residuals);
-  const int bits = costs[0] <= costs[1] && costs[0] <= costs[2] ? 2 : costs[1] <= costs[2] ? 4 : 8;
-  const std::uint32_t sat = (1u << bits) - 1;
-  const std::size_t n = s.residuals.size();
-  const std::size_t base = body.size();
-  body.resize(base + (n * bits + 7) / 8);
-  std::uint8_t* packed = body.data() + base;
-  if (bits == 2) pack<2>(s.residuals, packed);
-  if (bits == 4) pack<4>(s.residuals, packed);
-  if (bits == 8) pack<8>(s.residuals, packed);
-  for (std::uint32_t z : s.residuals)
-    if (z >= sat) put_varint(body, z - sat);
+  if (bits == 2) {
+    body.insert(body.end(), s.packed2.begin(), s.packed2.begin() + (n * 2 + 7) / 8);
+    body.insert(body.end(), s.over2.begin(), s.over2.end());
+  } else {
+    // Noise-like tiles: run the prediction again into a residual buffer for the wider packing.
+    s.residuals.resize(n);
+    std::uint32_t* res = s.residuals.data();
+    predict(
+        img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; }, [](std::uint32_t) {});
+    const std::uint32_t sat = (1u << bits) - 1;
+    const std::size_t base = body.size();
+    body.resize(base + (n * bits + 7) / 8);
+    if (bits == 4) pack<4>(s.residuals, body.data() + base);
+    if (bits == 8) pack<8>(s.residuals, body.data() + base);
+    for (std::uint32_t z : s.residuals)
+      if (z >= sat) put_varint(body, z - sat);
+  }
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);

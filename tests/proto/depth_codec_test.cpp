@@ -68,6 +68,13 @@ TEST(DepthCodec, RoundTripsEdgeCaseFrames) {
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) alternating(y, x) = ((x + y) & 1) ? 65535 : 0;
   frames.push_back(alternating);
+  // Moderate noise (residuals mostly 3..14): the zip encoder packs 4-bit symbols for it.
+  cv::Mat1w moderate(h, w);
+  std::mt19937 rng(11);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      moderate(y, x) = static_cast<std::uint16_t>(3000 + 40 * x + rng() % 13);
+  frames.push_back(moderate);
   cv::Mat1w no_holes = structured_frame(w, h, 3);
   no_holes.setTo(500, no_holes == 0);
   frames.push_back(no_holes);
