@@ -92,8 +92,8 @@ std::vector<std::uint8_t> encode_depth(const cv::Mat1w& tile, Codec codec, int z
     case Codec::Raw:
       return encode_raw(tile);
     case Codec::Zip:
-      if (zip_level < 1 || zip_level > 9)
-        throw std::invalid_argument("encode_depth: zip level must be 1..9, got " +
+      if (zip_level < 0 || zip_level > 9)
+        throw std::invalid_argument("encode_depth: zip level must be 0..9, got " +
                                     std::to_string(zip_level));
       return detail::encode_zip(tile, zip_level);
     case Codec::Fast:

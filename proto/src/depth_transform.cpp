@@ -18,36 +18,33 @@ struct Scratch {
 Analysis& analyse(const cv::Mat1w& img) {
   thread_local Scratch s;
   Analysis& a = s.analysis;
-  a.runs.clear();
   a.table.clear();
   a.n_valid = 0;
-  // A structured-light sensor reports few distinct depths; past a quarter of the valid pixels a
-  // table costs more than it saves, so collection stops there.
+  // A structured-light sensor reports few distinct depths; past a quarter of the pixels a table
+  // costs more than it saves, so collection stops there (checked per row, off the inner loop).
   const std::size_t total = static_cast<std::size_t>(img.rows) * img.cols;
   const std::size_t table_cap = std::max<std::size_t>(64, total / 4);
   bool collecting = true;
-  bool in_valid = true;
-  std::uint32_t run = 0;
+  s.seen[0] = 1;  // holes never enter the table
   for (int y = 0; y < img.rows; ++y) {
     const std::uint16_t* row = img[y];
-    for (int x = 0; x < img.cols; ++x) {
-      const std::uint16_t v = row[x];
-      const bool valid = v != 0;
-      if (valid != in_valid) {
-        a.runs.push_back(run);
-        run = 0;
-        in_valid = valid;
+    std::size_t valid = 0;
+    if (collecting) {
+      for (int x = 0; x < img.cols; ++x) {
+        const std::uint16_t v = row[x];
+        valid += v != 0;
+        if (!s.seen[v]) {
+          s.seen[v] = 1;
+          a.table.push_back(v);
+        }
       }
-      ++run;
-      if (valid && collecting && !s.seen[v]) {
-        s.seen[v] = 1;
-        a.table.push_back(v);
-        if (a.table.size() > table_cap) collecting = false;
-      }
+      collecting = a.table.size() <= table_cap;
+    } else {
+      for (int x = 0; x < img.cols; ++x) valid += row[x] != 0;
     }
+    a.n_valid += valid;
   }
-  a.runs.push_back(run);
-  for (std::size_t i = 0; i < a.runs.size(); i += 2) a.n_valid += a.runs[i];
+  s.seen[0] = 0;
   for (std::uint16_t v : a.table) s.seen[v] = 0;
   a.use_table =
       collecting && !a.table.empty() && a.table.size() <= std::max<std::size_t>(16, a.n_valid / 4);

@@ -2,9 +2,11 @@
 // Internal: the prediction transform shared by the zip and fast depth codecs (docs/PROTOCOL.md).
 #pragma once
 
+#include <algorithm>
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <opencv2/core.hpp>
 #include <span>
 #include <utility>
@@ -21,19 +23,18 @@ inline std::int32_t unzigzag(std::uint32_t z) {
   return static_cast<std::int32_t>(z >> 1) ^ -static_cast<std::int32_t>(z & 1);
 }
 
-// LOCO-I median edge detector on the hole-filled symbol image: a left, b up, c up-left.
+// LOCO-I median edge detector on the hole-filled symbol image: a left, b up, c up-left. Written
+// as median(a, b, a + b - c), which equals it and compiles to branch-free min/max: the branchy
+// form mispredicts on every edge.
 inline std::int32_t med(std::int32_t a, std::int32_t b, std::int32_t c) {
-  const std::int32_t mx = a > b ? a : b;
-  const std::int32_t mn = a > b ? b : a;
-  if (c >= mx) return mn;
-  if (c <= mn) return mx;
-  return a + b - c;
+  const std::int32_t mx = std::max(a, b);
+  const std::int32_t mn = std::min(a, b);
+  return std::max(mn, std::min(mx, a + b - c));
 }
 
-// What one pass over a depth tile learns: its hole runs and whether mapping values to indices
-// of the sorted distinct-value table pays.
+// What one pass over a depth tile learns: its valid pixel count and whether mapping values to
+// indices of the sorted distinct-value table pays.
 struct Analysis {
-  std::vector<std::uint32_t> runs;  // alternating valid / hole run lengths, starting with valid
   std::size_t n_valid = 0;
   bool use_table = false;
   std::vector<std::uint16_t> table;         // sorted distinct non-zero values (when use_table)
@@ -54,36 +55,48 @@ DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
                        std::vector<std::uint16_t>& table);
 
 // Runs the MED prediction over `img` in raster order, calling emit(zigzag residual) for every
-// valid pixel. A hole takes its prediction as its symbol, so holes never disturb neighbours.
-template <class Emit>
+// valid pixel and run(length) for each alternating valid / hole run (starting with valid, the
+// first possibly empty). A hole takes its prediction as its symbol, so holes never disturb
+// their neighbours' predictions. Row -1 is all zeros (so row 0 predicts from the left) and
+// column 0 predicts from above. Left and up-left travel in registers: a store-to-load round
+// trip through the row buffer would be the loop's critical path.
+template <class Emit, class Run>
 void predict(const cv::Mat1w& img, const std::uint16_t* index_of, std::vector<std::int32_t>& rows,
-             Emit&& emit) {
+             Emit&& emit, Run&& run) {
   const int w = img.cols;
   rows.assign(2 * static_cast<std::size_t>(w), 0);
   std::int32_t* prev = rows.data();
   std::int32_t* cur = rows.data() + w;
+  bool in_valid = true;
+  std::uint32_t len = 0;
   for (int y = 0; y < img.rows; ++y) {
     const std::uint16_t* row = img[y];
+    std::int32_t left = prev[0];  // column 0: MED(b, b, b) = b
+    std::int32_t up_left = prev[0];
     for (int x = 0; x < w; ++x) {
-      std::int32_t pred;
-      if (y == 0) {
-        pred = x ? cur[x - 1] : 0;
-      } else if (x == 0) {
-        pred = prev[0];
-      } else {
-        pred = med(cur[x - 1], prev[x], prev[x - 1]);
-      }
+      const std::int32_t up = prev[x];
+      const std::int32_t pred = med(left, up, up_left);
+      up_left = up;
       const std::uint16_t v = row[x];
-      if (v == 0) {
-        cur[x] = pred;
-      } else {
+      const bool valid = v != 0;
+      if (valid != in_valid) {
+        run(len);
+        len = 0;
+        in_valid = valid;
+      }
+      ++len;
+      if (valid) {
         const std::int32_t s = index_of ? index_of[v] : v;
         emit(zigzag(s - pred));
-        cur[x] = s;
+        left = s;
+      } else {
+        left = pred;
       }
+      cur[x] = left;
     }
     std::swap(prev, cur);
   }
+  run(len);
 }
 
 // Inverse of predict(): `runs` (validated to sum to w*h, no empty run after the first) says which
@@ -96,27 +109,25 @@ DecodeStatus reconstruct(const std::vector<std::uint32_t>& runs,
   std::int32_t* prev = rows.data();
   std::int32_t* cur = rows.data() + w;
   std::size_t ri = 0;
-  std::uint32_t left = runs[0];
+  std::uint32_t left_in_run = runs[0];
   bool valid = true;
   const std::int64_t n_table = table ? static_cast<std::int64_t>(table->size()) : 0;
   for (int y = 0; y < h; ++y) {
     std::uint16_t* row = out[y];
+    std::int32_t left = prev[0];
+    std::int32_t up_left = prev[0];
     for (int x = 0; x < w; ++x) {
-      while (left == 0) {
+      while (left_in_run == 0) {
         ++ri;
         valid = !valid;
-        left = runs[ri];
+        left_in_run = runs[ri];
       }
-      --left;
-      std::int32_t pred;
-      if (y == 0) {
-        pred = x ? cur[x - 1] : 0;
-      } else if (x == 0) {
-        pred = prev[0];
-      } else {
-        pred = med(cur[x - 1], prev[x], prev[x - 1]);
-      }
+      --left_in_run;
+      const std::int32_t up = prev[x];
+      const std::int32_t pred = med(left, up, up_left);
+      up_left = up;
       if (!valid) {
+        left = pred;
         cur[x] = pred;
         row[x] = 0;
         continue;
@@ -131,7 +142,8 @@ DecodeStatus reconstruct(const std::vector<std::uint32_t>& runs,
         if (s < 1 || s > 65535) return DecodeStatus::Corrupt;
         row[x] = static_cast<std::uint16_t>(s);
       }
-      cur[x] = static_cast<std::int32_t>(s);
+      left = static_cast<std::int32_t>(s);
+      cur[x] = left;
     }
     std::swap(prev, cur);
   }
@@ -148,34 +160,32 @@ inline bool runs_valid(const std::vector<std::uint32_t>& runs, std::size_t total
   return !runs.empty() && sum == total;
 }
 
-// MSB-first bit writer into a caller-sized byte buffer (the caller reserves the worst case).
+inline void store_le64(std::uint8_t* p, std::uint64_t v) {
+  if constexpr (std::endian::native == std::endian::big) v = __builtin_bswap64(v);
+  std::memcpy(p, &v, 8);
+}
+inline std::uint64_t load_le64(const std::uint8_t* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  if constexpr (std::endian::native == std::endian::big) v = __builtin_bswap64(v);
+  return v;
+}
+inline std::uint64_t low_mask(int bits) { return (std::uint64_t{1} << bits) - 1; }
+
+// LSB-first bit writer: bits fill each byte from its least significant bit. Branch-free: every
+// put stores 8 bytes, so the caller's buffer needs 8 bytes of slack beyond the worst case.
 class BitWriter {
  public:
   explicit BitWriter(std::uint8_t* out) : out_(out) {}
-  // len 1..32
-  void put(std::uint32_t v, int len) {
-    acc_ = (acc_ << len) | v;
+  void put(std::uint64_t v, int len) {  // len 0..56, v < 2^len
+    acc_ |= v << n_;
     n_ += len;
-    if (n_ >= 32) {
-      n_ -= 32;
-      const auto w = static_cast<std::uint32_t>(acc_ >> n_);
-      out_[pos_] = static_cast<std::uint8_t>(w >> 24);
-      out_[pos_ + 1] = static_cast<std::uint8_t>(w >> 16);
-      out_[pos_ + 2] = static_cast<std::uint8_t>(w >> 8);
-      out_[pos_ + 3] = static_cast<std::uint8_t>(w);
-      pos_ += 4;
-    }
+    store_le64(out_ + pos_, acc_);
+    pos_ += static_cast<std::size_t>(n_ >> 3);
+    acc_ >>= (n_ & ~7);
+    n_ &= 7;
   }
-  // Flushes the partial byte (zero padded) and returns the bytes written.
-  std::size_t finish() {
-    while (n_ >= 8) {
-      n_ -= 8;
-      out_[pos_++] = static_cast<std::uint8_t>(acc_ >> n_);
-    }
-    if (n_ > 0) out_[pos_++] = static_cast<std::uint8_t>(acc_ << (8 - n_));
-    n_ = 0;
-    return pos_;
-  }
+  std::size_t finish() { return pos_ + (n_ > 0 ? 1 : 0); }  // the partial byte is already stored
 
  private:
   std::uint8_t* out_;
@@ -184,44 +194,32 @@ class BitWriter {
   int n_ = 0;
 };
 
-// MSB-first bit reader that never reads outside its span: past the end it yields zeros and
-// records the overrun, which the caller turns into Truncated.
+// LSB-first bit reader that never reads outside its span: bits past the end read as zero and
+// the caller checks overrun().
 class BitReader {
  public:
   explicit BitReader(std::span<const std::uint8_t> in) : in_(in) {}
-  std::uint32_t get(int len) {  // len 0..32
-    if (len == 0) return 0;
-    refill();
-    const auto v = static_cast<std::uint32_t>(buf_ >> (64 - len));
-    buf_ <<= len;
-    cnt_ -= len;
-    return v;
+  // The next 57 or more bits, first bit in bit 0.
+  std::uint64_t peek() const {
+    const std::size_t byte = bitpos_ >> 3;
+    std::uint64_t w = 0;
+    if (byte + 8 <= in_.size()) {
+      w = load_le64(in_.data() + byte);
+    } else {
+      for (std::size_t i = byte; i < in_.size(); ++i)
+        w |= static_cast<std::uint64_t>(in_[i]) << (8 * (i - byte));
+    }
+    return w >> (bitpos_ & 7);
   }
-  // Leading zero bits before the next 1 (consumes them, not the 1); `limit`+1 when more.
-  int zeros(int limit) {
-    refill();
-    int z = buf_ == 0 ? 64 : std::countl_zero(buf_);
-    if (z > limit) return limit + 1;
-    buf_ <<= z;
-    cnt_ -= z;
-    return z;
-  }
-  bool overrun() const { return consumed_bits() > in_.size() * 8; }
-  std::size_t consumed_bits() const { return pos_ * 8 - static_cast<std::size_t>(cnt_); }
+  void skip(int bits) { bitpos_ += static_cast<std::size_t>(bits); }
+  bool overrun() const { return bitpos_ > in_.size() * 8; }
+  std::size_t consumed_bits() const { return bitpos_; }
+  // Valid only for a reader past its last field: the stream's bytes are all used, none unused.
+  bool exactly_consumed() const { return (bitpos_ + 7) / 8 == in_.size(); }
 
  private:
-  void refill() {
-    while (cnt_ <= 56) {
-      const std::uint64_t b = pos_ < in_.size() ? in_[pos_] : 0;
-      ++pos_;
-      buf_ |= b << (56 - cnt_);
-      cnt_ += 8;
-    }
-  }
   std::span<const std::uint8_t> in_;
-  std::size_t pos_ = 0;
-  std::uint64_t buf_ = 0;
-  int cnt_ = 0;
+  std::size_t bitpos_ = 0;
 };
 
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level);

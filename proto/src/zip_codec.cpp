@@ -3,6 +3,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include "byte_io.h"
@@ -12,7 +13,7 @@ namespace telex::proto::detail {
 namespace {
 
 constexpr std::uint8_t kFlagTable = 0x01;
-constexpr int kPlanesShift = 1;  // bits 1-2: byte planes - 1
+constexpr int kBitsShift = 1;  // bits 1-2: log2 of the packed symbol width (1..3)
 constexpr std::size_t kZipHeader = 5;
 
 // One deflate state per thread, reset between calls: deflateInit costs far more than a tile.
@@ -26,7 +27,10 @@ struct Deflater {
     if (level != want) {
       if (level >= 0) deflateEnd(&zs);
       zs = z_stream{};
-      if (deflateInit2(&zs, want, Z_DEFLATED, 15, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+      // Level 0 selects Huffman-only deflate: on packed residuals LZ77 matching costs time and
+      // gains nothing (docs/BENCHMARKS.md "## Codecs").
+      const int strategy = want == 0 ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY;
+      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, 15, 8, strategy) != Z_OK)
         throw std::runtime_error("zip codec: deflateInit2 failed");
       level = want;
     } else {
@@ -69,37 +73,84 @@ ZipScratch& scratch() {
 
 }  // namespace
 
+namespace {
+
+// Symbols of `bits` (2, 4 or 8) packed low bits first; a saturated symbol (all ones) is followed
+// in the overflow stream by a varint of the excess. Packing several residuals per byte lets
+// deflate's byte-wise Huffman code them jointly, below its one-bit-per-symbol floor.
+std::size_t varint_len(std::uint32_t v) {
+  return v < (1u << 7) ? 1 : v < (1u << 14) ? 2 : v < (1u << 21) ? 3 : v < (1u << 28) ? 4 : 5;
+}
+
+// Body bytes (before deflate) of the packed symbols plus overflow for widths 2, 4 and 8.
+std::array<std::size_t, 3> packed_costs(const std::vector<std::uint32_t>& z) {
+  std::array<std::size_t, 3> over{0, 0, 0};
+  for (std::uint32_t v : z) {
+    if (v >= 3) {
+      over[0] += varint_len(v - 3);
+      if (v >= 15) {
+        over[1] += varint_len(v - 15);
+        if (v >= 255) over[2] += varint_len(v - 255);
+      }
+    }
+  }
+  const std::size_t n = z.size();
+  return {(n * 2 + 7) / 8 + over[0], (n * 4 + 7) / 8 + over[1], n + over[2]};
+}
+
+template <int Bits>
+void pack(const std::vector<std::uint32_t>& z, std::uint8_t* out) {
+  constexpr std::uint32_t kSat = (1u << Bits) - 1;
+  constexpr int kPer = 8 / Bits;
+  const std::size_t n = z.size();
+  std::size_t i = 0;
+  for (; i + kPer <= n; i += kPer) {
+    std::uint32_t byte = 0;
+    for (int j = 0; j < kPer; ++j) byte |= std::min(z[i + j], kSat) << (Bits * j);
+    *out++ = static_cast<std::uint8_t>(byte);
+  }
+  if (i < n) {
+    std::uint32_t byte = 0;
+    for (int j = 0; i + j < n; ++j) byte |= std::min(z[i + j], kSat) << (Bits * j);
+    *out = static_cast<std::uint8_t>(byte);
+  }
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   ZipScratch& s = scratch();
   const Analysis& a = analyse(img);
-  s.residuals.clear();
-  s.residuals.reserve(a.n_valid);
-  std::uint32_t zmax = 0;
-  predict(img, a.index_of, s.rows, [&](std::uint32_t z) {
-    s.residuals.push_back(z);
-    zmax |= z;
-  });
-  const int planes = zmax < 0x100 ? 1 : zmax < 0x10000 ? 2 : 3;
+  s.residuals.resize(a.n_valid);
+  s.runs.clear();
+  std::uint32_t* res = s.residuals.data();
+  predict(
+      img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; },
+      [&](std::uint32_t r) { s.runs.push_back(r); });
 
   std::vector<std::uint8_t>& body = s.body;
   body.clear();
-  for (std::uint32_t r : a.runs) put_varint(body, r);
+  for (std::uint32_t r : s.runs) put_varint(body, r);
   if (a.use_table) put_table(body, a.table);
+  // Packed width by the size before deflate; 2 wins on structured-light depth, 8 on noise.
+  const auto costs = packed_costs(s.residuals);
+  const int bits = costs[0] <= costs[1] && costs[0] <= costs[2] ? 2 : costs[1] <= costs[2] ? 4 : 8;
+  const std::uint32_t sat = (1u << bits) - 1;
+  const std::size_t n = s.residuals.size();
   const std::size_t base = body.size();
-  body.resize(base + a.n_valid * static_cast<std::size_t>(planes));
-  // Byte planes: deflate sees long runs of small low bytes, and the high planes are mostly zero.
-  for (int p = 0; p < planes; ++p) {
-    std::uint8_t* o = body.data() + base + a.n_valid * static_cast<std::size_t>(p);
-    const int shift = 8 * p;
-    for (std::size_t i = 0; i < a.n_valid; ++i)
-      o[i] = static_cast<std::uint8_t>(s.residuals[i] >> shift);
-  }
+  body.resize(base + (n * bits + 7) / 8);
+  std::uint8_t* packed = body.data() + base;
+  if (bits == 2) pack<2>(s.residuals, packed);
+  if (bits == 4) pack<4>(s.residuals, packed);
+  if (bits == 8) pack<8>(s.residuals, packed);
+  for (std::uint32_t z : s.residuals)
+    if (z >= sat) put_varint(body, z - sat);
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);
   std::vector<std::uint8_t> out(kZipHeader + deflateBound(&zs, body.size()));
-  out[0] =
-      static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | ((planes - 1) << kPlanesShift));
+  const int bits_code = bits == 2 ? 1 : bits == 4 ? 2 : 3;
+  out[0] = static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | (bits_code << kBitsShift));
   const auto body_len = static_cast<std::uint32_t>(body.size());
   for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<std::uint8_t>(body_len >> (8 * i));
   zs.next_in = body.data();
@@ -111,17 +162,49 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   return out;
 }
 
+namespace {
+
+template <int Bits>
+DecodeStatus unpack(ZipScratch& s, std::span<const std::uint8_t> body, const std::uint8_t* packed,
+                    std::size_t over, int w, int h, bool use_table, cv::Mat1w& out) {
+  constexpr std::uint32_t kSat = (1u << Bits) - 1;
+  constexpr int kPer = 8 / Bits;
+  std::size_t i = 0;
+  bool short_overflow = false;
+  auto next = [&](std::uint32_t& z) {
+    z = (packed[i / kPer] >> (Bits * (i % kPer))) & kSat;
+    ++i;
+    if (z == kSat) {
+      std::uint32_t e = 0;
+      if (!get_varint(body, over, e)) {
+        short_overflow = true;
+        return false;
+      }
+      z = kSat + e;  // wraps only on a corrupt stream, which reconstruct() rejects by range
+    }
+    return true;
+  };
+  const DecodeStatus st =
+      reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
+  if (st != DecodeStatus::Ok) return short_overflow ? DecodeStatus::Truncated : st;
+  return over == body.size() ? DecodeStatus::Ok : DecodeStatus::Corrupt;
+}
+
+}  // namespace
+
 DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::Mat1w& out) {
   if (bytes.size() < kZipHeader) return DecodeStatus::Truncated;
   const std::uint8_t flags = bytes[0];
   if (flags & ~0x07u) return DecodeStatus::Corrupt;
-  const int planes = ((flags >> kPlanesShift) & 3) + 1;
-  if (planes > 3) return DecodeStatus::Corrupt;
+  const int bits_code = (flags >> kBitsShift) & 3;
+  if (bits_code == 0) return DecodeStatus::Corrupt;
+  const int bits = 1 << bits_code;
   const bool use_table = flags & kFlagTable;
   const std::uint32_t body_len = load_u32(bytes.data() + 1);
   const std::size_t total = static_cast<std::size_t>(w) * h;
-  // Largest body a w x h tile can need: a 5-byte varint per run, a full table, three planes.
-  const std::size_t bound = total * 5 + 5 + 65536 * 3 + 10 + total * 3;
+  // Largest body a w x h tile can need: a 5-byte varint per run, a full table, one byte of
+  // packed symbols and a 5-byte overflow varint per pixel.
+  const std::size_t bound = total * 5 + 5 + 65536 * 3 + 10 + total + total * 5;
   if (body_len > bound) return DecodeStatus::DecompressionBomb;
 
   ZipScratch& s = scratch();
@@ -163,19 +246,18 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
     const DecodeStatus t = get_table(body, pos, s.table);
     if (t != DecodeStatus::Ok) return t;
   }
-  const std::size_t need = n_valid * static_cast<std::size_t>(planes);
-  if (body.size() - pos < need) return DecodeStatus::Truncated;
-  if (body.size() - pos > need) return DecodeStatus::Corrupt;
-  const std::uint8_t* p0 = body.data() + pos;
-  std::size_t i = 0;
-  auto next = [&](std::uint32_t& z) {
-    z = p0[i];
-    if (planes > 1) z |= static_cast<std::uint32_t>(p0[n_valid + i]) << 8;
-    if (planes > 2) z |= static_cast<std::uint32_t>(p0[2 * n_valid + i]) << 16;
-    ++i;
-    return true;  // the plane length was checked above
-  };
-  return reconstruct(s.runs, use_table ? &s.table : nullptr, w, h, s.rows, next, out);
+  const std::size_t packed_len = (n_valid * bits + 7) / 8;
+  if (body.size() - pos < packed_len) return DecodeStatus::Truncated;
+  const std::uint8_t* packed = body.data() + pos;
+  const std::size_t over = pos + packed_len;
+  switch (bits) {
+    case 2:
+      return unpack<2>(s, body, packed, over, w, h, use_table, out);
+    case 4:
+      return unpack<4>(s, body, packed, over, w, h, use_table, out);
+    default:
+      return unpack<8>(s, body, packed, over, w, h, use_table, out);
+  }
 }
 
 }  // namespace telex::proto::detail

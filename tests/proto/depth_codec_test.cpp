@@ -82,8 +82,8 @@ TEST(DepthCodec, RoundTripsEdgeCaseFrames) {
 
 TEST(DepthCodec, RoundTripsEveryZipLevel) {
   const cv::Mat1w f = structured_frame(160, 120, 4);
-  for (int level = 1; level <= 9; ++level) expect_round_trip(f, Codec::Zip, level);
-  EXPECT_THROW(encode_depth(f, Codec::Zip, 0), std::invalid_argument);
+  for (int level = 0; level <= 9; ++level) expect_round_trip(f, Codec::Zip, level);
+  EXPECT_THROW(encode_depth(f, Codec::Zip, -1), std::invalid_argument);
   EXPECT_THROW(encode_depth(f, Codec::Zip, 10), std::invalid_argument);
 }
 

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
 // The newest-wins mailbox: replacing an unconsumed value counts a drop, take() times out.
+#include "telex/remote/latest_slot.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <thread>
-
-#include "telex/remote/latest_slot.h"
 
 namespace telex::remote {
 namespace {

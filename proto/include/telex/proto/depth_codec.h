@@ -29,12 +29,14 @@ enum class DecodeStatus : std::uint8_t {
 };
 std::string_view decode_status_name(DecodeStatus status);
 
-// Default deflate level of the zip codec, chosen by measurement (docs/BENCHMARKS.md "## Codecs").
-inline constexpr int kDefaultZipLevel = 1;
+// Zip codec effort: 0 = Huffman-only deflate (no LZ77 matching), 1..9 = zlib levels with the
+// default strategy. Any of them decodes with any inflater. The default was chosen by measurement
+// (docs/BENCHMARKS.md "## Codecs"): on packed residuals matching costs time and gains nothing.
+inline constexpr int kDefaultZipLevel = 0;
 // Largest tile/frame side any decoder accepts; bounds every allocation a decoder makes.
 inline constexpr int kMaxDepthSide = 4096;
 
-// Encodes any CV_16UC1 matrix (continuous or an ROI view). zip_level 1..9 applies to Codec::Zip.
+// Encodes any CV_16UC1 matrix (continuous or an ROI view). zip_level 0..9 applies to Codec::Zip.
 // Throws std::invalid_argument on an empty matrix or a level out of range (start-up/bad-input
 // tier).
 std::vector<std::uint8_t> encode_depth(const cv::Mat1w& tile, Codec codec,
