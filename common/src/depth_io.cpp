@@ -46,6 +46,8 @@ cv::Mat1w decode_png16(const std::vector<std::uint8_t>& bytes, const std::filesy
     fail(file, "wrong magic: not a PNG file");
   // IHDR sits at a fixed place: bit depth at byte 24, colour type at byte 25.
   if (bytes.size() < 33) fail(file, "truncated PNG (no complete IHDR chunk)");
+  if (std::memcmp(bytes.data() + 12, "IHDR", 4) != 0)
+    fail(file, "corrupt PNG: first chunk is not IHDR");
   const int bit_depth = bytes[24], colour_type = bytes[25];
   if (bit_depth != 16)
     fail(file, "not 16-bit: PNG bit depth is " + std::to_string(bit_depth) +

@@ -281,6 +281,58 @@ TEST(Synthetic, RenderFromDisplacedCamera) {
   EXPECT_NEAR(lo, 0.45, 1e-3);
 }
 
+void expect_identical(const Rendered& a, const Rendered& b) {
+  EXPECT_EQ(cv::countNonZero(a.depth.depth_mm != b.depth.depth_mm), 0);
+  EXPECT_EQ(cv::countNonZero(a.true_depth_m != b.true_depth_m), 0);
+  EXPECT_EQ(cv::countNonZero(a.object_id != b.object_id), 0);
+  cv::Mat normals_diff = a.true_normals != b.true_normals;
+  EXPECT_EQ(cv::countNonZero(normals_diff.reshape(1)), 0);
+}
+
+TEST(SyntheticRenderer, IncrementalFramesEqualFullRenders) {
+  const Intrinsics k = kinect_v1_intrinsics();
+  const Scene moving = Scene::named("moving");
+  SensorModel m;
+  m.seed = 5;
+  Renderer renderer(k, m);
+  for (std::uint64_t f = 0; f < 6; ++f) {
+    SCOPED_TRACE(f);
+    const Scene now = moving.at_time(0.3 * f);  // the ball moves 1-11 cm between frames
+    const Rendered inc = renderer.render(now, f);
+    expect_identical(inc, render(now, k, m, f));
+    if (f == 0) {
+      EXPECT_EQ(renderer.last_recast_pixels(), 640u * 480u);
+    } else {
+      // Only the ball's neighbourhood and its shadow are cast again.
+      EXPECT_GT(renderer.last_recast_pixels(), 0u);
+      EXPECT_LT(renderer.last_recast_pixels(), 640u * 480u / 4);
+    }
+  }
+  // A different scene is rendered from scratch, and a static one costs no ray casts.
+  const Scene box = Scene::named("box");
+  expect_identical(renderer.render(box, 9), render(box, k, m, 9));
+  EXPECT_EQ(renderer.last_recast_pixels(), 640u * 480u);
+  expect_identical(renderer.render(box.at_time(3.0), 10), render(box, k, m, 10));
+  EXPECT_EQ(renderer.last_recast_pixels(), 0u);
+}
+
+TEST(SyntheticRenderer, ShadowOfAMovingObjectIsUpdated) {
+  // A ball that moves across the projector's view of a wall: its shadow must follow it even on
+  // wall pixels far from the ball's own image.
+  const Intrinsics k = kinect_v1_intrinsics(320, 240);
+  Scene s;
+  s.add_plane({0, 0, 1}, 1.5);
+  const int ball = s.add_sphere({0, 0, 0.5}, 0.05);
+  s.set_motion(ball, Motion{{0.2, 0, 0}, 2.0});
+  SensorModel m = SensorModel::ideal();
+  m.shadow_holes = true;
+  Renderer renderer(k, m, {0.01, 0, 0});
+  for (double t : {0.0, 0.3, 0.5, 1.2}) {
+    const Scene now = s.at_time(t);
+    expect_identical(renderer.render(now, 0), render_from(now, k, {0.01, 0, 0}, m, 0));
+  }
+}
+
 TEST(Synthetic, UnknownNameThrowsWithValidList) {
   try {
     Scene::named("kitchen");

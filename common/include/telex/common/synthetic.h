@@ -2,6 +2,7 @@
 // Analytic synthetic scenes, a Kinect-v1-like structured-light sensor model, and ground truth.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
@@ -27,12 +28,6 @@ struct Motion {
   glm::dvec3 amplitude_m{0.0};
   double period_s = 1.0;
 };
-
-class Scene;
-struct SensorModel;
-struct Rendered;
-Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
-                     const SensorModel& sensor, std::uint64_t frame_index);
 
 // An analytic scene in the camera frame (x right, y down, z forward, metres). Objects are
 // infinite planes, spheres, oriented boxes and capped cylinders; every object gets an id (its
@@ -68,23 +63,23 @@ class Scene {
   bool blocked(const glm::dvec3& origin, const glm::dvec3& dir_unit, double max_t_m,
                int skip_object = -1) const;
 
- private:
-  friend Rendered render_from(const Scene&, const Intrinsics&, const glm::dvec3&,
-                              const SensorModel&, std::uint64_t);
-  // Bounding sphere of a finite object; renderers project them to skip objects per pixel.
+  // ---- lower level, for renderers ----
+  // Corners of a box enclosing a finite object; renderers project them to skip objects per pixel.
   struct Bound {
-    glm::dvec3 c;
-    double r;
+    std::array<glm::dvec3, 8> corners;
     int id;
   };
   std::vector<Bound> finite_bounds() const;
   // As raycast/blocked, but finite objects with id < 64 are tested only when their bit in
   // `mask` is set (planes and ids >= 64 always are).
-  std::optional<Hit> raycast_masked(const glm::dvec3& o, const glm::dvec3& d,
-                                    std::uint64_t mask) const;
+  bool cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t mask, Hit& hit) const;
   bool blocked_masked(const glm::dvec3& o, const glm::dvec3& d, double max_t_m, int skip_object,
                       std::uint64_t mask) const;
+  // Ids of the objects whose geometry differs from `before` when both scenes hold the same
+  // objects (e.g. two times of one animated scene); nullopt when they are different scenes.
+  std::optional<std::vector<int>> moved_since(const Scene& before) const;
 
+ private:
   struct Plane {
     glm::dvec3 n;
     double d;
@@ -153,6 +148,36 @@ Rendered render(const Scene& scene, const Intrinsics& intr, const SensorModel& s
 // baseline); orientation unchanged. Depth, normals and ids are in the displaced camera's frame.
 Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
                      const SensorModel& sensor, std::uint64_t frame_index = 0);
+
+// Renders successive frames of one scene for one camera, like render_from, but re-casts only the
+// pixels that the objects which moved since the previous frame can affect (their old and new
+// screen rectangles, and the surface points whose projector ray passes their rectangles). A static
+// scene costs only the sensor pass per frame; the output equals render_from's exactly.
+class Renderer {
+ public:
+  // Throws std::invalid_argument on bad intrinsics or sensor model (as render does).
+  Renderer(const Intrinsics& intr, const SensorModel& sensor,
+           const glm::dvec3& t_cam_m = glm::dvec3(0.0));
+  Rendered render(const Scene& scene, std::uint64_t frame_index);
+  // Pixels ray-cast by the last render() (all of them on the first call or a new scene).
+  std::size_t last_recast_pixels() const { return last_recast_; }
+
+  struct Geometry {  // ground truth plus what the sensor pass needs, one entry per pixel
+    cv::Mat1f z_m;
+    cv::Mat3f normal;
+    cv::Mat1i id;
+    cv::Mat1f theta_rad;  // incidence angle between the camera ray and the normal
+    cv::Mat1b shadowed;   // the projector cannot reach the surface point
+  };
+
+ private:
+  Intrinsics intr_;
+  SensorModel sensor_;
+  glm::dvec3 t_cam_m_;
+  std::optional<Scene> previous_;
+  Geometry geometry_;
+  std::size_t last_recast_ = 0;
+};
 
 // Nguyen, Izadi, Lovell 2012 axial noise sigma (m): 0.0012 + 0.0019 (z - 0.4)^2, plus
 // 0.0001 theta^2 / (sqrt(z) (pi/2 - theta)^2) beyond 60 deg. theta is clamped below pi/2.
