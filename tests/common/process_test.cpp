@@ -13,6 +13,7 @@
 
 #include "telex/common/depth_io.h"
 #include "telex/common/hole_fill.h"
+#include "telex/common/registration.h"
 #include "telex/common/synthetic.h"
 #include "test_support.h"
 
@@ -101,6 +102,35 @@ TEST_F(ProcessCommand, TumUnitsSyntheticFrame) {
   const auto j = nlohmann::json::parse(run.out);
   EXPECT_EQ(j.at("holes_in").get<std::size_t>(), count_holes(r.depth.depth_mm));
   EXPECT_FALSE(j.contains("outputs"));  // no --out: nothing written
+}
+
+TEST_F(ProcessCommand, RegistersBeforeFilling) {
+  const auto r =
+      synth::render(synth::Scene::named("box"), kinect_v1_intrinsics(), synth::SensorModel{}, 3);
+  const auto in = dir_ / "box.png";
+  save_depth_png(in, r.depth.depth_mm);
+  const auto out = dir_ / "out";
+  const ToolRun run = run_telex("process --in '" + in.string() + "' --register-shift 12.5 " +
+                                    "--register-scale 1.05 --out '" + out.string() + "' --json",
+                                dir_ / "e.txt");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const auto j = nlohmann::json::parse(run.out);
+  EXPECT_GE(j.at("register_ms").get<double>(), 0.0);
+  ShiftScale params;
+  params.shift_x_px = 12.5;
+  params.scale_x = params.scale_y = 1.05;
+  const DepthImage registered = register_shift_scale(r.depth, params, r.depth.intrinsics);
+  EXPECT_EQ(j.at("holes_in").get<std::size_t>(), count_holes(registered.depth_mm));
+  const cv::Mat filled =
+      cv::imread(j.at("outputs").at("filled_depth_mm").get<std::string>(), cv::IMREAD_ANYDEPTH);
+  EXPECT_EQ(cv::norm(filled, fill_holes_mode(registered.depth_mm).depth_mm, cv::NORM_INF), 0.0);
+  // Without the flags nothing is registered.
+  const ToolRun plain = run_telex("process --in '" + in.string() + "' --json", dir_ / "e.txt");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_FALSE(nlohmann::json::parse(plain.out).contains("register_ms"));
+  EXPECT_EQ(
+      run_telex("process --in '" + in.string() + "' --register-scale 0", dir_ / "e.txt").exit_code,
+      1);
 }
 
 TEST_F(ProcessCommand, BadInputExitsOneNamingTheFile) {

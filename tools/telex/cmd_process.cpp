@@ -11,9 +11,11 @@
 
 #include "command.h"
 #include "telex/common/bilateral.h"
+#include "telex/common/colorize.h"
 #include "telex/common/depth_io.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
+#include "telex/common/registration.h"
 
 namespace telex::tool {
 namespace {
@@ -27,29 +29,14 @@ struct ProcessArgs {
   HoleFillOptions fill;
   BilateralOptions bilateral;
   NormalOptions normals;
+  // Registration to the right-eye image (same size and intrinsics as the depth): shift+scale.
+  double register_shift_px = 0.0;
+  double register_scale = 1.0;
+  bool register_depth = false;
 };
 
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-// Turbo false colour over the 1st..99th percentile of the valid depths, holes black (BGR).
-cv::Mat3b colour_depth(const cv::Mat1w& depth_mm) {
-  std::vector<std::uint16_t> v;
-  v.reserve(depth_mm.total());
-  for (int y = 0; y < depth_mm.rows; ++y)
-    for (int x = 0; x < depth_mm.cols; ++x)
-      if (depth_mm(y, x) != 0) v.push_back(depth_mm(y, x));
-  cv::Mat3b out(depth_mm.size(), cv::Vec3b(0, 0, 0));
-  if (v.empty()) return out;
-  std::sort(v.begin(), v.end());
-  const double lo = v[v.size() / 100], hi = std::max<double>(v[v.size() * 99 / 100], lo + 1.0);
-  cv::Mat1b scaled;
-  // Near is red: 255 at lo, 0 at hi.
-  depth_mm.convertTo(scaled, CV_8U, -255.0 / (hi - lo), 255.0 * hi / (hi - lo));
-  cv::applyColorMap(scaled, out, cv::COLORMAP_TURBO);
-  out.setTo(cv::Vec3b(0, 0, 0), depth_mm == 0);
-  return out;
 }
 
 void write_png(const std::filesystem::path& file, const cv::Mat& image) {
@@ -64,8 +51,21 @@ int run_process(const ProcessArgs& a) {
 
   auto t0 = clock::now();
   const Intrinsics intr{a.fx, a.fy, a.cx, a.cy, 640, 480};
-  const DepthImage depth = load_depth(a.in, parse_depth_units(a.units), intr);
+  DepthImage depth = load_depth(a.in, parse_depth_units(a.units), intr);
   j["load_ms"] = ms_since(t0);
+  if (a.register_depth) {
+    if (!(a.register_scale > 0.0))
+      throw std::invalid_argument("--register-scale must be > 0, got " +
+                                  std::to_string(a.register_scale));
+    ShiftScale params;
+    params.shift_x_px = a.register_shift_px;
+    params.scale_x = params.scale_y = a.register_scale;
+    t0 = clock::now();
+    depth = register_shift_scale(depth, params, depth.intrinsics);
+    j["register_ms"] = ms_since(t0);
+    j["register_shift_px"] = a.register_shift_px;
+    j["register_scale"] = a.register_scale;
+  }
   j["width"] = depth.width();
   j["height"] = depth.height();
 
@@ -105,7 +105,7 @@ int run_process(const ProcessArgs& a) {
     cv::Mat3b bgr;
     cv::cvtColor(normals_to_rgb(normals), bgr, cv::COLOR_RGB2BGR);
     write_png(normals_png, bgr);
-    write_png(colour_png, colour_depth(filled.depth_mm));
+    write_png(colour_png, colorize_depth(filled.depth_mm));
     j["outputs"] = {{"filled_depth_mm", filled_png.string()},
                     {"normals_rgb", normals_png.string()},
                     {"depth_colour", colour_png.string()}};
@@ -138,6 +138,12 @@ const RegisterCommand kRegister{
       app.add_option("--fy", a->fy, "Focal length y (px) at 640x480")->capture_default_str();
       app.add_option("--cx", a->cx, "Principal point x (px) at 640x480")->capture_default_str();
       app.add_option("--cy", a->cy, "Principal point y (px) at 640x480")->capture_default_str();
+      app.add_option("--register-shift", a->register_shift_px,
+                     "Register to the right eye: horizontal shift (px) after scaling")
+          ->each([a](const std::string&) { a->register_depth = true; });
+      app.add_option("--register-scale", a->register_scale,
+                     "Register to the right eye: field-of-view scale about the principal point")
+          ->each([a](const std::string&) { a->register_depth = true; });
       app.add_option("--fill-window", a->fill.window_px, "Hole-fill window side (odd)")
           ->capture_default_str();
       app.add_option("--fill-bin-mm", a->fill.bin_mm, "Hole-fill depth bin (mm)")
