@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -162,9 +163,15 @@ class RatioReporter : public benchmark::ConsoleReporter {
   RatioReporter() : ConsoleReporter(OO_Tabular) {}
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
-    for (const Run& r : runs)
-      if (!r.error_occurred && r.run_type == Run::RT_Iteration)
-        ms_[r.benchmark_name()] = {r.GetAdjustedCPUTime(), r.GetAdjustedRealTime()};
+    // With --benchmark_repetitions the medians are used, else the single run.
+    for (const Run& r : runs) {
+      if (r.error_occurred) continue;
+      const bool median = r.run_type == Run::RT_Aggregate && r.aggregate_name == "median";
+      if (r.run_type != Run::RT_Iteration && !median) continue;
+      if (r.run_type == Run::RT_Iteration && medians_.count(r.run_name.str())) continue;
+      if (median) medians_.insert(r.run_name.str());
+      ms_[r.run_name.str()] = {r.GetAdjustedCPUTime(), r.GetAdjustedRealTime()};
+    }
   }
   void print_ratios() const {
     std::cout << "\nratios ours / peer, CPU time (real time), goal in brackets, on "
@@ -190,6 +197,7 @@ class RatioReporter : public benchmark::ConsoleReporter {
               << (q <= goal ? "met" : "NOT met") << "\n";
   }
   std::map<std::string, std::pair<double, double>> ms_;  // name -> {CPU ms, real ms}
+  std::set<std::string> medians_;
 };
 
 }  // namespace
