@@ -3,7 +3,8 @@
 // end.
 //
 //   depth_bench [--frame=DEPTH_MM.png] [--benchmark_min_time=0.2 ...]
-// Frame: --frame, else $TELEX_SHARED_DIR/data/real/desk/desk_0_depth_mm.png, else a synthetic desk.
+// Frame: --frame, else $TELEX_SHARED_DIR/data/real/desk/desk_0_depth_mm.png, else the synthetic
+// desk scene.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -24,6 +25,7 @@
 #include "telex/common/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
+#include "telex/common/synthetic.h"
 
 namespace {
 
@@ -46,6 +48,13 @@ cv::Mat camera_matrix(const telex::Intrinsics& k) {
   return (cv::Mat_<float>(3, 3) << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
 }
 
+void prepare(Frames& f) {
+  f.filled_mm = telex::fill_holes_mode(f.raw_mm).depth_mm;
+  f.filled_mm.convertTo(f.filled_mm_f, CV_32F);
+  f.filled_m = telex::depth_m_from_mm(f.filled_mm);
+  cv::rgbd::depthTo3d(f.filled_m, camera_matrix(f.intrinsics), f.points);
+}
+
 void load_frames(const std::string& path) {
   Frames& f = frames();
   f.raw_mm = cv::imread(path, cv::IMREAD_ANYDEPTH);
@@ -54,11 +63,20 @@ void load_frames(const std::string& path) {
     std::exit(1);
   }
   f.source = path;
+  // The shared desk frames' intrinsics (README beside them).
   f.intrinsics = telex::Intrinsics{525.0, 525.0, 320.0, 240.0, f.raw_mm.cols, f.raw_mm.rows};
-  f.filled_mm = telex::fill_holes_mode(f.raw_mm).depth_mm;
-  f.filled_mm.convertTo(f.filled_mm_f, CV_32F);
-  f.filled_m = telex::depth_m_from_mm(f.filled_mm);
-  cv::rgbd::depthTo3d(f.filled_m, camera_matrix(f.intrinsics), f.points);
+  prepare(f);
+}
+
+// Without the real frames: the synthetic desk with the Kinect-v1 sensor model (fixed seed).
+void synthetic_frames() {
+  Frames& f = frames();
+  const auto r = telex::synth::render(telex::synth::Scene::named("desk"),
+                                      telex::kinect_v1_intrinsics(), telex::synth::SensorModel{});
+  f.raw_mm = r.depth.depth_mm;
+  f.intrinsics = r.depth.intrinsics;
+  f.source = "synthetic desk (no real frame given)";
+  prepare(f);
 }
 
 void BM_FillMode_1pass_5x5(benchmark::State& state) {
@@ -218,12 +236,12 @@ int main(int argc, char** argv) {
       if (std::filesystem::exists(p)) frame = p.string();
     }
   }
-  if (frame.empty()) {
-    std::cerr << "depth_bench: pass --frame=DEPTH_MM.png or set TELEX_SHARED_DIR\n";
-    return 1;
-  }
   cv::setNumThreads(1);
-  load_frames(frame);
+  if (frame.empty()) {
+    synthetic_frames();
+  } else {
+    load_frames(frame);
+  }
   int n = static_cast<int>(rest.size());
   benchmark::Initialize(&n, rest.data());
   if (benchmark::ReportUnrecognizedArguments(n, rest.data())) return 2;
