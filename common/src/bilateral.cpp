@@ -253,14 +253,25 @@ __attribute__((target("avx2,fma"))) void filter_pairs_avx2(const BilateralOption
   const int by0 = roi.y - r;  // buffer row 0
   const int rows = roi.height + 2 * r;
   thread_local std::vector<float> z_store, acc_store;
-  z_store.assign(static_cast<std::size_t>(stride) * rows, 0.0f);
+  z_store.resize(static_cast<std::size_t>(stride) * rows);
   for (int by = 0; by < rows; ++by) {
     const int y = by0 + by;
-    if (y < 0 || y >= depth_mm.rows) continue;
+    float* zr = z_store.data() + static_cast<std::size_t>(by) * stride;  // buffer column 0
+    if (y < 0 || y >= depth_mm.rows) {
+      std::fill(zr, zr + stride, 0.0f);
+      continue;
+    }
+    // Zeros beyond the image make the outside holes; inside, 8 pixels per conversion.
     const int x_from = std::max(0, bx0), x_to = std::min(depth_mm.cols, bx0 + stride);
+    std::fill(zr, zr + (x_from - bx0), 0.0f);
+    std::fill(zr + (x_to - bx0), zr + stride, 0.0f);
     const std::uint16_t* in = depth_mm[y];
-    float* zr = z_store.data() + static_cast<std::size_t>(by) * stride - bx0;
-    for (int x = x_from; x < x_to; ++x) zr[x] = static_cast<float>(in[x]);
+    float* out = zr - bx0;
+    int x = x_from;
+    for (; x + 8 <= x_to; x += 8)
+      _mm256_storeu_ps(out + x, _mm256_cvtepi32_ps(_mm256_cvtepu16_epi32(
+                                    _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + x)))));
+    for (; x < x_to; ++x) out[x] = static_cast<float>(in[x]);
   }
   const auto z_row = [&](int y) {
     return z_store.data() + static_cast<std::size_t>(y - by0) * stride - bx0;
