@@ -71,12 +71,20 @@ inline std::uint16_t window_mode(const cv::Mat1w& img, int x, int y, int radius,
   int distinct = 0;
   int last = 0;
   int total = 0;
+  // Valid neighbours first, compacted without a branch per pixel (holes and values interleave
+  // unpredictably at a hole's rim), then binned.
+  std::array<std::uint16_t, kMaxNeighbours + 1> vals;
   for (int yy = y0; yy <= y1; ++yy) {
     const std::uint16_t* row = img[yy];
     for (int xx = x0; xx <= x1; ++xx) {
-      const std::uint32_t v = row[xx];
-      if (v == 0) continue;
-      ++total;
+      const std::uint16_t v = row[xx];
+      vals[total] = v;
+      total += v != 0;
+    }
+  }
+  for (int i = 0; i < total; ++i) {
+    {
+      const std::uint32_t v = vals[i];
       const std::uint32_t k = (v * mul) >> 16;
       // Neighbours mostly share the previous sample's bin: try it before searching.
       if (key[last] != k || distinct == 0) {
