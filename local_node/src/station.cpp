@@ -36,6 +36,7 @@ struct TickSample {
   std::int64_t surface_capture_ns = 0;  // remote clock; 0 = no surface yet
   std::array<FingertipForce, kFingerCount> forces{};
   std::array<bool, kFingerCount> tracked{};
+  std::array<glm::dvec3, kFingerCount> p_camera{};
 };
 
 // Median depth (m) of the valid pixels in the central tenth of the image: where scripts aim.
@@ -87,7 +88,7 @@ StationSummary Station::run() {
     if (!forces_csv)
       throw std::runtime_error("cannot write --log-forces file " + cfg_.log_forces_csv.string());
     forces_csv << "time_s,finger,pressure_N,shear_N,contact,fx_N,fy_N,fz_N,penetration_m,status,"
-                  "surface_frame,surface_capture_ns\n";
+                  "x_m,y_m,z_m,surface_frame,surface_capture_ns\n";
   }
   const std::string view_dir = view_dir_of(cfg_.view_spec);
   if (!view_dir.empty()) std::filesystem::create_directories(view_dir);
@@ -249,7 +250,10 @@ StationSummary Station::run() {
       sample.surface_capture_ns = newest ? newest->capture_ns : 0;
       sample.forces = out;
       for (int i = 0; i < kFingerCount; ++i)
+      {
         sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
+        sample.p_camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].p_camera;
+      }
       samples.push(sample);
       missed.store(timer.missed(), std::memory_order_relaxed);
     }
@@ -311,11 +315,13 @@ StationSummary Station::run() {
           if (!s.tracked[static_cast<std::size_t>(i)] && !s.forces[static_cast<std::size_t>(i)].contact)
             continue;
           const auto& f = s.forces[static_cast<std::size_t>(i)];
-          char row[320];
-          std::snprintf(row, sizeof row, "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%llu,%lld\n", t,
+          const auto& p = s.p_camera[static_cast<std::size_t>(i)];
+          char row[400];
+          std::snprintf(row, sizeof row,
+                        "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%.6f,%.6f,%.6f,%llu,%lld\n", t,
                         kFingerNames[i], f.normal_force_N, f.shear_along_axis_N, f.contact ? 1 : 0,
                         f.force_N.x, f.force_N.y, f.force_N.z, f.penetration_m,
-                        std::string(to_string(f.status)).c_str(),
+                        std::string(to_string(f.status)).c_str(), p.x, p.y, p.z,
                         static_cast<unsigned long long>(s.surface_frame),
                         static_cast<long long>(s.surface_capture_ns));
           forces_csv << row;
