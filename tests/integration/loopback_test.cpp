@@ -7,6 +7,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <map>
 #include <sstream>
 
 #include "process.h"
@@ -174,6 +175,51 @@ TEST(Loopback, ViewPngShowsHandAndForceArrow) {
   EXPECT_GT(contact_px, 30);
   EXPECT_GT(arrow_px, 30);
   EXPECT_EQ(img.at<cv::Vec3b>(img.rows / 2, img.cols / 2), contact);
+}
+
+}  // namespace
+}  // namespace telex::test
+
+namespace telex::test {
+namespace {
+
+TEST(Loopback, NatNetSimulatorDrivesTheFingertips) {
+  const auto dir = scratch_dir("loopback_natnet");
+  Remote remote(dir, {"--source", "synthetic:plane"});
+  const std::uint16_t cmd_port = free_port();
+  Process sim({built_binary("telex-sim-natnet").string(), "--command-port",
+               std::to_string(cmd_port), "--duration", "20", "--natnet-version", "4.1"},
+              dir / "sim.out", dir / "sim.err");
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "natnet:127.0.0.1,unicast", "--natnet-cmd-port",
+                            std::to_string(cmd_port), "--log-tracking",
+                            (dir / "tracking.csv").string(), "--duration", "4"}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
+  sim.signal(SIGINT);
+  // Every rigid body as reported: head 1, hand 2, shoulder 3, tracked.
+  std::istringstream in(read_text(dir / "tracking.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid");
+  std::map<int, int> valid_rows;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    ASSERT_EQ(f.size(), 10u) << line;
+    if (f[9] == "1") valid_rows[std::stoi(f[1])]++;
+  }
+  for (int id : {1, 2, 3}) EXPECT_GT(valid_rows[id], 100) << "body " << id;
+  // The index fingertip follows the simulated hand: it moves in depth by several centimetres.
+  const auto rows = read_forces(dir / "forces.csv");
+  double zmin = 1e9, zmax = -1e9;
+  for (const auto& r : rows)
+    if (r.finger == "index") {
+      zmin = std::min(zmin, r.z);
+      zmax = std::max(zmax, r.z);
+    }
+  EXPECT_GT(zmax - zmin, 0.05);
 }
 
 }  // namespace
