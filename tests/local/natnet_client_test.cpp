@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "telex/local/natnet_server.h"
+#include "telex/local/tracker.h"
 
 namespace telex::local {
 namespace {
@@ -155,6 +156,72 @@ TEST(NatNetRecording, CsvPlaysBackAndRejectsBadLines) {
   }
   EXPECT_THROW(load_natnet_csv(dir / "missing.csv", false), std::runtime_error);
   std::filesystem::remove_all(dir);
+}
+
+TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
+  // A fixed pose, so the ground truth does not depend on which frame the poll picks up.
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("telex_nntrk_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto csv = dir / "pose.csv";
+  std::ofstream(csv) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
+                        "0,1,0.1,1.6,0.2,0,0.258819,0,0.965926\n"      // head yawed 30 deg
+                        "0,2,-0.05,1.45,-0.2,0,0.707107,0,0.707107\n"  // hand, fingers forward
+                        "0,3,0.2,1.45,0.25,0,0,0,1\n";
+  NatNetServerConfig scfg;
+  scfg.command_port = 0;
+  scfg.version = {3, 1};
+  NatNetServer server(scfg, load_natnet_csv(csv, false));
+  std::thread srv([&] { server.run_for(20.0); });
+
+  TrackerConfig cfg;
+  cfg.head_body_id = 1;
+  cfg.right_hand_body_id = 2;
+  cfg.right_shoulder_body_id = 3;
+  auto tracker =
+      make_tracker("natnet:127.0.0.1,unicast,cmd=" + std::to_string(server.command_port()), cfg);
+  EXPECT_EQ(tracker->name(), "natnet:127.0.0.1");
+  HandState st;
+  bool got = false;
+  for (int i = 0; i < 2000 && !got; ++i) {
+    got = tracker->poll(i, st) && st.tips[1].valid;
+    if (!got) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(got);
+
+  natnet::Frame truth;
+  load_natnet_csv(csv, false)(0.0, truth);
+  auto pose_of = [&](int id) {
+    const auto* b = truth.find_body(id);
+    return Pose{{b->p_m.x, b->p_m.y, b->p_m.z},
+                glm::normalize(glm::dquat(b->qw, b->qx, b->qy, b->qz))};
+  };
+  const HandPoints h = hand_forward(cfg.hand, pose_of(2), cfg.default_bend);
+  for (int f = 0; f < kFingerCount; ++f) {
+    const glm::dvec3 want = world_to_camera(cfg.hand, pose_of(1), h.joints[f][3]);
+    EXPECT_NEAR(st.tips[f].p_camera_m.x, want.x, 1e-6);
+    EXPECT_NEAR(st.tips[f].p_camera_m.y, want.y, 1e-6);
+    EXPECT_NEAR(st.tips[f].p_camera_m.z, want.z, 1e-6);
+    EXPECT_NEAR(glm::length(st.tips[f].v_camera_mps), 0.0, 1e-9);  // the pose does not move
+  }
+  // The hand is in front of the camera (positive depth) and the shoulder was mapped too.
+  EXPECT_GT(st.tips[1].p_camera_m.z, 0.0);
+  EXPECT_TRUE(st.shoulder_valid);
+  EXPECT_TRUE(st.skeleton_valid);
+  EXPECT_GE(tracker->stats().frames_in, 1u);
+  EXPECT_EQ(tracker->stats().parse_errors, 0u);
+  tracker.reset();
+  server.stop();
+  srv.join();
+  std::filesystem::remove_all(dir);
+}
+
+TEST(NatNetTracker, SpecErrors) {
+  TrackerConfig cfg;
+  EXPECT_THROW(make_tracker("natnet:", cfg), std::invalid_argument);
+  EXPECT_THROW(make_tracker("natnet:127.0.0.1,cmd=99999", cfg), std::invalid_argument);
+  EXPECT_THROW(make_tracker("natnet:127.0.0.1,turbo", cfg), std::invalid_argument);
+  EXPECT_THROW(make_tracker("natnet:127.0.0.1,version=7.0", cfg), std::invalid_argument);
 }
 
 }  // namespace

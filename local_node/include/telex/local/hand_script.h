@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: MIT
+// Scripted fingertip trajectories (built-in press/stroke/tap or a text file) and their tracker.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "telex/local/tracker.h"
+
+namespace telex::local {
+
+struct ScriptKey {
+  double t_s = 0;
+  glm::dvec3 p_camera_m{0.0};
+};
+
+// Piecewise-linear fingertip paths in the camera frame; pure (time comes in as an argument).
+class HandScript {
+ public:
+  // "press": the index tip moves along the optical axis toward the image centre from 0.3 m in
+  //   front of the surface at 0.1 m/s, reaches 10 mm beyond it, holds 1 s and returns.
+  // "stroke": press to 5 mm, slide 100 mm toward +x and back at 50 mm/s, return.
+  // "tap": approach to 20 mm in front, three taps to 5 mm beyond (0.1 s in, 0.1 s out, 0.3 s
+  //   apart), return.
+  // Throws std::invalid_argument naming the valid names, or a surface depth that is not positive.
+  static HandScript builtin(std::string_view name, double surface_depth_m);
+  static std::vector<std::string> builtin_names();
+
+  // Text format (docs/HARDWARE.md): '#' comments and blank lines ignored; a header line
+  // "time_s finger x_m y_m z_m"; then one key per line, whitespace or comma separated, finger
+  // 0..4, time non-decreasing per finger. Throws std::runtime_error "SOURCE line N: ...".
+  static HandScript parse(std::string_view text, const std::string& source_name);
+  static HandScript load(const std::filesystem::path& path);
+
+  double duration_s() const { return duration_s_; }
+  bool has_finger(int finger) const { return !keys_[finger].empty(); }
+  glm::dvec3 position(int finger, double t_s) const;  // clamped to the finger's first/last key
+  // Tips at t: positions, velocities by a 1 ms backward finite difference, axis (1,0,1)/sqrt2 (the
+  // finger points right and into the scene), valid for scripted fingers only. Sets out.time_ns only via caller.
+  void sample(double t_s, HandState& out) const;
+
+ private:
+  std::array<std::vector<ScriptKey>, kFingerCount> keys_{};
+  double duration_s_ = 0;
+};
+
+// Runs a script on the caller's clock from its first poll. Once (returns false after the final
+// state has been delivered, so the daemon sees the tracker stop and releases forces) or repeated.
+class ScriptTracker final : public HandTracker {
+ public:
+  ScriptTracker(HandScript script, std::string name, bool repeat);
+  bool poll(std::int64_t now_ns, HandState& out) override;
+  std::string name() const override { return name_; }
+  TrackerStats stats() const override { return stats_; }
+  bool finished() const { return finished_; }
+
+ private:
+  HandScript script_;
+  std::string name_;
+  bool repeat_;
+  bool started_ = false;
+  bool finished_ = false;
+  std::int64_t start_ns_ = 0;
+  std::int64_t last_ns_ = 0;
+  TrackerStats stats_;
+};
+
+}  // namespace telex::local

@@ -1,0 +1,317 @@
+// SPDX-License-Identifier: MIT
+// 5DT gloves: report parsing, calibration, and the hidapi / termios readers on their own threads.
+#include "telex/local/glove.h"
+
+#include <fcntl.h>
+#include <hidapi.h>
+#include <poll.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+namespace telex::local {
+
+std::optional<GloveModel> glove_model_from_product_id(std::uint16_t pid) {
+  if (pid <= 0x07) return GloveModel::Sensors14;
+  if (pid == 0x10) return GloveModel::Sensors5Right;
+  if (pid == 0x11) return GloveModel::Sensors5Left;
+  return std::nullopt;
+}
+
+int sensor_count(GloveModel model) { return model == GloveModel::Sensors14 ? 14 : 5; }
+
+const char* parse_5dt_usb_report(std::span<const std::uint8_t> report, GloveModel model,
+                                 GloveRaw& out) {
+  if (model == GloveModel::Serial5) return "serial glove model given to the USB report parser";
+  if (report.size() < 32) return "5DT USB report shorter than 16 int16 values (32 bytes)";
+  auto value = [&](int i) {
+    const auto v = static_cast<std::int16_t>((report[2 * i] << 8) | report[2 * i + 1]);
+    return static_cast<double>(v) / 4096.0;
+  };
+  out = GloveRaw{};
+  out.sensor_count = sensor_count(model);
+  if (model == GloveModel::Sensors14) {
+    for (int i = 0; i < 14; ++i) out.sensors[i] = value(i);
+  } else {
+    for (int i = 0; i < 5; ++i) out.sensors[i] = value(3 * i);
+  }
+  return nullptr;
+}
+
+std::uint8_t serial_5dt_checksum(std::span<const std::uint8_t, 7> data) {
+  unsigned sum = 0;
+  for (auto b : data) sum += b;
+  return static_cast<std::uint8_t>(sum & 0xFF);
+}
+
+bool Serial5dtParser::push(std::uint8_t byte, GloveRaw& out) {
+  if (have_ == 0 && byte != k5dtSerialHeader) {
+    ++skipped_;
+    return false;
+  }
+  buf_[have_++] = byte;
+  if (have_ < buf_.size()) return false;
+  const std::span<const std::uint8_t, 7> data(buf_.data() + 1, 7);
+  if (serial_5dt_checksum(data) == buf_[8]) {
+    out = GloveRaw{};
+    out.sensor_count = 5;
+    for (int i = 0; i < 5; ++i) out.sensors[i] = buf_[1 + i] / 255.0;
+    out.pitch = buf_[6] / 255.0;
+    out.roll = buf_[7] / 255.0;
+    have_ = 0;
+    return true;
+  }
+  // A data byte can look like a header: restart at the next 0x80 inside what we already have.
+  ++bad_checksums_;
+  const auto next = std::find(buf_.begin() + 1, buf_.end(), k5dtSerialHeader);
+  skipped_ += static_cast<std::uint64_t>(next - buf_.begin());
+  have_ = static_cast<std::size_t>(buf_.end() - next);
+  std::copy(next, buf_.end(), buf_.begin());
+  return false;
+}
+
+GloveCalibration GloveCalibration::full_range(int n) {
+  GloveCalibration c;
+  c.sensor_count = n;
+  c.min.fill(0.0);
+  c.max.fill(1.0);
+  return c;
+}
+
+GloveCalibration GloveCalibration::empty(int n) {
+  GloveCalibration c;
+  c.sensor_count = n;
+  c.min.fill(1e9);
+  c.max.fill(-1e9);
+  return c;
+}
+
+void GloveCalibration::observe(const GloveRaw& raw) {
+  for (int i = 0; i < std::min(sensor_count, raw.sensor_count); ++i) {
+    min[i] = std::min(min[i], raw.sensors[i]);
+    max[i] = std::max(max[i], raw.sensors[i]);
+  }
+}
+
+GloveCalibration GloveCalibration::load(const std::filesystem::path& path, int n) {
+  std::ifstream in(path);
+  if (!in)
+    throw std::runtime_error("glove calibration " + path.string() +
+                             ": cannot open (leave the path empty for the full sensor range)");
+  nlohmann::json j;
+  try {
+    in >> j;
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error("glove calibration " + path.string() + ": not JSON: " + e.what());
+  }
+  GloveCalibration c;
+  c.sensor_count = n;
+  for (const char* key : {"min", "max"}) {
+    if (!j.contains(key) || !j[key].is_array() || j[key].size() != static_cast<std::size_t>(n))
+      throw std::runtime_error("glove calibration " + path.string() + ": \"" + key +
+                               "\" must be an array of " + std::to_string(n) + " numbers");
+    for (int i = 0; i < n; ++i) {
+      if (!j[key][i].is_number())
+        throw std::runtime_error("glove calibration " + path.string() + ": \"" + key + "\"[" +
+                                 std::to_string(i) + "] is not a number");
+      (std::string(key) == "min" ? c.min : c.max)[i] = j[key][i].get<double>();
+    }
+  }
+  for (int i = 0; i < n; ++i)
+    if (!(c.max[i] > c.min[i]))
+      throw std::runtime_error("glove calibration " + path.string() + ": sensor " +
+                               std::to_string(i) + " has max <= min");
+  return c;
+}
+
+void GloveCalibration::save(const std::filesystem::path& path) const {
+  nlohmann::json j;
+  j["min"] = std::vector<double>(min.begin(), min.begin() + sensor_count);
+  j["max"] = std::vector<double>(max.begin(), max.begin() + sensor_count);
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("glove calibration " + path.string() + ": cannot write");
+  out << j.dump(2) << "\n";
+}
+
+std::array<double, 5> finger_bends(const GloveRaw& raw, const GloveCalibration& cal) {
+  auto norm = [&](int i) {
+    const double range = cal.max[i] - cal.min[i];
+    if (!(range > 0.0)) return 0.0;
+    return std::clamp((raw.sensors[i] - cal.min[i]) / range, 0.0, 1.0);
+  };
+  std::array<double, 5> bend{};
+  if (raw.sensor_count == 14) {
+    static constexpr int kNear[5] = {0, 3, 6, 9, 12};
+    for (int f = 0; f < 5; ++f) bend[f] = 0.5 * (norm(kNear[f]) + norm(kNear[f] + 1));
+  } else {
+    for (int f = 0; f < 5; ++f) bend[f] = norm(f);
+  }
+  return bend;
+}
+
+GloveDevice::~GloveDevice() = default;
+
+void GloveDevice::publish(const GloveRaw& raw) {
+  GloveSample s;
+  s.bend = finger_bends(raw, calibration_);
+  s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now().time_since_epoch())
+                      .count();
+  samples_.publish(s);
+  ++reports_;
+}
+
+namespace {
+
+GloveCalibration calibration_for(const std::string& path, int n) {
+  return path.empty() ? GloveCalibration::full_range(n) : GloveCalibration::load(path, n);
+}
+
+class Usb5dtGlove final : public GloveDevice {
+ public:
+  Usb5dtGlove(const std::string& path, const std::string& calibration_path) {
+    if (hid_init() != 0) throw std::runtime_error("5DT USB glove: hidapi failed to initialise");
+    hid_device_info* list = hid_enumerate(k5dtVendorId, 0);
+    std::optional<GloveModel> model;
+    std::string chosen;
+    for (hid_device_info* d = list; d != nullptr; d = d->next) {
+      const auto m = glove_model_from_product_id(d->product_id);
+      if (!m) continue;
+      if (path.empty() || path == d->path) {
+        model = m;
+        chosen = d->path;
+        break;
+      }
+    }
+    hid_free_enumeration(list);
+    if (!model) {
+      throw std::runtime_error(
+          path.empty()
+              ? "5DT USB glove: no HID device with vendor 0x5D70 and a glove product id "
+                "(0x00-0x07, 0x10, 0x11) found. Is it plugged in (lsusb | grep 5d70)? Does your "
+                "user may read /dev/hidraw* (udev rule, docs/HARDWARE.md)? Or use script:press."
+              : "5DT USB glove: cannot open " + path +
+                    ": no 5DT glove (vendor 0x5D70) at that HID path. Check it exists (ls -l " +
+                    path +
+                    "), its permissions (udev rule, docs/HARDWARE.md), or omit the path "
+                    "to take the first glove found.");
+    }
+    model_ = *model;
+    name_ = "5dt-usb:" + chosen;
+    dev_ = hid_open_path(chosen.c_str());
+    if (dev_ == nullptr)
+      throw std::runtime_error("5DT USB glove: found at " + chosen +
+                               " but cannot open it (permissions? see the udev rule in "
+                               "docs/HARDWARE.md)");
+    calibration_ = calibration_for(calibration_path, sensor_count(model_));
+    thread_ = std::thread([this] { run(); });
+  }
+  ~Usb5dtGlove() override {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    hid_close(dev_);
+  }
+  std::string name() const override { return name_; }
+
+ private:
+  void run() {
+    std::array<std::uint8_t, k5dtUsbReportBytes> buf{};
+    GloveRaw raw;
+    while (!stop_) {
+      const int n = hid_read_timeout(dev_, buf.data(), buf.size(), 100);
+      if (n < 0) {
+        ++read_errors_;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        continue;
+      }
+      if (n == 0) continue;
+      if (parse_5dt_usb_report(std::span(buf.data(), static_cast<std::size_t>(n)), model_, raw) !=
+          nullptr) {
+        ++bad_reports_;
+        continue;
+      }
+      publish(raw);
+    }
+  }
+  hid_device* dev_ = nullptr;
+  GloveModel model_ = GloveModel::Sensors14;
+  std::string name_;
+};
+
+class Serial5dtGlove final : public GloveDevice {
+ public:
+  Serial5dtGlove(const std::string& dev, const std::string& calibration_path) : dev_(dev) {
+    fd_ = ::open(dev.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+    if (fd_ < 0)
+      throw std::runtime_error("5DT serial glove: cannot open " + dev + ": " +
+                               std::strerror(errno) +
+                               ". Check the device path (ls /dev/ttyUSB* /dev/ttyS*), that your "
+                               "user is in the dialout group, or use 5dt-usb.");
+    termios tio{};
+    if (tcgetattr(fd_, &tio) != 0) {
+      const std::string why = std::strerror(errno);
+      ::close(fd_);
+      throw std::runtime_error("5DT serial glove: " + dev + " is not a serial port: " + why);
+    }
+    cfmakeraw(&tio);
+    cfsetispeed(&tio, B19200);
+    cfsetospeed(&tio, B19200);
+    tio.c_cflag &= ~static_cast<tcflag_t>(PARENB | CSTOPB | CSIZE);
+    tio.c_cflag |= CS8 | CLOCAL | CREAD;
+    tcsetattr(fd_, TCSANOW, &tio);
+    const char stream = 'D';  // continuous reports
+    if (::write(fd_, &stream, 1) != 1) ++read_errors_;
+    calibration_ = calibration_for(calibration_path, 5);
+    thread_ = std::thread([this] { run(); });
+  }
+  ~Serial5dtGlove() override {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    ::close(fd_);
+  }
+  std::string name() const override { return "5dt-serial:" + dev_; }
+
+ private:
+  void run() {
+    std::array<std::uint8_t, 256> buf{};
+    GloveRaw raw;
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 100) <= 0) continue;
+      const ssize_t n = ::read(fd_, buf.data(), buf.size());
+      if (n < 0) {
+        if (errno != EAGAIN && errno != EINTR) ++read_errors_;
+        continue;
+      }
+      const auto bad_before = parser_.bad_checksums();
+      for (ssize_t i = 0; i < n; ++i)
+        if (parser_.push(buf[static_cast<std::size_t>(i)], raw)) publish(raw);
+      bad_reports_ += parser_.bad_checksums() - bad_before;
+    }
+  }
+  std::string dev_;
+  int fd_ = -1;
+  Serial5dtParser parser_;
+};
+
+}  // namespace
+
+std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
+                                        const std::string& calibration_path) {
+  if (spec == "5dt-usb") return std::make_unique<Usb5dtGlove>("", calibration_path);
+  if (spec.rfind("5dt-usb:", 0) == 0)
+    return std::make_unique<Usb5dtGlove>(spec.substr(8), calibration_path);
+  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11)
+    return std::make_unique<Serial5dtGlove>(spec.substr(11), calibration_path);
+  throw std::invalid_argument("glove spec '" + spec +
+                              "' is not one of 5dt-usb, 5dt-usb:HIDPATH, 5dt-serial:DEV");
+}
+
+}  // namespace telex::local

@@ -1,0 +1,224 @@
+// SPDX-License-Identifier: MIT
+// Gravity Grabber motor mapping, HID report encoding, and the hidapi display with a writer thread.
+#include "telex/local/gravity_grabber.h"
+
+#include <hidapi.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <thread>
+
+#include "telex/local/triple_buffer.h"
+
+namespace telex::local {
+
+GravityGrabberConfig GravityGrabberConfig::load(const std::filesystem::path& path) {
+  const std::string where = "Gravity Grabber config " + path.string();
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(where + ": cannot open");
+  nlohmann::json j;
+  try {
+    in >> j;
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(where + ": not JSON: " + e.what());
+  }
+  if (!j.is_object()) throw std::runtime_error(where + ": expected a JSON object");
+  GravityGrabberConfig c;
+  auto number = [&](const nlohmann::json& o, const std::string& key, double lo, double hi,
+                    double& v) {
+    if (!o.contains(key)) return;
+    if (!o[key].is_number() || o[key].get<double>() < lo || o[key].get<double>() > hi)
+      throw std::runtime_error(where + ": \"" + key + "\" must be a number in [" +
+                               std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    v = o[key].get<double>();
+  };
+  for (const auto& [key, value] : j.items()) {
+    if (key != "max_pressure_N" && key != "max_shear_N" && key != "max_command" &&
+        key != "report_id" && key != "fingers")
+      throw std::runtime_error(where + ": unknown key \"" + key + "\"");
+  }
+  number(j, "max_pressure_N", 1e-3, 100.0, c.max_pressure_N);
+  number(j, "max_shear_N", 1e-3, 100.0, c.max_shear_N);
+  number(j, "max_command", 0.0, 1.0, c.max_command);
+  double report_id = c.report_id;
+  number(j, "report_id", 0, 255, report_id);
+  c.report_id = static_cast<std::uint8_t>(report_id);
+  if (j.contains("fingers")) {
+    if (!j["fingers"].is_array())
+      throw std::runtime_error(where + ": \"fingers\" must be an array of objects");
+    for (const auto& f : j["fingers"]) {
+      if (!f.is_object() || !f.contains("finger") || !f["finger"].is_number_integer() ||
+          f["finger"].get<int>() < 0 || f["finger"].get<int>() > 4)
+        throw std::runtime_error(where + ": each \"fingers\" entry needs \"finger\": 0..4");
+      auto& g = c.fingers[f["finger"].get<int>()];
+      for (const auto& [key, value] : f.items())
+        if (key != "finger" && key != "enabled" && key != "gain_pressure" && key != "gain_shear" &&
+            key != "motor_a_sign" && key != "motor_b_sign" && key != "dead_zone")
+          throw std::runtime_error(where + ": unknown finger key \"" + key + "\"");
+      if (f.contains("enabled")) {
+        if (!f["enabled"].is_boolean())
+          throw std::runtime_error(where + ": \"enabled\" must be true or false");
+        g.enabled = f["enabled"].get<bool>();
+      }
+      number(f, "gain_pressure", 0.0, 10.0, g.gain_pressure);
+      number(f, "gain_shear", 0.0, 10.0, g.gain_shear);
+      number(f, "dead_zone", 0.0, 0.5, g.dead_zone);
+      for (const char* key : {"motor_a_sign", "motor_b_sign"}) {
+        if (!f.contains(key)) continue;
+        if (!f[key].is_number_integer() || std::abs(f[key].get<int>()) != 1)
+          throw std::runtime_error(where + ": \"" + key + "\" must be 1 or -1");
+        (std::string(key) == "motor_a_sign" ? g.motor_a_sign : g.motor_b_sign) = f[key].get<int>();
+      }
+    }
+  }
+  return c;
+}
+
+std::array<double, 10> gravity_grabber_motors(std::span<const FingerForce> forces,
+                                              const GravityGrabberConfig& cfg) {
+  std::array<double, 10> m{};
+  for (const FingerForce& f : forces) {
+    if (f.finger < 0 || f.finger > 4 || !f.contact) continue;
+    const GravityGrabberFinger& g = cfg.fingers[f.finger];
+    if (!g.enabled) continue;
+    // NaN forces (a bug upstream) must not reach a motor.
+    const double p_N = std::isfinite(f.pressure_N) ? f.pressure_N : 0.0;
+    const double s_N = std::isfinite(f.shear_N) ? f.shear_N : 0.0;
+    const double p = g.gain_pressure * std::clamp(p_N / cfg.max_pressure_N, 0.0, 1.0);
+    const double s = g.gain_shear * std::clamp(s_N / cfg.max_shear_N, -1.0, 1.0);
+    double a = s + p, b = s - p;
+    const double peak = std::max(std::abs(a), std::abs(b));
+    if (peak > cfg.max_command && peak > 0.0) {
+      a *= cfg.max_command / peak;
+      b *= cfg.max_command / peak;
+    }
+    // Dead-zone compensation: a non-zero command starts where the motor starts turning.
+    auto comp = [&](double c) {
+      if (c == 0.0) return 0.0;
+      return std::copysign(g.dead_zone + (1.0 - g.dead_zone) * std::abs(c), c);
+    };
+    m[2 * f.finger] = g.motor_a_sign * comp(a);
+    m[2 * f.finger + 1] = g.motor_b_sign * comp(b);
+  }
+  return m;
+}
+
+std::array<std::uint8_t, kGravityGrabberReportBytes> gravity_grabber_report(
+    std::span<const FingerForce> forces, const GravityGrabberConfig& cfg, std::uint8_t sequence) {
+  std::array<std::uint8_t, kGravityGrabberReportBytes> r{};
+  r[0] = cfg.report_id;
+  r[1] = sequence;
+  std::uint8_t flags = 0;
+  for (const FingerForce& f : forces)
+    if (f.contact && f.finger >= 0 && f.finger <= 4 && cfg.fingers[f.finger].enabled)
+      flags |= static_cast<std::uint8_t>(1u << (f.finger + 1));
+  if (flags != 0) flags |= 1;  // bit 0: motors enabled
+  r[2] = flags;
+  const auto m = gravity_grabber_motors(forces, cfg);
+  for (int i = 0; i < 10; ++i) {
+    const auto v = static_cast<std::int16_t>(std::lround(std::clamp(m[i], -1.0, 1.0) * 32767.0));
+    const auto u = static_cast<std::uint16_t>(v);
+    r[3 + 2 * i] = static_cast<std::uint8_t>(u & 0xFF);
+    r[4 + 2 * i] = static_cast<std::uint8_t>(u >> 8);
+  }
+  unsigned sum = 0;
+  for (int i = 1; i <= 22; ++i) sum += r[i];
+  r[23] = static_cast<std::uint8_t>(sum & 0xFF);
+  return r;
+}
+
+namespace {
+
+struct Report {
+  std::array<std::uint8_t, kGravityGrabberReportBytes> bytes;
+};
+
+class GravityGrabberDisplay final : public HapticDisplay {
+ public:
+  GravityGrabberDisplay(const std::string& path, GravityGrabberConfig cfg)
+      : path_(path), cfg_(cfg) {
+    if (hid_init() != 0) throw std::runtime_error("Gravity Grabber: hidapi failed to initialise");
+    dev_ = hid_open_path(path.c_str());
+    if (dev_ == nullptr)
+      throw std::runtime_error(
+          "Gravity Grabber: cannot open HID device " + path +
+          ". Check that it exists (ls -l /dev/hidraw*; the device's hidraw node appears when "
+          "it is plugged in), that your user may write it (udev rule in docs/HARDWARE.md), or "
+          "run without hardware with --display sim or udp:HOST:PORT.");
+    thread_ = std::thread([this] { run(); });
+  }
+  ~GravityGrabberDisplay() override {
+    // Release the belts before closing: a stuck pressure command would keep squeezing.
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    const auto off = gravity_grabber_report({}, cfg_, ++seq_);
+    hid_write(dev_, off.data(), off.size());
+    hid_close(dev_);
+  }
+  void write(std::int64_t, std::span<const FingerForce> forces) override {
+    ++writes_;
+    for (const auto& f : forces) {
+      update_max(max_p_, f.pressure_N);
+      update_max(max_s_, std::abs(f.shear_N));
+    }
+    pending_.publish(Report{gravity_grabber_report(forces, cfg_, ++seq_)});
+  }
+  std::string name() const override { return "gravity-grabber:" + path_; }
+  DisplayStats stats() const override {
+    DisplayStats s;
+    s.writes = writes_;
+    s.sent = sent_;
+    s.dropped = pending_.overwritten();
+    s.errors = errors_;
+    s.max_pressure_N = max_p_;
+    s.max_shear_N = max_s_;
+    return s;
+  }
+
+ private:
+  static void update_max(std::atomic<double>& m, double v) {
+    if (std::isfinite(v) && v > m.load(std::memory_order_relaxed))
+      m.store(v, std::memory_order_relaxed);
+  }
+  void run() {
+    Report r;
+    while (!stop_) {
+      if (pending_.take(r)) {
+        if (hid_write(dev_, r.bytes.data(), r.bytes.size()) < 0)
+          ++errors_;
+        else
+          ++sent_;
+      } else {
+        std::this_thread::sleep_for(std::chrono::microseconds(250));
+      }
+    }
+  }
+  std::string path_;
+  GravityGrabberConfig cfg_;
+  hid_device* dev_ = nullptr;
+  std::uint8_t seq_ = 0;  // haptic thread only
+  TripleBuffer<Report> pending_;
+  std::atomic<bool> stop_{false};
+  std::atomic<std::uint64_t> writes_{0}, sent_{0}, errors_{0};
+  std::atomic<double> max_p_{0.0}, max_s_{0.0};
+  std::thread thread_;
+};
+
+}  // namespace
+
+std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& hid_path,
+                                                    const std::string& config_path) {
+  if (hid_path.empty())
+    throw std::invalid_argument(
+        "display spec 'gravity-grabber:' needs the HID path, e.g. gravity-grabber:/dev/hidraw3");
+  const GravityGrabberConfig cfg =
+      config_path.empty() ? GravityGrabberConfig{} : GravityGrabberConfig::load(config_path);
+  return std::make_unique<GravityGrabberDisplay>(hid_path, cfg);
+}
+
+}  // namespace telex::local

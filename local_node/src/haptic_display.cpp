@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: MIT
+// Display factory and the recording simulator (preallocated ring drained to CSV by a thread).
+#include "telex/local/haptic_display.h"
+
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include "telex/local/gravity_grabber.h"
+#include "telex/local/udp_sink.h"
+
+namespace telex::local {
+
+HapticDisplay::~HapticDisplay() = default;
+
+namespace {
+
+struct SimRecord {
+  std::int64_t t_ns = 0;
+  std::array<FingerForce, 5> by_finger{};
+};
+
+// Keeps what a display would have rendered. With a CSV path, records go through a single-producer
+// single-consumer ring (allocated once) to a writer thread, so write() costs a copy and two atomic
+// operations; a full ring drops the record and counts it.
+class SimDisplay final : public HapticDisplay {
+ public:
+  SimDisplay(std::string csv_path, std::size_t capacity)
+      : path_(std::move(csv_path)), ring_(path_.empty() ? 0 : std::max<std::size_t>(capacity, 2)) {
+    if (!path_.empty()) {
+      file_ = std::fopen(path_.c_str(), "w");
+      if (file_ == nullptr)
+        throw std::runtime_error("sim display: cannot write CSV " + path_ + ": " +
+                                 std::strerror(errno) + " (check the directory exists)");
+      std::fputs("time_ns", file_);
+      for (const char* f : {"thumb", "index", "middle", "ring", "little"})
+        std::fprintf(file_, ",%s_pressure_N,%s_shear_N,%s_contact", f, f, f);
+      std::fputc('\n', file_);
+      thread_ = std::thread([this] { drain_loop(); });
+    }
+  }
+  ~SimDisplay() override {
+    if (file_ != nullptr) {
+      stop_ = true;
+      thread_.join();
+      drain();
+      if (std::fclose(file_) != 0) ++errors_;
+    }
+    spdlog::info(
+        "{}: {} writes, {} recorded, {} dropped, max pressure {:.3f} N, max shear {:.3f} N", name(),
+        writes_.load(), sent_.load(), dropped_.load(), max_p_.load(), max_s_.load());
+  }
+
+  void write(std::int64_t now_ns, std::span<const FingerForce> forces) override {
+    ++writes_;
+    SimRecord rec;
+    rec.t_ns = now_ns;
+    for (int i = 0; i < 5; ++i) rec.by_finger[i].finger = i;
+    for (const FingerForce& f : forces) {
+      if (f.finger < 0 || f.finger > 4) continue;
+      rec.by_finger[f.finger] = f;
+      if (std::isfinite(f.pressure_N) && f.pressure_N > max_p_.load(std::memory_order_relaxed))
+        max_p_.store(f.pressure_N, std::memory_order_relaxed);
+      if (std::isfinite(f.shear_N) && std::abs(f.shear_N) > max_s_.load(std::memory_order_relaxed))
+        max_s_.store(std::abs(f.shear_N), std::memory_order_relaxed);
+    }
+    if (ring_.empty()) {
+      ++sent_;
+      return;
+    }
+    const std::size_t head = head_.load(std::memory_order_relaxed);
+    if (head - tail_.load(std::memory_order_acquire) >= ring_.size()) {
+      ++dropped_;
+      return;
+    }
+    ring_[head % ring_.size()] = rec;
+    head_.store(head + 1, std::memory_order_release);
+  }
+
+  std::string name() const override { return path_.empty() ? "sim" : "sim:" + path_; }
+  DisplayStats stats() const override {
+    DisplayStats s;
+    s.writes = writes_;
+    s.sent = sent_;
+    s.dropped = dropped_;
+    s.errors = errors_;
+    s.max_pressure_N = max_p_;
+    s.max_shear_N = max_s_;
+    return s;
+  }
+
+ private:
+  void drain_loop() {
+    while (!stop_) {
+      drain();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  void drain() {
+    std::size_t tail = tail_.load(std::memory_order_relaxed);
+    const std::size_t head = head_.load(std::memory_order_acquire);
+    for (; tail != head; ++tail) {
+      const SimRecord& r = ring_[tail % ring_.size()];
+      std::fprintf(file_, "%lld", static_cast<long long>(r.t_ns));
+      for (const FingerForce& f : r.by_finger)
+        std::fprintf(file_, ",%.6f,%.6f,%d", f.pressure_N, f.shear_N, f.contact ? 1 : 0);
+      if (std::fputc('\n', file_) == EOF) ++errors_;
+      ++sent_;
+      tail_.store(tail + 1, std::memory_order_release);
+    }
+    std::fflush(file_);
+  }
+
+  std::string path_;
+  std::vector<SimRecord> ring_;
+  std::atomic<std::size_t> head_{0}, tail_{0};
+  std::FILE* file_ = nullptr;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+  std::atomic<std::uint64_t> writes_{0}, sent_{0}, dropped_{0}, errors_{0};
+  std::atomic<double> max_p_{0.0}, max_s_{0.0};
+};
+
+}  // namespace
+
+std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config) {
+  if (spec == "sim") return std::make_unique<SimDisplay>("", config.sim_ring_capacity);
+  if (spec.rfind("sim:", 0) == 0 && spec.size() > 4)
+    return std::make_unique<SimDisplay>(spec.substr(4), config.sim_ring_capacity);
+  if (spec.rfind("gravity-grabber:", 0) == 0)
+    return open_gravity_grabber(spec.substr(16), config.gravity_grabber_config_path);
+  if (spec.rfind("udp:", 0) == 0 && spec.size() > 4) {
+    const std::string rest = spec.substr(4);
+    const auto colon = rest.rfind(':');
+    if (colon == std::string::npos) return open_udp_sink(rest, config.udp_default_port);
+    int port = 0;
+    const auto r = std::from_chars(rest.data() + colon + 1, rest.data() + rest.size(), port);
+    if (r.ec != std::errc{} || r.ptr != rest.data() + rest.size() || colon == 0)
+      throw std::invalid_argument("display spec '" + spec + "': expected udp:HOST[:PORT]");
+    return open_udp_sink(rest.substr(0, colon), port);
+  }
+  throw std::invalid_argument("display spec '" + spec +
+                              "' is not one of sim, sim:CSV, gravity-grabber:HIDPATH, "
+                              "udp:HOST[:PORT]");
+}
+
+}  // namespace telex::local

@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: MIT
+// Tracker factory and the device-backed trackers: NatNet (+ glove) and glove alone.
+#include "telex/local/tracker.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <glm/gtc/quaternion.hpp>
+#include <stdexcept>
+
+#include "telex/local/glove.h"
+#include "telex/local/hand_script.h"
+#include "telex/local/natnet_client.h"
+
+namespace telex::local {
+
+namespace {
+
+int to_port(std::string_view text, const std::string& spec) {
+  int v = 0;
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (r.ec != std::errc{} || r.ptr != text.data() + text.size() || v < 0 || v > 65535)
+    throw std::invalid_argument("tracker spec '" + spec + "': '" + std::string(text) +
+                                "' is not a port number");
+  return v;
+}
+
+// NatNet rigid bodies + hand model; finger bends from a glove when one is attached.
+class NatNetTracker final : public HandTracker {
+ public:
+  NatNetTracker(NatNetClientConfig ccfg, const TrackerConfig& cfg,
+                std::unique_ptr<GloveDevice> glove)
+      : cfg_(cfg), glove_(std::move(glove)) {
+    hand_id_ = cfg.use_left_hand ? cfg.left_hand_body_id : cfg.right_hand_body_id;
+    shoulder_id_ = cfg.use_left_hand ? cfg.left_shoulder_body_id : cfg.right_shoulder_body_id;
+    if (hand_id_ < 0 || cfg.head_body_id < 0)
+      throw std::invalid_argument("natnet tracker: head and hand rigid body ids must be set");
+    ccfg.body_ids = {cfg.head_body_id, hand_id_};
+    if (shoulder_id_ >= 0) ccfg.body_ids.push_back(shoulder_id_);
+    hand_cfg_ = cfg.hand;
+    hand_cfg_.left = cfg.use_left_hand;
+    bend_ = cfg.default_bend;
+    name_ = "natnet:" + ccfg.server_ip + (glove_ ? "+" + glove_->name() : "");
+    client_ = std::make_unique<NatNetClient>(std::move(ccfg));
+  }
+
+  bool poll(std::int64_t now_ns, HandState& out) override {
+    ++stats_.polls;
+    bool mocap_fresh = false, fresh = false;
+    if (client_->latest(sample_)) {
+      have_sample_ = true;
+      mocap_fresh = fresh = true;
+    }
+    GloveSample g;
+    if (glove_ && glove_->latest(g)) {
+      bend_ = g.bend;
+      fresh = true;
+    }
+    if (!fresh || !have_sample_) return false;
+    const auto* head = sample_.find(cfg_.head_body_id);
+    const auto* hand = sample_.find(hand_id_);
+    HandState cur = previous_;
+    if (head && hand && head->valid && hand->valid) {
+      const HandPoints pts = hand_forward(hand_cfg_, hand->pose, bend_);
+      // Velocities use the server's frame stamps (jitter-free), so they only change with a new
+      // mocap frame; a glove-only update moves the fingers and keeps the last velocity.
+      fill_hand_state(hand_cfg_, head->pose, pts,
+                      static_cast<std::int64_t>(std::llround(sample_.timestamp_s * 1e9)), cur);
+      if (mocap_fresh) update_velocities(previous_, cur);
+      const auto* shoulder = shoulder_id_ >= 0 ? sample_.find(shoulder_id_) : nullptr;
+      cur.shoulder_valid = shoulder && shoulder->valid;
+      if (cur.shoulder_valid)
+        cur.shoulder_camera = world_to_camera(hand_cfg_, head->pose, shoulder->pose.p_m);
+    } else {
+      for (auto& t : cur.tips) t.valid = false;
+      cur.skeleton_valid = false;
+    }
+    cur.body_count = 0;
+    for (const auto& b : sample_.bodies) {
+      if (!b.present || cur.body_count >= kMaxTrackedBodies) continue;
+      cur.bodies[static_cast<std::size_t>(cur.body_count++)] = {b.id, b.pose.p_m, b.pose.q, b.valid};
+    }
+    cur.bodies_fresh = mocap_fresh;
+    previous_ = cur;
+    out = cur;
+    out.time_ns = now_ns;
+    ++stats_.updates;
+    return true;
+  }
+
+  std::string name() const override { return name_; }
+  TrackerStats stats() const override {
+    TrackerStats s = stats_;
+    const auto c = client_->stats();
+    s.frames_in = c.frames + (glove_ ? glove_->reports() : 0);
+    s.frames_dropped = client_->overwritten() + (glove_ ? glove_->overwritten() : 0);
+    s.parse_errors = c.parse_errors + (glove_ ? glove_->bad_reports() : 0);
+    s.io_errors = c.io_errors + (glove_ ? glove_->read_errors() : 0);
+    return s;
+  }
+
+ private:
+  TrackerConfig cfg_;
+  HandModelConfig hand_cfg_;
+  std::unique_ptr<GloveDevice> glove_;
+  std::unique_ptr<NatNetClient> client_;
+  std::int32_t hand_id_ = -1, shoulder_id_ = -1;
+  NatNetSample sample_;
+  bool have_sample_ = false;
+  std::array<double, 5> bend_{};
+  HandState previous_;
+  std::string name_;
+  TrackerStats stats_;
+};
+
+// A glove without a mocap system: the wrist is held at a fixed pose in front of the camera with the
+// fingers pointing into the scene, so finger bends alone move the tips.
+class GloveTracker final : public HandTracker {
+ public:
+  GloveTracker(std::unique_ptr<GloveDevice> glove, const TrackerConfig& cfg)
+      : glove_(std::move(glove)) {
+    hand_cfg_ = cfg.hand;
+    hand_cfg_.left = cfg.use_left_hand;
+    // The tracking "world" is the camera frame itself.
+    hand_cfg_.camera_in_head_m = glm::dvec3{0.0};
+    hand_cfg_.R_camera_head = glm::dmat3(1.0);
+    // Hand x (fingers) -> camera +z, hand y (back of hand) -> camera -y (up), z = x cross y.
+    const glm::dmat3 R{glm::dvec3{0, 0, 1}, glm::dvec3{0, -1, 0}, glm::dvec3{1, 0, 0}};
+    wrist_.q = glm::quat_cast(R);
+    wrist_.p_m = cfg.glove_wrist_p_camera_m;
+  }
+  bool poll(std::int64_t now_ns, HandState& out) override {
+    ++stats_.polls;
+    GloveSample g;
+    if (!glove_->latest(g)) return false;
+    HandState cur;
+    fill_hand_state(hand_cfg_, Pose{}, hand_forward(hand_cfg_, wrist_, g.bend), g.received_ns, cur);
+    if (have_previous_) update_velocities(previous_, cur);
+    previous_ = cur;
+    have_previous_ = true;
+    out = cur;
+    out.time_ns = now_ns;
+    ++stats_.updates;
+    return true;
+  }
+  std::string name() const override { return glove_->name(); }
+  TrackerStats stats() const override {
+    TrackerStats s = stats_;
+    s.frames_in = glove_->reports();
+    s.frames_dropped = glove_->overwritten();
+    s.parse_errors = glove_->bad_reports();
+    s.io_errors = glove_->read_errors();
+    return s;
+  }
+
+ private:
+  std::unique_ptr<GloveDevice> glove_;
+  HandModelConfig hand_cfg_;
+  Pose wrist_;
+  HandState previous_;
+  bool have_previous_ = false;
+  TrackerStats stats_;
+};
+
+std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerConfig& cfg) {
+  NatNetClientConfig c;
+  c.command_port = cfg.natnet_command_port;
+  c.data_port = cfg.natnet_data_port;
+  c.multicast_group = cfg.natnet_multicast_group;
+  c.local_address = cfg.natnet_local_address;
+  std::string_view rest = std::string_view(spec).substr(7);
+  bool first = true;
+  while (!rest.empty() || first) {
+    const auto comma = rest.find(',');
+    const std::string_view item = rest.substr(0, comma);
+    rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
+    if (first) {
+      if (item.empty())
+        throw std::invalid_argument("tracker spec '" + spec +
+                                    "': give the Motive server's IP, e.g. natnet:192.168.1.10");
+      c.server_ip = std::string(item);
+      first = false;
+    } else if (item == "multicast") {
+      c.multicast = true;
+    } else if (item == "unicast") {
+      c.multicast = false;
+    } else if (item.rfind("local=", 0) == 0) {
+      c.local_address = std::string(item.substr(6));
+    } else if (item.rfind("cmd=", 0) == 0) {
+      c.command_port = to_port(item.substr(4), spec);
+    } else if (item.rfind("data=", 0) == 0) {
+      c.data_port = to_port(item.substr(5), spec);
+    } else if (item.rfind("version=", 0) == 0) {
+      c.version = natnet::parse_version(item.substr(8));
+    } else {
+      throw std::invalid_argument(
+          "tracker spec '" + spec + "': unknown option '" + std::string(item) +
+          "' (valid: multicast, unicast, local=IP, cmd=PORT, data=PORT, version=X.Y)");
+    }
+  }
+  std::unique_ptr<GloveDevice> glove;
+  if (!cfg.glove_spec.empty()) glove = open_glove(cfg.glove_spec, cfg.glove_calibration_path);
+  return std::make_unique<NatNetTracker>(std::move(c), cfg, std::move(glove));
+}
+
+}  // namespace
+
+std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const TrackerConfig& config) {
+  if (spec.rfind("script:", 0) == 0) {
+    const std::string what = spec.substr(7);
+    const auto names = HandScript::builtin_names();
+    if (std::find(names.begin(), names.end(), what) != names.end())
+      return std::make_unique<ScriptTracker>(HandScript::builtin(what, config.surface_depth_m),
+                                             spec, config.repeat);
+    if (what.empty())
+      throw std::invalid_argument("tracker spec 'script:' needs press, stroke, tap or a file");
+    return std::make_unique<ScriptTracker>(HandScript::load(what), spec, config.repeat);
+  }
+  if (spec.rfind("natnet:", 0) == 0) return make_natnet(spec, config);
+  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0)
+    return std::make_unique<GloveTracker>(open_glove(spec, config.glove_calibration_path), config);
+  throw std::invalid_argument(
+      "tracker spec '" + spec +
+      "' is not one of script:press|stroke|tap|FILE, natnet:SERVER_IP[,options], "
+      "5dt-usb[:HIDPATH], 5dt-serial:DEV");
+}
+
+}  // namespace telex::local

@@ -1,0 +1,132 @@
+// SPDX-License-Identifier: MIT
+// UDP haptic sink: fixed-buffer ASCII formatting and a non-blocking datagram socket.
+#include "telex/local/udp_sink.h"
+
+// clang-format off
+// Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
+#include <utility>
+// clang-format on
+#include <algorithm>
+#include <atomic>
+#include <boost/asio.hpp>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace telex::local {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+
+std::array<double, kUdpSinkChannels> udp_sink_channels(std::span<const FingerForce> forces) {
+  std::array<double, kUdpSinkChannels> ch{};
+  for (const FingerForce& f : forces) {
+    if (f.finger < 0 || f.finger > 4 || !f.contact) continue;
+    ch[2 * f.finger] = f.pressure_N;
+    ch[2 * f.finger + 1] = f.shear_N;
+    ch[10 + f.finger] = 1.0;
+  }
+  return ch;
+}
+
+std::size_t format_udp_sink(const std::array<double, kUdpSinkChannels>& channels,
+                            std::span<char, kUdpSinkMaxBytes> out) {
+  char* p = out.data();
+  char* const end = out.data() + out.size();
+  for (int i = 0; i < kUdpSinkChannels; ++i) {
+    if (i > 0) *p++ = ' ';
+    // Saturate instead of overflowing; NaN sends 0 so a receiver never sees garbage.
+    const double scaled = std::isfinite(channels[i]) ? channels[i] * 1000.0 : 0.0;
+    const double lim = static_cast<double>(std::numeric_limits<std::int32_t>::max());
+    const auto v = static_cast<std::int32_t>(std::lround(std::clamp(scaled, -lim, lim)));
+    p = std::to_chars(p, end, v).ptr;  // 11 chars max per value: fits 12 per channel
+  }
+  return static_cast<std::size_t>(p - out.data());
+}
+
+bool parse_udp_sink(std::string_view text, std::array<double, kUdpSinkChannels>& channels) {
+  const char* p = text.data();
+  const char* const end = text.data() + text.size();
+  for (int i = 0; i < kUdpSinkChannels; ++i) {
+    if (i > 0) {
+      if (p == end || *p != ' ') return false;
+      ++p;
+    }
+    std::int32_t v = 0;
+    const auto r = std::from_chars(p, end, v);
+    if (r.ec != std::errc{}) return false;
+    channels[i] = v / 1000.0;
+    p = r.ptr;
+  }
+  return p == end;
+}
+
+namespace {
+
+class UdpSink final : public HapticDisplay {
+ public:
+  UdpSink(const std::string& host, int port)
+      : socket_(io_), name_("udp:" + host + ":" + std::to_string(port)) {
+    if (port <= 0 || port > 65535)
+      throw std::invalid_argument("display spec " + name_ + ": port must be 1..65535");
+    boost::system::error_code ec;
+    udp::resolver resolver(io_);
+    const auto results = resolver.resolve(udp::v4(), host, std::to_string(port), ec);
+    if (ec || results.empty())
+      throw std::runtime_error("UDP haptic sink: cannot resolve host '" + host +
+                               "': " + ec.message() + " (give an IPv4 address such as 127.0.0.1)");
+    target_ = *results.begin();
+    socket_.open(udp::v4(), ec);
+    if (ec) throw std::runtime_error("UDP haptic sink: cannot open a socket: " + ec.message());
+    // A full send buffer must cost a datagram, never a wait on the haptic thread.
+    socket_.non_blocking(true);
+  }
+  void write(std::int64_t, std::span<const FingerForce> forces) override {
+    ++writes_;
+    const auto ch = udp_sink_channels(forces);
+    for (int f = 0; f < 5; ++f) {
+      if (ch[2 * f] > max_p_) max_p_ = ch[2 * f];
+      if (std::abs(ch[2 * f + 1]) > max_s_) max_s_ = std::abs(ch[2 * f + 1]);
+    }
+    const std::size_t n = format_udp_sink(ch, buf_);
+    boost::system::error_code ec;
+    socket_.send_to(asio::buffer(buf_.data(), n), target_, 0, ec);
+    if (!ec) {
+      ++sent_;
+    } else if (ec == asio::error::would_block) {
+      ++dropped_;
+    } else {
+      ++dropped_;
+      ++errors_;
+    }
+  }
+  std::string name() const override { return name_; }
+  DisplayStats stats() const override {
+    DisplayStats s;
+    s.writes = writes_;
+    s.sent = sent_;
+    s.dropped = dropped_;
+    s.errors = errors_;
+    s.max_pressure_N = max_p_;
+    s.max_shear_N = max_s_;
+    return s;
+  }
+
+ private:
+  asio::io_context io_;
+  udp::socket socket_;
+  udp::endpoint target_;
+  std::string name_;
+  std::array<char, kUdpSinkMaxBytes> buf_{};
+  std::atomic<std::uint64_t> writes_{0}, sent_{0}, dropped_{0}, errors_{0};
+  std::atomic<double> max_p_{0.0}, max_s_{0.0};
+};
+
+}  // namespace
+
+std::unique_ptr<HapticDisplay> open_udp_sink(const std::string& host, int port) {
+  return std::make_unique<UdpSink>(host, port);
+}
+
+}  // namespace telex::local
