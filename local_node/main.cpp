@@ -96,6 +96,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 60.0))
       ->capture_default_str();
   app.add_option("--log-forces", cfg.log_forces_csv, "CSV of forces, one row per finger per tick");
+  app.add_option("--log-tracking", cfg.log_tracking_csv,
+                 "CSV of every rigid body as the tracker reported it (tracker frame)");
   app.add_option("--log-every", cfg.log_every, "log one tick in N")->check(CLI::Range(1, 1000000))->capture_default_str();
   app.add_option("--view", cfg.view_spec, "operator view: none | png:DIR | window")->capture_default_str();
   app.add_option("--print-forces", cfg.print_forces_hz, "print forces on stdout at this rate, Hz (0 off)")

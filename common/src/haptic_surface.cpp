@@ -44,26 +44,30 @@ cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm) {
 }
 
 cv::Mat3f normals_from_depth(const cv::Mat1f& depth_m, const Intrinsics& k,
-                             const StepTolerance& steps) {
+                             const StepTolerance& steps, int radius_px) {
+  if (radius_px < 1) throw std::invalid_argument("normals_from_depth: radius_px must be >= 1");
+  const int r = radius_px;
   cv::Mat3f normals(depth_m.size(), cv::Vec3f(0.0f, 0.0f, 0.0f));
   const int w = depth_m.cols;
   const int h = depth_m.rows;
   for (int v = 0; v < h; ++v) {
     const float* row = depth_m.ptr<float>(v);
-    const float* up = v > 0 ? depth_m.ptr<float>(v - 1) : nullptr;
-    const float* down = v + 1 < h ? depth_m.ptr<float>(v + 1) : nullptr;
+    const float* up = v >= r ? depth_m.ptr<float>(v - r) : nullptr;
+    const float* down = v + r < h ? depth_m.ptr<float>(v + r) : nullptr;
     cv::Vec3f* out = normals.ptr<cv::Vec3f>(v);
     for (int u = 0; u < w; ++u) {
       const float z = row[u];
       if (!valid_depth(z)) continue;
-      const double tol = steps.at(z);
+      // Neighbours r pixels away: the larger baseline keeps millimetre quantisation from
+      // tilting the normal; the tolerance grows with it so slopes still count as one surface.
+      const double tol = steps.at(z) * r;
       const glm::dvec3 p0 = back_project(k, u, v, z);
       glm::dvec3 tx, ty;
-      if (!axis_tangent(k, z, p0, u > 0, u > 0 ? row[u - 1] : 0.0f, u - 1, v, u + 1 < w,
-                        u + 1 < w ? row[u + 1] : 0.0f, u + 1, v, tol, tx))
+      if (!axis_tangent(k, z, p0, u >= r, u >= r ? row[u - r] : 0.0f, u - r, v, u + r < w,
+                        u + r < w ? row[u + r] : 0.0f, u + r, v, tol, tx))
         continue;
-      if (!axis_tangent(k, z, p0, up != nullptr, up ? up[u] : 0.0f, u, v - 1, down != nullptr,
-                        down ? down[u] : 0.0f, u, v + 1, tol, ty))
+      if (!axis_tangent(k, z, p0, up != nullptr, up ? up[u] : 0.0f, u, v - r, down != nullptr,
+                        down ? down[u] : 0.0f, u, v + r, tol, ty))
         continue;
       glm::dvec3 n = glm::cross(ty, tx);
       const double len = glm::length(n);
@@ -77,7 +81,8 @@ cv::Mat3f normals_from_depth(const cv::Mat1f& depth_m, const Intrinsics& k,
 }
 
 Surface make_surface(cv::Mat1f depth_m, const Intrinsics& intrinsics, std::int64_t capture_ns,
-                     std::uint64_t frame_id, cv::Mat3f normals, const StepTolerance& steps) {
+                     std::uint64_t frame_id, cv::Mat3f normals, const StepTolerance& steps,
+                     int normal_radius_px) {
   if (depth_m.empty()) throw std::invalid_argument("make_surface: depth_m is empty");
   if (depth_m.cols != intrinsics.width || depth_m.rows != intrinsics.height)
     throw std::invalid_argument(
@@ -101,7 +106,7 @@ Surface make_surface(cv::Mat1f depth_m, const Intrinsics& intrinsics, std::int64
   s.capture_ns = capture_ns;
   s.frame_id = frame_id;
   if (normals.empty()) {
-    s.normals = normals_from_depth(depth_m, intrinsics, steps);
+    s.normals = normals_from_depth(depth_m, intrinsics, steps, normal_radius_px);
   } else {
     s.normals = normals.clone();
     // A normal that is not finite or not unit length would poison the force: mark it absent.

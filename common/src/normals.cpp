@@ -147,35 +147,76 @@ struct WideRow {
   const float* d_rows;
   int k;
   float inv, fx, fy, u0, v_c;
+  const float* z_up;
+  const float* z_down;
+  float ratio;
   cv::Vec3f* out;
-  std::uint8_t* wide;  // per block of 8 pixels: bit i set when pixel i got a wide-stencil normal
 };
 
+// Lanes where neighbour `o` exists and is on the same surface as `c`.
+__attribute__((target("avx2"))) inline __m256 usable8(__m256 c, __m256 o, __m256 ratio) {
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 d = _mm256_and_ps(_mm256_sub_ps(c, o), abs_mask);
+  const __m256 jumps = _mm256_cmp_ps(d, _mm256_mul_ps(ratio, _mm256_min_ps(c, o)), _CMP_GT_OQ);
+  return _mm256_andnot_ps(jumps, _mm256_cmp_ps(o, _mm256_setzero_ps(), _CMP_NEQ_OQ));
+}
+
+// The small-stencil derivative of the scalar small_derivative() in lanes: central where both
+// neighbours are usable, else one-sided, `ok` false where neither is.
+__attribute__((target("avx2"))) inline __m256 small_derivative8(__m256 c, __m256 before,
+                                                                __m256 after, __m256 ratio,
+                                                                __m256& ok) {
+  const __m256 ok_before = usable8(c, before, ratio), ok_after = usable8(c, after, ratio);
+  ok = _mm256_or_ps(ok_before, ok_after);
+  const __m256 one_sided =
+      _mm256_blendv_ps(_mm256_sub_ps(c, before), _mm256_sub_ps(after, c), ok_after);
+  const __m256 central = _mm256_mul_ps(_mm256_set1_ps(0.5f), _mm256_sub_ps(after, before));
+  return _mm256_blendv_ps(one_sided, central, _mm256_and_ps(ok_before, ok_after));
+}
+
+// Normals of 8 pixels at a time: the wide stencil where its window is clean, else the small
+// stencil, else the zero vector; the same operations in the same order as the scalar loop, so the
+// results are bit-identical. Returns how many pixels it did (a multiple of 8).
 __attribute__((target("avx2"))) int wide_normals_avx2(const WideRow& r, int xs, int w) {
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
   const __m256 inv = _mm256_set1_ps(r.inv), fx = _mm256_set1_ps(r.fx), fy = _mm256_set1_ps(r.fy);
-  const __m256 v_c = _mm256_set1_ps(r.v_c);
+  const __m256 v_c = _mm256_set1_ps(r.v_c), ratio = _mm256_set1_ps(r.ratio);
   const __m256 iota = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
   const int k = r.k;
   int x = 0;
   for (; x + 8 <= w; x += 8) {
     const int gx = xs + x;
     const __m256 zc = _mm256_loadu_ps(r.z + gx);
+    const __m256 present = _mm256_cmp_ps(zc, zero, _CMP_NEQ_OQ);
     const __m256 wide =
-        _mm256_and_ps(_mm256_cmp_ps(zc, zero, _CMP_NEQ_OQ),
-                      _mm256_cmp_ps(_mm256_loadu_ps(r.win_bad + gx), zero, _CMP_EQ_OQ));
-    const int bits = _mm256_movemask_ps(wide);
-    r.wide[x / 8] = static_cast<std::uint8_t>(bits);
-    if (bits == 0) continue;
+        _mm256_and_ps(present, _mm256_cmp_ps(_mm256_loadu_ps(r.win_bad + gx), zero, _CMP_EQ_OQ));
+    float* o = reinterpret_cast<float*>(r.out + x);
+    if (_mm256_movemask_ps(present) == 0) {
+      _mm256_storeu_ps(o, zero);
+      _mm256_storeu_ps(o + 8, zero);
+      _mm256_storeu_ps(o + 16, zero);
+      continue;
+    }
     const float* cz = r.col_z + gx;
-    const __m256 du = _mm256_mul_ps(
+    __m256 du = _mm256_mul_ps(
         _mm256_sub_ps(_mm256_add_ps(_mm256_loadu_ps(cz + k + 1), _mm256_loadu_ps(cz + k)),
                       _mm256_add_ps(_mm256_loadu_ps(cz - k), _mm256_loadu_ps(cz - k - 1))),
         inv);
     const float* dr = r.d_rows + gx;
     __m256 s = _mm256_loadu_ps(dr - k);
     for (int i = -k + 1; i <= k; ++i) s = _mm256_add_ps(s, _mm256_loadu_ps(dr + i));
-    const __m256 dv = _mm256_mul_ps(s, inv);
+    __m256 dv = _mm256_mul_ps(s, inv);
+    __m256 ok = wide;
+    if (_mm256_movemask_ps(wide) != _mm256_movemask_ps(present)) {
+      __m256 ok_u, ok_v;
+      const __m256 du_s = small_derivative8(zc, _mm256_loadu_ps(r.z + gx - 1),
+                                            _mm256_loadu_ps(r.z + gx + 1), ratio, ok_u);
+      const __m256 dv_s = small_derivative8(zc, _mm256_loadu_ps(r.z_up + gx),
+                                            _mm256_loadu_ps(r.z_down + gx), ratio, ok_v);
+      du = _mm256_blendv_ps(du_s, du, wide);
+      dv = _mm256_blendv_ps(dv_s, dv, wide);
+      ok = _mm256_or_ps(wide, _mm256_and_ps(present, _mm256_and_ps(ok_u, ok_v)));
+    }
     // u_c is computed in float per lane exactly as the scalar (roi.x + x - cx) in float.
     const __m256 u_c = _mm256_add_ps(_mm256_set1_ps(r.u0 + static_cast<float>(x)), iota);
     const __m256 nx = _mm256_mul_ps(fx, du);
@@ -185,17 +226,17 @@ __attribute__((target("avx2"))) int wide_normals_avx2(const WideRow& r, int xs, 
     const __m256 len2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(nx, nx), _mm256_mul_ps(ny, ny)),
                                       _mm256_mul_ps(nz, nz));
     const __m256 inv_len = _mm256_div_ps(one, _mm256_sqrt_ps(len2));
-    // 3-way interleave of the planar results into x y z triples (lanes without a wide normal
-    // are overwritten by the scalar fallback).
-    const __m256 a = _mm256_mul_ps(nx, inv_len), b = _mm256_mul_ps(ny, inv_len),
-                 c = _mm256_mul_ps(nz, inv_len);
+    // Invalid lanes become +0 (the masks also clear any 0/0 of hole lanes).
+    const __m256 a = _mm256_and_ps(_mm256_mul_ps(nx, inv_len), ok);
+    const __m256 b = _mm256_and_ps(_mm256_mul_ps(ny, inv_len), ok);
+    const __m256 c = _mm256_and_ps(_mm256_mul_ps(nz, inv_len), ok);
+    // 3-way interleave of the planar results into x y z triples.
     const __m256 ab = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
     const __m256 bc = _mm256_shuffle_ps(b, c, _MM_SHUFFLE(3, 1, 3, 1));
     const __m256 ca = _mm256_shuffle_ps(c, a, _MM_SHUFFLE(3, 1, 2, 0));
     const __m256 r03 = _mm256_shuffle_ps(ab, ca, _MM_SHUFFLE(2, 0, 2, 0));
     const __m256 r14 = _mm256_shuffle_ps(bc, ab, _MM_SHUFFLE(3, 1, 2, 0));
     const __m256 r25 = _mm256_shuffle_ps(ca, bc, _MM_SHUFFLE(3, 1, 3, 1));
-    float* o = reinterpret_cast<float*>(r.out + x);
     _mm256_storeu_ps(o, _mm256_permute2f128_ps(r03, r14, 0x20));
     _mm256_storeu_ps(o + 8, _mm256_permute2f128_ps(r25, r03, 0x30));
     _mm256_storeu_ps(o + 16, _mm256_permute2f128_ps(r14, r25, 0x31));
@@ -215,8 +256,10 @@ struct WideRow {
   const float* d_rows;
   int k;
   float inv, fx, fy, u0, v_c;
+  const float* z_up;
+  const float* z_down;
+  float ratio;
   cv::Vec3f* out;
-  std::uint8_t* wide;
 };
 int wide_normals_avx2(const WideRow&, int, int) { return 0; }
 int clean_avx2(const float*, float*, int) { return 0; }
@@ -305,7 +348,6 @@ void run(const cv::Mat1f& depth_m, const Intrinsics& intr, const cv::Rect& roi, 
   std::vector<float> col_z(n, 0.0f);    // z summed over rows y-k..y+k
   std::vector<float> d_rows(n, 0.0f);   // z(y+k+1) + z(y+k) - z(y-k) - z(y-k-1)
   std::vector<const float*> rows(2 * k + 1);
-  std::vector<std::uint8_t> wide_bits(static_cast<std::size_t>(w / 8 + 1));
   for (int dy = -m; dy <= m; ++dy) {
     const float* b = g.bad_row(dy);
     for (int x = 0; x < n; ++x) col_bad[x] += b[x];
@@ -350,19 +392,11 @@ void run(const cv::Mat1f& depth_m, const Intrinsics& intr, const cv::Rect& roi, 
     cv::Vec3f* n_out = out[y];
     int vec_done = 0;
     if (simd) {
-      const WideRow wr{z,   win_bad.data(), col_z.data(),    d_rows.data(), k, inv, fx, fy, u0,
-                       v_c, n_out,          wide_bits.data()};
+      const WideRow wr{z,   win_bad.data(), col_z.data(), d_rows.data(), k,    inv, fx, fy, u0,
+                       v_c, z_up,           z_down,       ratio,         n_out};
       vec_done = wide_normals_avx2(wr, xs, w);
     }
-    for (int x = 0; x < w; ++x) {
-      if (x < vec_done) {
-        const unsigned bits = wide_bits[x / 8];
-        if (bits == 0xffu) {
-          x += 7;
-          continue;
-        }
-        if (bits & (1u << (x % 8))) continue;
-      }
+    for (int x = vec_done; x < w; ++x) {
       const int gx = xs + x;
       const float zc = z[gx];
       float du = 0.0f, dv = 0.0f;

@@ -114,7 +114,7 @@ HandScript HandScript::parse(std::string_view text, const std::string& source) {
     }
     if (f.size() != 5)
       fail("expected 5 fields (time_s finger x_m y_m z_m), got " + std::to_string(f.size()));
-    double t, x, y, z, finger_d;
+    double t = 0, x = 0, y = 0, z = 0, finger_d = 0;
     if (!to_double(f[0], t) || t < 0) fail("time_s '" + std::string(f[0]) + "' is not a time >= 0");
     if (!to_double(f[1], finger_d) || finger_d != std::floor(finger_d) || finger_d < 0 ||
         finger_d > 4)
@@ -164,7 +164,9 @@ void HandScript::sample(double t_s, HandState& out) const {
     Fingertip& tip = out.tips[i];
     tip.finger = i;
     tip.valid = has_finger(i);
-    tip.axis_camera = {0.0, 0.0, 1.0};
+    // The finger points right and into the scene (a right hand reaching across): a stroke along
+    // +x then has a component along the finger that a one-shear-direction display can render.
+    tip.axis_camera = glm::normalize(glm::dvec3{1.0, 0.0, 1.0});
     if (!tip.valid) {
       tip.v_camera_mps = glm::dvec3{0.0};
       continue;

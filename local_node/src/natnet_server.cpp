@@ -71,8 +71,8 @@ NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop) {
     }
     std::replace(line.begin(), line.end(), ',', ' ');
     std::istringstream ls(line);
-    double t, x, y, z, qx, qy, qz, qw;
-    std::int32_t id;
+    double t = 0, x = 0, y = 0, z = 0, qx = 0, qy = 0, qz = 0, qw = 1;
+    std::int32_t id = 0;
     std::string extra;
     if (!(ls >> t >> id >> x >> y >> z >> qx >> qy >> qz >> qw) || (ls >> extra) ||
         !std::isfinite(t) || t < t_end)

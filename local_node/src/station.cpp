@@ -36,6 +36,7 @@ struct TickSample {
   std::int64_t surface_capture_ns = 0;  // remote clock; 0 = no surface yet
   std::array<FingertipForce, kFingerCount> forces{};
   std::array<bool, kFingerCount> tracked{};
+  std::array<glm::dvec3, kFingerCount> p_camera{};
 };
 
 // Median depth (m) of the valid pixels in the central tenth of the image: where scripts aim.
@@ -87,7 +88,14 @@ StationSummary Station::run() {
     if (!forces_csv)
       throw std::runtime_error("cannot write --log-forces file " + cfg_.log_forces_csv.string());
     forces_csv << "time_s,finger,pressure_N,shear_N,contact,fx_N,fy_N,fz_N,penetration_m,status,"
-                  "surface_frame,surface_capture_ns\n";
+                  "x_m,y_m,z_m,surface_frame,surface_capture_ns\n";
+  }
+  std::ofstream tracking_csv;
+  if (!cfg_.log_tracking_csv.empty()) {
+    tracking_csv.open(cfg_.log_tracking_csv);
+    if (!tracking_csv)
+      throw std::runtime_error("cannot write --log-tracking file " + cfg_.log_tracking_csv.string());
+    tracking_csv << "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n";
   }
   const std::string view_dir = view_dir_of(cfg_.view_spec);
   if (!view_dir.empty()) std::filesystem::create_directories(view_dir);
@@ -207,6 +215,7 @@ StationSummary Station::run() {
 
   // ---- haptic thread ----
   SpscRing<TickSample> samples(1 << 14);
+  SpscRing<HandState> tracking(tracking_csv.is_open() ? 1024 : 1);
   std::atomic<bool> haptic_stop{false};
   std::string scheduling;
   std::atomic<bool> scheduling_ready{false};
@@ -229,6 +238,7 @@ StationSummary Station::run() {
       if (tracker->poll(now, hand)) {
         hand_for_surface.publish(hand);
         hand_for_view.publish(hand);
+        if (hand.bodies_fresh && hand.body_count > 0) tracking.push(hand);
       }
       surfaces.take(newest);
       const bool fresh = now - hand.time_ns <= tracking_stale_ns;
@@ -249,7 +259,10 @@ StationSummary Station::run() {
       sample.surface_capture_ns = newest ? newest->capture_ns : 0;
       sample.forces = out;
       for (int i = 0; i < kFingerCount; ++i)
+      {
         sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
+        sample.p_camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].p_camera;
+      }
       samples.push(sample);
       missed.store(timer.missed(), std::memory_order_relaxed);
     }
@@ -311,11 +324,13 @@ StationSummary Station::run() {
           if (!s.tracked[static_cast<std::size_t>(i)] && !s.forces[static_cast<std::size_t>(i)].contact)
             continue;
           const auto& f = s.forces[static_cast<std::size_t>(i)];
-          char row[320];
-          std::snprintf(row, sizeof row, "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%llu,%lld\n", t,
+          const auto& p = s.p_camera[static_cast<std::size_t>(i)];
+          char row[400];
+          std::snprintf(row, sizeof row,
+                        "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%.6f,%.6f,%.6f,%llu,%lld\n", t,
                         kFingerNames[i], f.normal_force_N, f.shear_along_axis_N, f.contact ? 1 : 0,
                         f.force_N.x, f.force_N.y, f.force_N.z, f.penetration_m,
-                        std::string(to_string(f.status)).c_str(),
+                        std::string(to_string(f.status)).c_str(), p.x, p.y, p.z,
                         static_cast<unsigned long long>(s.surface_frame),
                         static_cast<long long>(s.surface_capture_ns));
           forces_csv << row;
@@ -338,6 +353,22 @@ StationSummary Station::run() {
     }
   };
 
+  HandState tracked_state{};
+  auto drain_tracking = [&] {
+    while (tracking.pop(tracked_state)) {
+      if (!tracking_csv.is_open()) continue;
+      const double t = static_cast<double>(tracked_state.time_ns - t_start) / 1e9;
+      for (int b = 0; b < tracked_state.body_count; ++b) {
+        const auto& body = tracked_state.bodies[static_cast<std::size_t>(b)];
+        char row[256];
+        std::snprintf(row, sizeof row, "%.6f,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d\n", t,
+                      body.id, body.p_m.x, body.p_m.y, body.p_m.z, body.q.x, body.q.y, body.q.z,
+                      body.q.w, body.valid ? 1 : 0);
+        tracking_csv << row;
+      }
+    }
+  };
+
   auto status_text = [&](double fps) {
     const auto ps = summarize_periods(window_periods, period_ns);
     char b[256];
@@ -352,6 +383,7 @@ StationSummary Station::run() {
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
     drain();
+    drain_tracking();
     const std::int64_t now = monotonic_ns();
     if (end_ns && now >= end_ns) break;
     if (now >= next_status) {
@@ -407,6 +439,7 @@ StationSummary Station::run() {
   haptic_stop.store(true);
   haptic_thread.join();
   drain();
+  drain_tracking();
   shutdown();
   if (forces_csv.is_open()) forces_csv.flush();
 

@@ -80,11 +80,23 @@ bool get_varint(std::span<const std::uint8_t> in, std::size_t& pos, std::uint32_
   return false;
 }
 
+// Gaps between neighbouring depth levels are small (the disparity step in mm), so they travel as
+// 4-bit nibbles, two per byte (first in the low half), with 15 escaping to a varint of the excess
+// after the nibbles: half the bytes of one varint per gap on a per-tile table.
 void put_table(std::vector<std::uint8_t>& out, const std::vector<std::uint16_t>& table) {
   put_varint(out, static_cast<std::uint32_t>(table.size()));
   put_varint(out, table[0]);
-  for (std::size_t i = 1; i < table.size(); ++i)
-    put_varint(out, static_cast<std::uint32_t>(table[i] - table[i - 1] - 1));
+  const std::size_t gaps = table.size() - 1;
+  const std::size_t base = out.size();
+  out.resize(base + (gaps + 1) / 2, 0);
+  for (std::size_t i = 0; i < gaps; ++i) {
+    const std::uint32_t d = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
+    out[base + i / 2] |= static_cast<std::uint8_t>(std::min(d, 15u) << (4 * (i % 2)));
+  }
+  for (std::size_t i = 0; i < gaps; ++i) {
+    const std::uint32_t d = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
+    if (d >= 15) put_varint(out, d - 15);
+  }
 }
 
 DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
@@ -92,16 +104,27 @@ DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
   std::uint32_t n = 0, v = 0;
   if (!get_varint(in, pos, n) || !get_varint(in, pos, v)) return DecodeStatus::Truncated;
   if (n == 0 || n > 65535 || v == 0 || v > 65535) return DecodeStatus::Corrupt;
+  const std::size_t gaps = n - 1;
+  const std::size_t nibble_bytes = (gaps + 1) / 2;
+  if (in.size() - pos < nibble_bytes) return DecodeStatus::Truncated;
+  const std::uint8_t* nib = in.data() + pos;
+  pos += nibble_bytes;
   table.clear();
   table.reserve(n);
   table.push_back(static_cast<std::uint16_t>(v));
-  for (std::uint32_t i = 1; i < n; ++i) {
-    std::uint32_t d = 0;
-    if (!get_varint(in, pos, d)) return DecodeStatus::Truncated;
+  for (std::size_t i = 0; i < gaps; ++i) {
+    std::uint32_t d = (nib[i / 2] >> (4 * (i % 2))) & 0x0F;
+    if (d == 15) {
+      std::uint32_t e = 0;
+      if (!get_varint(in, pos, e)) return DecodeStatus::Truncated;
+      if (e > 65535) return DecodeStatus::Corrupt;
+      d += e;
+    }
     const std::uint64_t next = static_cast<std::uint64_t>(table.back()) + d + 1;
     if (next > 65535) return DecodeStatus::Corrupt;
     table.push_back(static_cast<std::uint16_t>(next));
   }
+  if (gaps % 2 == 1 && (nib[gaps / 2] >> 4) != 0) return DecodeStatus::Corrupt;
   return DecodeStatus::Ok;
 }
 

@@ -31,6 +31,7 @@ std::size_t StreamParser::feed(std::span<const std::uint8_t> bytes) {
   }
   const std::size_t room = capacity() - end_;
   const std::size_t take = std::min(room, bytes.size());
+  if (take == 0) return 0;  // also keeps memcpy away from a null pointer
   if (end_ + take > buf_.size())
     buf_.resize(std::min(capacity(), std::max(end_ + take, buf_.size() * 2)));
   std::memcpy(buf_.data() + end_, bytes.data(), take);

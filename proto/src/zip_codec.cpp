@@ -14,7 +14,6 @@ namespace {
 
 constexpr std::uint8_t kFlagTable = 0x01;
 constexpr int kBitsShift = 1;  // bits 1-2: log2 of the packed symbol width (1..3)
-constexpr std::size_t kZipHeader = 5;
 
 // One deflate state per thread, reset between calls: deflateInit costs far more than a tile.
 struct Deflater {
@@ -30,7 +29,7 @@ struct Deflater {
       // Level 0 selects Huffman-only deflate: on packed residuals LZ77 matching costs time and
       // gains nothing (docs/BENCHMARKS.md "## Codecs").
       const int strategy = want == 0 ? Z_HUFFMAN_ONLY : Z_DEFAULT_STRATEGY;
-      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, 15, 8, strategy) != Z_OK)
+      if (deflateInit2(&zs, want == 0 ? 1 : want, Z_DEFLATED, -15, 8, strategy) != Z_OK)
         throw std::runtime_error("zip codec: deflateInit2 failed");
       level = want;
     } else {
@@ -49,7 +48,7 @@ struct Inflater {
   z_stream* get() {
     if (!ready) {
       zs = z_stream{};
-      if (inflateInit(&zs) != Z_OK) return nullptr;
+      if (inflateInit2(&zs, -15) != Z_OK) return nullptr;
       ready = true;
     } else {
       inflateReset(&zs);
@@ -60,6 +59,8 @@ struct Inflater {
 
 struct ZipScratch {
   std::vector<std::uint8_t> body;
+  std::vector<std::uint8_t> packed2;
+  std::vector<std::uint8_t> over2;
   std::vector<std::uint32_t> residuals;
   std::vector<std::int32_t> rows;
   std::vector<std::uint32_t> runs;
@@ -80,22 +81,6 @@ namespace {
 // deflate's byte-wise Huffman code them jointly, below its one-bit-per-symbol floor.
 std::size_t varint_len(std::uint32_t v) {
   return v < (1u << 7) ? 1 : v < (1u << 14) ? 2 : v < (1u << 21) ? 3 : v < (1u << 28) ? 4 : 5;
-}
-
-// Body bytes (before deflate) of the packed symbols plus overflow for widths 2, 4 and 8.
-std::array<std::size_t, 3> packed_costs(const std::vector<std::uint32_t>& z) {
-  std::array<std::size_t, 3> over{0, 0, 0};
-  for (std::uint32_t v : z) {
-    if (v >= 3) {
-      over[0] += varint_len(v - 3);
-      if (v >= 15) {
-        over[1] += varint_len(v - 15);
-        if (v >= 255) over[2] += varint_len(v - 255);
-      }
-    }
-  }
-  const std::size_t n = z.size();
-  return {(n * 2 + 7) / 8 + over[0], (n * 4 + 7) / 8 + over[1], n + over[2]};
 }
 
 template <int Bits>
@@ -121,44 +106,79 @@ void pack(const std::vector<std::uint32_t>& z, std::uint8_t* out) {
 std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   ZipScratch& s = scratch();
   const Analysis& a = analyse(img);
-  s.residuals.resize(a.n_valid);
   s.runs.clear();
-  std::uint32_t* res = s.residuals.data();
+  // Speculate on 2-bit symbols (what structured-light depth picks): pack them during the
+  // prediction pass itself and only tally what 4- and 8-bit packing would cost.
+  s.packed2.resize((a.n_valid * 2 + 7) / 8 + 1);
+  s.over2.clear();
+  std::uint8_t* pk = s.packed2.data();
+  std::uint32_t acc = 0;
+  int filled = 0;
+  std::size_t over4 = 0, over8 = 0;
   predict(
-      img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; },
+      img, a.index_of, s.rows,
+      [&](std::uint32_t z) {
+        acc |= std::min(z, 3u) << (2 * filled);
+        if (++filled == 4) {
+          *pk++ = static_cast<std::uint8_t>(acc);
+          acc = 0;
+          filled = 0;
+        }
+        if (z >= 3) {
+          put_varint(s.over2, z - 3);
+          if (z >= 15) {
+            over4 += varint_len(z - 15);
+            if (z >= 255) over8 += varint_len(z - 255);
+          }
+        }
+      },
       [&](std::uint32_t r) { s.runs.push_back(r); });
+  if (filled) *pk++ = static_cast<std::uint8_t>(acc);
+  const std::size_t n = a.n_valid;
+  const std::size_t cost2 = (n * 2 + 7) / 8 + s.over2.size();
+  const std::size_t cost4 = (n * 4 + 7) / 8 + over4;
+  const std::size_t cost8 = n + over8;
+  const int bits = cost2 <= cost4 && cost2 <= cost8 ? 2 : cost4 <= cost8 ? 4 : 8;
 
   std::vector<std::uint8_t>& body = s.body;
   body.clear();
   for (std::uint32_t r : s.runs) put_varint(body, r);
   if (a.use_table) put_table(body, a.table);
-  // Packed width by the size before deflate; 2 wins on structured-light depth, 8 on noise.
-  const auto costs = packed_costs(s.residuals);
-  const int bits = costs[0] <= costs[1] && costs[0] <= costs[2] ? 2 : costs[1] <= costs[2] ? 4 : 8;
-  const std::uint32_t sat = (1u << bits) - 1;
-  const std::size_t n = s.residuals.size();
-  const std::size_t base = body.size();
-  body.resize(base + (n * bits + 7) / 8);
-  std::uint8_t* packed = body.data() + base;
-  if (bits == 2) pack<2>(s.residuals, packed);
-  if (bits == 4) pack<4>(s.residuals, packed);
-  if (bits == 8) pack<8>(s.residuals, packed);
-  for (std::uint32_t z : s.residuals)
-    if (z >= sat) put_varint(body, z - sat);
+  if (bits == 2) {
+    body.insert(body.end(), s.packed2.begin(), s.packed2.begin() + (n * 2 + 7) / 8);
+    body.insert(body.end(), s.over2.begin(), s.over2.end());
+  } else {
+    // Noise-like tiles: run the prediction again into a residual buffer for the wider packing.
+    s.residuals.resize(n);
+    std::uint32_t* res = s.residuals.data();
+    predict(
+        img, a.index_of, s.rows, [&](std::uint32_t z) { *res++ = z; }, [](std::uint32_t) {});
+    const std::uint32_t sat = (1u << bits) - 1;
+    const std::size_t base = body.size();
+    body.resize(base + (n * bits + 7) / 8);
+    if (bits == 4) pack<4>(s.residuals, body.data() + base);
+    if (bits == 8) pack<8>(s.residuals, body.data() + base);
+    for (std::uint32_t z : s.residuals)
+      if (z >= sat) put_varint(body, z - sat);
+  }
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);
-  std::vector<std::uint8_t> out(kZipHeader + deflateBound(&zs, body.size()));
+  // Header: flags, varint body length; then raw deflate (RFC 1951). The message CRC32C already
+  // guards the bytes, so zlib's wrapper and Adler-32 would be 6 bytes per tile for nothing.
+  std::vector<std::uint8_t> out;
+  out.push_back(0);
+  put_varint(out, static_cast<std::uint32_t>(body.size()));
+  const std::size_t header = out.size();
+  out.resize(header + deflateBound(&zs, body.size()));
   const int bits_code = bits == 2 ? 1 : bits == 4 ? 2 : 3;
   out[0] = static_cast<std::uint8_t>((a.use_table ? kFlagTable : 0) | (bits_code << kBitsShift));
-  const auto body_len = static_cast<std::uint32_t>(body.size());
-  for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<std::uint8_t>(body_len >> (8 * i));
   zs.next_in = body.data();
   zs.avail_in = static_cast<uInt>(body.size());
-  zs.next_out = out.data() + kZipHeader;
-  zs.avail_out = static_cast<uInt>(out.size() - kZipHeader);
+  zs.next_out = out.data() + header;
+  zs.avail_out = static_cast<uInt>(out.size() - header);
   if (deflate(&zs, Z_FINISH) != Z_STREAM_END) throw std::runtime_error("zip codec: deflate failed");
-  out.resize(kZipHeader + zs.total_out);
+  out.resize(header + zs.total_out);
   return out;
 }
 
@@ -193,14 +213,16 @@ DecodeStatus unpack(ZipScratch& s, std::span<const std::uint8_t> body, const std
 }  // namespace
 
 DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::Mat1w& out) {
-  if (bytes.size() < kZipHeader) return DecodeStatus::Truncated;
+  if (bytes.empty()) return DecodeStatus::Truncated;
   const std::uint8_t flags = bytes[0];
   if (flags & ~0x07u) return DecodeStatus::Corrupt;
   const int bits_code = (flags >> kBitsShift) & 3;
   if (bits_code == 0) return DecodeStatus::Corrupt;
   const int bits = 1 << bits_code;
   const bool use_table = flags & kFlagTable;
-  const std::uint32_t body_len = load_u32(bytes.data() + 1);
+  std::size_t header = 1;
+  std::uint32_t body_len = 0;
+  if (!get_varint(bytes, header, body_len)) return DecodeStatus::Truncated;
   const std::size_t total = static_cast<std::size_t>(w) * h;
   // Largest body a w x h tile can need: a 5-byte varint per run, a full table, one byte of
   // packed symbols and a 5-byte overflow varint per pixel.
@@ -212,8 +234,8 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   thread_local Inflater inflater;
   z_stream* zs = inflater.get();
   if (!zs) return DecodeStatus::Corrupt;
-  zs->next_in = const_cast<Bytef*>(bytes.data() + kZipHeader);
-  zs->avail_in = static_cast<uInt>(bytes.size() - kZipHeader);
+  zs->next_in = const_cast<Bytef*>(bytes.data() + header);
+  zs->avail_in = static_cast<uInt>(bytes.size() - header);
   zs->next_out = s.body.data();
   zs->avail_out = body_len;
   const int ret = inflate(zs, Z_FINISH);

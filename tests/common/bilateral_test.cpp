@@ -162,8 +162,9 @@ TEST(Bilateral, SimdEqualsScalar) {
       b.allow_simd = false;
       const cv::Mat1f fa = bilateral_filter_depth(r.depth.depth_mm, a);
       const cv::Mat1f fb = bilateral_filter_depth(r.depth.depth_mm, b);
-      // Same weights up to float rounding (polynomial exp vs LUT / std::exp).
-      EXPECT_LT(cv::norm(fa, fb, cv::NORM_INF), 2e-6) << radius << " " << noise_sigma;
+      // Same weights up to float rounding (polynomial exp vs LUT / std::exp) and another
+      // summation order (pairs vs taps): within 10 micrometres, far below the sensor's noise.
+      EXPECT_LT(cv::norm(fa, fb, cv::NORM_INF), 1e-5) << radius << " " << noise_sigma;
       EXPECT_EQ(cv::countNonZero(fa == 0.0f), cv::countNonZero(fb == 0.0f));
     }
 }

@@ -111,6 +111,8 @@ TEST(HapticModel, FrictionOpposesSlidingDirection) {
     // Kinetic friction: opposite to the motion with magnitude mu_d times the normal force.
     EXPECT_GT(glm::dot(glm::normalize(t), -dir), 0.999);
     EXPECT_NEAR(glm::length(t), p.mu_dynamic * f.normal_force_N, kForceTol);
+    // The one-direction shear display sees the friction along the finger axis (default -y).
+    EXPECT_NEAR(f.shear_along_axis_N, -dir.y * -p.mu_dynamic * f.normal_force_N, kForceTol);
     rig.move(start + 0.05 * dir, start, 200);  // back to the centre for the next direction
   }
 }
@@ -378,6 +380,37 @@ TEST(HapticModel, RejectsBadParameters) {
   HapticParams q;
   q.max_force_N = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(HapticModel m(q), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace telex
+
+namespace telex {
+namespace {
+
+TEST(HapticModel, CrossfadeAcrossResolutionChange) {
+  HapticParams p = bare();
+  p.crossfade_s = 0.01;
+  p.pushout_speed_m_per_s = 10.0;
+  p.mu_static = p.mu_dynamic = 0.0;
+  Rig rig(p);
+  cv::Mat1f old_depth(kK.height, kK.width, 0.9f);
+  old_depth(cv::Rect(0, 0, 40, kK.height)) = 0.8f;  // only the left quarter is near
+  rig.surface = std::make_shared<const Surface>(make_surface(old_depth, kK, 0, 1));
+  // A point off the optical axis, where mixing up the two frames' intrinsics would matter: pixel
+  // 20 of the old frame is pixel 81.5 of the new one, and pixel 81.5 of the old frame is far.
+  const glm::dvec3 dir = back_project(kK, 20.0, 100.0, 1.0);
+  rig.step(dir * 0.75);
+  const Intrinsics big = kinect_v1_intrinsics(640, 480);
+  cv::Mat1f depth(big.height, big.width, 0.79f);
+  depth(cv::Rect(0, 0, 320, 480)) = 0.0f;  // left half of the bigger frame is holes
+  FingertipForce f = rig.step(
+      dir * 0.75, std::make_shared<const Surface>(make_surface(depth, big, rig.now_ns, 2)));
+  // During the fade the fingertip presses in: the new frame has a hole there, so the old frame's
+  // wall at 0.8 m must stop it.
+  for (int i = 1; i <= 5; ++i) f = rig.step(dir * (0.75 + 0.012 * i));
+  EXPECT_TRUE(f.contact);
+  EXPECT_NEAR(f.normal_force_N, p.stiffness_N_per_m * 0.01, kForceTol);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "command.h"
+#include "telex/common/depth_io.h"
 #include "telex/proto/depth_codec.h"
 
 namespace telex::tool {
@@ -182,14 +183,9 @@ Measured measure(const Candidate& c, const cv::Mat1w& frame, int runs) {
 }
 
 cv::Mat1w load_frame(const std::string& path, const std::string& units) {
-  if (units != "mm")
-    throw std::invalid_argument("--units " + units +
-                                ": this build reads millimetre PNGs only (use --units mm)");
-  cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (m.empty()) throw std::runtime_error("cannot read depth image '" + path + "'");
-  if (m.type() != CV_16UC1)
-    throw std::runtime_error("depth image '" + path + "' is not 16-bit single channel");
-  return m;
+  cv::Mat1w depth_mm = telex::load_depth(path, telex::parse_depth_units(units)).depth_mm;
+  // Codecs and peers read the pixels as one continuous buffer.
+  return depth_mm.isContinuous() ? depth_mm : depth_mm.clone();
 }
 
 const telex::tool::RegisterCommand kRegister{
@@ -200,7 +196,8 @@ const telex::tool::RegisterCommand kRegister{
       auto json = std::make_shared<bool>(false);
       auto runs = std::make_shared<int>(9);
       auto level = std::make_shared<int>(proto::kDefaultZipLevel);
-      app.add_option("--in", *in, "depth image (16-bit PNG)")->required();
+      app.add_option("--in", *in, "depth image (16-bit PNG, or PGM for kinect-disparity)")
+          ->required();
       app.add_option("--units", *units, "depth units of the file: mm | tum | kinect-disparity")
           ->check(CLI::IsMember({"mm", "tum", "kinect-disparity"}));
       app.add_flag("--json", *json, "print one JSON object {\"codecs\": [...]}");

@@ -36,22 +36,28 @@ struct StepTolerance {
   double at(double z_m) const { return abs_m + rel * z_m; }
 };
 
+// Default neighbour distance of normals_from_depth in make_surface (see there).
+inline constexpr int kSurfaceNormalRadiusPx = 2;
+
 // Builds a snapshot. Non-finite, negative and absurdly far depths become holes. When `normals` is
 // empty they are computed from the depth with normals_from_depth. Throws std::invalid_argument
 // naming the problem when sizes disagree with the intrinsics or with each other.
 Surface make_surface(cv::Mat1f depth_m, const Intrinsics& intrinsics, std::int64_t capture_ns,
                      std::uint64_t frame_id, cv::Mat3f normals = {},
-                     const StepTolerance& steps = {});
+                     const StepTolerance& steps = {},
+                     int normal_radius_px = kSurfaceNormalRadiusPx);
 
 // Millimetre depth image (0 = hole) to metres (0 = hole).
 cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm);
 
-// Normals from the depth itself: cross product of the back-projected derivatives along x and y.
-// Each derivative uses the central difference, or the one-sided difference on the side that stays
-// on the same surface at a step edge; pixels with no usable neighbour on either axis get a zero
-// normal. Pure; the optimised normal kernel of the filtering pipeline replaces this in the daemon.
+// Normals from the depth itself: cross product of the back-projected derivatives along x and y,
+// taken between neighbours `radius_px` pixels away (a wider baseline is less sensitive to
+// millimetre quantisation). Each derivative uses the central difference, or the one-sided
+// difference on the side that stays on the same surface at a step edge; pixels with no usable
+// neighbour on an axis get a zero normal. Pure; the optimised normal kernel of the filtering
+// pipeline replaces this in the daemon. Throws std::invalid_argument when radius_px < 1.
 cv::Mat3f normals_from_depth(const cv::Mat1f& depth_m, const Intrinsics& intrinsics,
-                             const StepTolerance& steps = {});
+                             const StepTolerance& steps = {}, int radius_px = 1);
 
 // Back-projects pixel (u, v) at depth z into the camera frame.
 inline glm::dvec3 back_project(const Intrinsics& k, double u, double v, double z_m) {

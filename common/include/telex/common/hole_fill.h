@@ -30,8 +30,9 @@ struct HoleFillResult {
 // Fills each missing pixel (0) with the most frequent depth bin among the valid pixels of its
 // window; ties go to the nearer bin. The value written is the rounded mean of the winning bin's
 // members, so it always lies inside the range of the input's valid depths. Within one pass all
-// decisions read the image as it was before the pass (order independent). Work is proportional
-// to the number of holes: the valid pixels are never visited except as neighbours.
+// decisions read the image as it was before the pass (order independent). One scan (four pixels
+// per test) lists the holes; after it, work is proportional to the holes: pass 1 visits each
+// hole once, later passes only the holes near the previous pass's fills.
 // Throws std::invalid_argument on bad options.
 HoleFillResult fill_holes_mode(const cv::Mat1w& depth_mm, const HoleFillOptions& options = {});
 
