@@ -40,6 +40,14 @@ int main(int argc, char** argv) {
   app.add_option("--transport", transport, "depth transport: udp or tcp")
       ->check(CLI::IsMember({"udp", "tcp"}))
       ->capture_default_str();
+  app.add_option("--udp-port", cfg.client.udp_bind_port, "local UDP port for depth (0 = any)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+  app.add_option("--udp-announce-port", cfg.client.udp_announce_port,
+                 "UDP port announced to the remote instead of --udp-port, e.g. an impairment "
+                 "proxy's (0 = the bound port)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
   app.add_option("--hand", cfg.hand_spec,
                  "fingertips: script:press|stroke|tap|FILE, natnet:SERVER[,unicast][,local=IP], "
                  "5dt-usb[:PATH], 5dt-serial:DEV")

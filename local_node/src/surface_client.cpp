@@ -127,9 +127,11 @@ struct SurfaceClient::Impl {
       // Receive UDP on the interface the TCP session uses, so loopback stays loopback.
       udp_sock.open(ep.protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
       if (!ec) udp_sock.set_option(asio::socket_base::receive_buffer_size(4 << 20), ec);
-      if (!ec) udp_sock.bind(udp::endpoint(tcp_sock.local_endpoint().address(), 0), ec);
+      if (!ec)
+        udp_sock.bind(udp::endpoint(tcp_sock.local_endpoint().address(), cfg.udp_bind_port), ec);
       if (ec) return disconnect("cannot open UDP socket: " + ec.message());
-      udp_port = udp_sock.local_endpoint().port();
+      udp_port = cfg.udp_announce_port != 0 ? cfg.udp_announce_port
+                                            : udp_sock.local_endpoint().port();
       udp_receive();
     }
     set_state(ClientState::Handshaking, "connected to " + ep.address().to_string());

@@ -23,6 +23,10 @@ struct ClientConfig {
   std::int64_t backoff_min_ns = 100'000'000;
   std::int64_t backoff_max_ns = 1'000'000'000;
   proto::DecodeLimits limits{};
+  // Fault tests put telex-sim-impair in the depth path: bind UDP on udp_bind_port (0 = any) and
+  // tell the remote to send to udp_announce_port (0 = the bound port), where the proxy listens.
+  std::uint16_t udp_bind_port = 0;
+  std::uint16_t udp_announce_port = 0;
 };
 
 enum class ClientState : std::uint8_t { Connecting, Handshaking, Streaming, Backoff, Stopped };

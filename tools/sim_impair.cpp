@@ -1,0 +1,312 @@
+// SPDX-License-Identifier: MIT
+// telex-sim-impair: a UDP proxy that applies seeded loss, delay, jitter, reorder, dup and
+// corruption.
+#include <CLI/CLI.hpp>
+#include <array>
+#include <boost/asio.hpp>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "telex/local/impairment.h"
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+using telex::local::Impairment;
+using telex::local::ImpairmentConfig;
+using telex::local::ImpairmentCounters;
+
+namespace {
+
+std::int64_t monotonic_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// HOST:PORT with a numeric IPv4/IPv6 address; throws CLI::ValidationError naming the flag.
+udp::endpoint parse_endpoint(const std::string& s, const char* flag, bool port_zero_ok) {
+  const auto colon = s.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == s.size())
+    throw CLI::ValidationError(flag, "expected HOST:PORT, got '" + s + "'");
+  std::string host = s.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  boost::system::error_code ec;
+  const auto addr = asio::ip::make_address(host, ec);
+  if (ec) throw CLI::ValidationError(flag, "'" + host + "' is not a numeric IP address");
+  const std::string port_text = s.substr(colon + 1);
+  char* end = nullptr;
+  const long port = std::strtol(port_text.c_str(), &end, 10);
+  if (*end != '\0' || port < (port_zero_ok ? 0 : 1) || port > 65535)
+    throw CLI::ValidationError(flag, "port must be " + std::string(port_zero_ok ? "0" : "1") +
+                                         "..65535, got '" + port_text + "'");
+  return {addr, static_cast<unsigned short>(port)};
+}
+
+nlohmann::json to_json(const ImpairmentCounters& c) {
+  return {{"received", c.received},   {"dropped", c.dropped},       {"delivered", c.delivered},
+          {"reordered", c.reordered}, {"duplicated", c.duplicated}, {"corrupted", c.corrupted},
+          {"bytes_in", c.bytes_in}};
+}
+
+// Two sockets, two independent impairments, one timer queue. Single-threaded: every handler runs
+// on the io_context thread, so nothing here needs a lock.
+class Proxy {
+ public:
+  Proxy(asio::io_context& io, udp::endpoint listen, udp::endpoint forward,
+        const ImpairmentConfig& config)
+      : listen_sock_(io),
+        upstream_sock_(io),
+        timer_(io),
+        forward_(forward),
+        to_server_(config),
+        to_client_([&] {
+          ImpairmentConfig back = config;
+          back.seed = config.seed ^ 0x5bd1e995u;  // the return path gets its own stream
+          return back;
+        }()) {
+    open(listen_sock_, listen, "--listen");
+    open(upstream_sock_,
+         udp::endpoint(forward.protocol() == udp::v4()
+                           ? asio::ip::address(asio::ip::address_v4::any())
+                           : asio::ip::address(asio::ip::address_v6::any()),
+                       0),
+         "upstream");
+  }
+
+  udp::endpoint listen_endpoint() const { return listen_sock_.local_endpoint(); }
+
+  void start() {
+    receive_listen();
+    receive_upstream();
+  }
+
+  nlohmann::json summary() const {
+    return {{"client_to_server", to_json(to_server_.counters())},
+            {"server_to_client", to_json(to_client_.counters())},
+            {"sent", sent_},
+            {"send_errors", send_errors_},
+            {"foreign", foreign_},
+            {"no_client", no_client_},
+            {"client_changes", client_changes_},
+            {"pending", queue_.size()}};
+  }
+
+  std::string status() const {
+    return "to-server " + telex::local::to_string(to_server_.counters()) + " | to-client " +
+           telex::local::to_string(to_client_.counters()) + " | sent=" + std::to_string(sent_) +
+           " send_errors=" + std::to_string(send_errors_) + " foreign=" + std::to_string(foreign_);
+  }
+
+ private:
+  enum class Dir : std::uint8_t { ToServer, ToClient };
+  struct Pending {
+    Dir dir;
+    std::vector<std::uint8_t> bytes;
+  };
+
+  static void open(udp::socket& s, const udp::endpoint& ep, const char* what) {
+    s.open(ep.protocol());
+    s.set_option(asio::socket_base::receive_buffer_size(4 << 20));
+    s.set_option(asio::socket_base::send_buffer_size(4 << 20));
+    boost::system::error_code ec;
+    s.bind(ep, ec);
+    if (ec)
+      throw std::runtime_error(std::string("cannot bind ") + what + " " + ep.address().to_string() +
+                               ":" + std::to_string(ep.port()) + ": " + ec.message());
+  }
+
+  void receive_listen() {
+    listen_sock_.async_receive_from(
+        asio::buffer(listen_buf_), listen_from_,
+        [this](boost::system::error_code ec, std::size_t n) {
+          if (ec == asio::error::operation_aborted) return;
+          if (!ec) {
+            // The client is whoever spoke last: a restarted sender (new ephemeral port) is
+            // followed instead of being cut off.
+            if (!client_ || *client_ != listen_from_) {
+              if (client_) ++client_changes_;
+              client_ = listen_from_;
+            }
+            enqueue(Dir::ToServer, to_server_.process({listen_buf_.data(), n}, monotonic_ns()));
+          }
+          receive_listen();
+        });
+  }
+
+  void receive_upstream() {
+    upstream_sock_.async_receive_from(
+        asio::buffer(upstream_buf_), upstream_from_,
+        [this](boost::system::error_code ec, std::size_t n) {
+          if (ec == asio::error::operation_aborted) return;
+          if (!ec) {
+            if (upstream_from_ != forward_)
+              ++foreign_;
+            else
+              enqueue(Dir::ToClient, to_client_.process({upstream_buf_.data(), n}, monotonic_ns()));
+          }
+          receive_upstream();
+        });
+  }
+
+  void enqueue(Dir dir, std::vector<telex::local::Delivery> deliveries) {
+    for (auto& d : deliveries) queue_.emplace(d.deliver_at_ns, Pending{dir, std::move(d.bytes)});
+    flush();
+  }
+
+  // Sends everything due and re-arms the timer for the next one. multimap keeps equal times in
+  // insertion order, so duplicates follow their original.
+  void flush() {
+    const std::int64_t now = monotonic_ns();
+    while (!queue_.empty() && queue_.begin()->first <= now) {
+      auto node = queue_.extract(queue_.begin());
+      send(node.mapped());
+    }
+    if (queue_.empty()) return;
+    const std::int64_t next = queue_.begin()->first;
+    if (armed_for_ && *armed_for_ == next) return;
+    armed_for_ = next;
+    timer_.expires_after(std::chrono::nanoseconds(next - now));
+    timer_.async_wait([this](boost::system::error_code ec) {
+      if (ec == asio::error::operation_aborted) return;
+      armed_for_.reset();
+      flush();
+    });
+  }
+
+  void send(const Pending& p) {
+    boost::system::error_code ec;
+    if (p.dir == Dir::ToServer) {
+      upstream_sock_.send_to(asio::buffer(p.bytes), forward_, 0, ec);
+    } else {
+      if (!client_) {
+        ++no_client_;
+        return;
+      }
+      listen_sock_.send_to(asio::buffer(p.bytes), *client_, 0, ec);
+    }
+    // ICMP port unreachable from a peer that is down shows up here; count it and go on.
+    if (ec)
+      ++send_errors_;
+    else
+      ++sent_;
+  }
+
+  udp::socket listen_sock_;
+  udp::socket upstream_sock_;
+  asio::steady_timer timer_;
+  std::optional<std::int64_t> armed_for_;
+  udp::endpoint forward_;
+  std::optional<udp::endpoint> client_;
+  udp::endpoint listen_from_, upstream_from_;
+  std::array<std::uint8_t, 65536> listen_buf_{};
+  std::array<std::uint8_t, 65536> upstream_buf_{};
+  Impairment to_server_, to_client_;
+  std::multimap<std::int64_t, Pending> queue_;
+  std::uint64_t sent_ = 0, send_errors_ = 0, foreign_ = 0, no_client_ = 0, client_changes_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "telex-sim-impair: UDP proxy between a sender and --forward that applies seeded loss, "
+      "delay, jitter, reordering, duplication and bit corruption (both directions), since tc "
+      "netem is not available here"};
+  std::string listen_text, forward_text;
+  ImpairmentConfig cfg;
+  double duration_s = 0.0, stats_every_s = 0.0;
+  bool json = false;
+  app.add_option("--listen", listen_text, "HOST:PORT to receive on (port 0 = any free port)")
+      ->required();
+  app.add_option("--forward", forward_text, "HOST:PORT to forward to")->required();
+  app.add_option("--loss", cfg.loss, "loss probability per datagram")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--delay-ms", cfg.delay_ms, "one-way delay, ms")
+      ->check(CLI::Range(0.0, 60000.0))
+      ->capture_default_str();
+  app.add_option("--jitter-ms", cfg.jitter_ms, "uniform jitter +-ms around the delay (order kept)")
+      ->check(CLI::Range(0.0, 60000.0))
+      ->capture_default_str();
+  app.add_option("--reorder", cfg.reorder, "probability that a datagram is held back")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--reorder-hold-ms", cfg.reorder_hold_ms, "how long a reordered one is held, ms")
+      ->check(CLI::Range(0.0, 60000.0))
+      ->capture_default_str();
+  app.add_option("--duplicate", cfg.duplicate, "duplication probability")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--corrupt", cfg.corrupt, "probability of flipping one random bit")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--seed", cfg.seed, "random seed")->capture_default_str();
+  app.add_option("--duration", duration_s, "exit after this many seconds (0 = until a signal)")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--stats-every", stats_every_s, "print counters on stderr every S seconds (0 off)")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
+  app.add_flag("--json-summary", json, "print the final counters as JSON on stdout");
+  udp::endpoint listen_ep, forward_ep;
+  try {
+    app.parse(argc, argv);
+    listen_ep = parse_endpoint(listen_text, "--listen", true);
+    forward_ep = parse_endpoint(forward_text, "--forward", false);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+
+  try {
+    asio::io_context io;
+    Proxy proxy(io, listen_ep, forward_ep, cfg);
+    proxy.start();
+    const auto bound = proxy.listen_endpoint();
+    std::fprintf(stderr,
+                 "telex-sim-impair: listening on %s:%u, forwarding to %s:%u (loss %.3f, delay %.1f "
+                 "ms, jitter %.1f ms, reorder %.3f, duplicate %.3f, corrupt %.3f, seed %llu)\n",
+                 bound.address().to_string().c_str(), bound.port(),
+                 forward_ep.address().to_string().c_str(), forward_ep.port(), cfg.loss,
+                 cfg.delay_ms, cfg.jitter_ms, cfg.reorder, cfg.duplicate, cfg.corrupt,
+                 static_cast<unsigned long long>(cfg.seed));
+
+    asio::signal_set signals(io, SIGINT, SIGTERM);
+    signals.async_wait([&](boost::system::error_code ec, int) {
+      if (!ec) io.stop();
+    });
+    asio::steady_timer end_timer(io);
+    if (duration_s > 0) {
+      end_timer.expires_after(std::chrono::duration_cast<std::chrono::nanoseconds>(
+          std::chrono::duration<double>(duration_s)));
+      end_timer.async_wait([&](boost::system::error_code ec) {
+        if (!ec) io.stop();
+      });
+    }
+    asio::steady_timer stats_timer(io);
+    std::function<void()> arm_stats = [&] {
+      stats_timer.expires_after(std::chrono::duration_cast<std::chrono::nanoseconds>(
+          std::chrono::duration<double>(stats_every_s)));
+      stats_timer.async_wait([&](boost::system::error_code ec) {
+        if (ec) return;
+        std::fprintf(stderr, "telex-sim-impair: %s\n", proxy.status().c_str());
+        arm_stats();
+      });
+    };
+    if (stats_every_s > 0) arm_stats();
+    io.run();
+    std::fprintf(stderr, "telex-sim-impair: done: %s\n", proxy.status().c_str());
+    if (json) std::cout << proxy.summary().dump() << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "telex-sim-impair: error: %s\n", e.what());
+    return 2;
+  }
+}
