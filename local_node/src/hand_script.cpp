@@ -164,7 +164,9 @@ void HandScript::sample(double t_s, HandState& out) const {
     Fingertip& tip = out.tips[i];
     tip.finger = i;
     tip.valid = has_finger(i);
-    tip.axis_camera = {0.0, 0.0, 1.0};
+    // The finger points right and into the scene (a right hand reaching across): a stroke along
+    // +x then has a component along the finger that a one-shear-direction display can render.
+    tip.axis_camera = glm::normalize(glm::dvec3{1.0, 0.0, 1.0});
     if (!tip.valid) {
       tip.v_camera_mps = glm::dvec3{0.0};
       continue;

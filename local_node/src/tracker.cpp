@@ -76,6 +76,12 @@ class NatNetTracker final : public HandTracker {
       for (auto& t : cur.tips) t.valid = false;
       cur.skeleton_valid = false;
     }
+    cur.body_count = 0;
+    for (const auto& b : sample_.bodies) {
+      if (!b.present || cur.body_count >= kMaxTrackedBodies) continue;
+      cur.bodies[static_cast<std::size_t>(cur.body_count++)] = {b.id, b.pose.p_m, b.pose.q, b.valid};
+    }
+    cur.bodies_fresh = mocap_fresh;
     previous_ = cur;
     out = cur;
     out.time_ns = now_ns;

@@ -32,13 +32,13 @@ std::uint32_t crc32c(std::span<const std::uint8_t> data, std::uint32_t crc) {
   const std::uint8_t* p = data.data();
   std::size_t n = data.size();
   while (n >= 8) {
-    const std::uint32_t lo = (static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8 |
-                              static_cast<std::uint32_t>(p[2]) << 16 |
-                              static_cast<std::uint32_t>(p[3]) << 24) ^
-                             c;
-    const std::uint32_t hi = static_cast<std::uint32_t>(p[4]) | static_cast<std::uint32_t>(p[5]) << 8 |
-                             static_cast<std::uint32_t>(p[6]) << 16 |
-                             static_cast<std::uint32_t>(p[7]) << 24;
+    const std::uint32_t lo =
+        (static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8 |
+         static_cast<std::uint32_t>(p[2]) << 16 | static_cast<std::uint32_t>(p[3]) << 24) ^
+        c;
+    const std::uint32_t hi =
+        static_cast<std::uint32_t>(p[4]) | static_cast<std::uint32_t>(p[5]) << 8 |
+        static_cast<std::uint32_t>(p[6]) << 16 | static_cast<std::uint32_t>(p[7]) << 24;
     c = kTables[7][lo & 0xFF] ^ kTables[6][(lo >> 8) & 0xFF] ^ kTables[5][(lo >> 16) & 0xFF] ^
         kTables[4][lo >> 24] ^ kTables[3][hi & 0xFF] ^ kTables[2][(hi >> 8) & 0xFF] ^
         kTables[1][(hi >> 16) & 0xFF] ^ kTables[0][hi >> 24];

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
 // CRC32C against the RFC 3720 / iSCSI check values.
+#include "telex/proto/crc32c.h"
+
 #include <gtest/gtest.h>
 
 #include <string_view>
 #include <vector>
-
-#include "telex/proto/crc32c.h"
 
 namespace telex::proto {
 namespace {

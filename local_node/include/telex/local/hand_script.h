@@ -39,8 +39,8 @@ class HandScript {
   double duration_s() const { return duration_s_; }
   bool has_finger(int finger) const { return !keys_[finger].empty(); }
   glm::dvec3 position(int finger, double t_s) const;  // clamped to the finger's first/last key
-  // Tips at t: positions, velocities by a 1 ms backward finite difference, axis +z (the finger
-  // points into the scene), valid for scripted fingers only. Sets out.time_ns only via caller.
+  // Tips at t: positions, velocities by a 1 ms backward finite difference, axis (1,0,1)/sqrt2 (the
+  // finger points right and into the scene), valid for scripted fingers only. Sets out.time_ns only via caller.
   void sample(double t_s, HandState& out) const;
 
  private:

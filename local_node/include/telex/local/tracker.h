@@ -24,6 +24,15 @@ struct Fingertip {
   bool valid = false;
 };
 
+// A rigid body exactly as the tracking system reported it, in the tracker's own world frame.
+struct TrackedBody {
+  std::int32_t id = -1;
+  glm::dvec3 p_m{0.0};
+  glm::dquat q{1.0, 0.0, 0.0, 0.0};  // w, x, y, z
+  bool valid = false;                // tracked in this frame
+};
+inline constexpr int kMaxTrackedBodies = 8;
+
 // One tracker sample, everything in the remote camera frame (x right, y down, z forward, metres).
 struct HandState {
   std::int64_t time_ns = 0;  // when the sample was taken, on the caller's clock (poll's now_ns)
@@ -34,6 +43,11 @@ struct HandState {
   glm::dvec3 shoulder_camera{0.0};  // valid when shoulder_valid (NatNet with a shoulder body)
   bool skeleton_valid = false;
   bool shoulder_valid = false;
+  // Raw rigid bodies behind this state (NatNet only; body_count 0 for scripts and gloves), logged
+  // by --log-tracking.
+  std::array<TrackedBody, kMaxTrackedBodies> bodies{};
+  int body_count = 0;
+  bool bodies_fresh = false;  // the bodies come from a new tracker frame
 };
 
 struct TrackerStats {

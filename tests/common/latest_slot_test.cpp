@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT
 // The newest-wins mailbox: replacing an unconsumed value counts a drop, take() times out.
+#include "telex/common/latest_slot.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <thread>
 
-#include "telex/remote/latest_slot.h"
-
-namespace telex::remote {
+namespace telex {
 namespace {
 
 using namespace std::chrono_literals;
@@ -50,4 +50,4 @@ TEST(LatestSlot, CloseReleasesWaiter) {
 }
 
 }  // namespace
-}  // namespace telex::remote
+}  // namespace telex

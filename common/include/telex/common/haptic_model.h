@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: MIT
+// Fingertip force model: god-point proxies on a depth surface, friction, and the 1 kHz safety
+// layer.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "telex/common/haptic_surface.h"
+
+namespace telex {
+
+// Everything the model needs; units in the names. Defaults suit a cutaneous fingertip display
+// driven at 1 kHz from a 30 Hz depth stream.
+struct HapticParams {
+  double stiffness_N_per_m = 400.0;  // Hooke's law along the normal
+  // The proxy is kept this far on the free side so rounding never lets it slip under the
+  // surface; the force is measured from the surface itself, so eps adds no bias.
+  double proxy_epsilon_m = 1e-4;
+  double mu_static = 0.5;
+  double mu_dynamic = 0.3;
+  // Slip -> stick when the device-proxy angle falls below this fraction of atan(mu_dynamic)
+  // (CHAI3D's finger proxy uses 0.6): the gap between the two angles stops stick/slip chatter.
+  double slip_hysteresis = 0.6;
+  double max_force_N = 3.3;         // display limit: the output never exceeds it
+  double max_force_step_N = 0.05;   // per tick; 50 N/s at 1 kHz
+  double startup_ramp_s = 2.0;      // gain 0 -> 1 after start or recovery; 0 disables
+  double fade_out_s = 0.1;          // gain 1 -> 0 when the surface or tracking is stale
+  double stale_limit_s = 0.2;       // surface older than this (or tracking lost) fades out
+  double crossfade_s = 1.0 / 30.0;  // a new surface is blended in over one frame
+  double pushout_speed_m_per_s =
+      0.5;  // a surface that jumped past the proxy pushes it out this fast
+  double virtual_damping_Ns_per_m = 0.0;  // optional, applied in contact only
+  bool passivity_observer = false;  // Hannaford/Ryu time-domain observer, for grounded devices
+  double max_observer_damping_Ns_per_m = 20.0;
+  double nominal_period_s = 1e-3;  // used when the clock goes backwards
+  double max_tick_s = 0.01;        // longer gaps are counted and integrated as this
+  StepTolerance steps{};
+
+  // Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+  // Colgate's passivity bound for this sample period: K_max = 2 (b - |B|) / T.
+  double passive_stiffness_limit(double device_damping_Ns_per_m) const;
+};
+
+struct FingertipInput {
+  glm::dvec3 p_camera{0.0};
+  // Unit direction along the finger, for displays that render shear in one direction only.
+  glm::dvec3 axis_camera{0.0, -1.0, 0.0};
+  bool tracked = true;  // false when the tracker says it lost this fingertip
+};
+
+enum class FingertipStatus : std::uint8_t {
+  Ok,
+  NoSurface,     // no snapshot received yet
+  StaleSurface,  // the newest snapshot is older than stale_limit_s: fading out
+  TrackingLost,  // tracker flag or NaN/Inf position: holding the last force and fading out
+  OutsideImage,  // fingertip projects outside the depth image (not contact)
+  Hole,          // no depth under the fingertip (not contact)
+  BehindCamera,  // z <= 0: cannot project (not contact)
+};
+std::string_view to_string(FingertipStatus s);
+
+struct FingertipForce {
+  glm::dvec3 force_N{0.0};             // on the finger, camera frame, after all safety stages
+  double normal_force_N = 0.0;         // pressure along the contact normal (>= 0)
+  glm::dvec3 tangential_force_N{0.0};  // shear (friction) in the contact plane
+  double shear_along_axis_N = 0.0;     // tangential force along the finger axis
+  bool contact = false;
+  bool slipping = false;
+  double penetration_m = 0.0;
+  glm::dvec3 proxy_camera{0.0};
+  glm::dvec3 normal_camera{0.0, 0.0, -1.0};
+  double gain = 0.0;  // safety ramp applied, in [0, 1]
+  FingertipStatus status = FingertipStatus::NoSurface;
+};
+
+enum class TickStatus : std::uint8_t {
+  Ok,
+  TimeWentBackwards,  // counted; integrated with nominal_period_s
+  LongGap,            // counted; integrated with max_tick_s
+  BadSpan,            // input/output spans do not match the fingertip count: nothing written
+};
+std::string_view to_string(TickStatus s);
+
+struct HapticCounters {
+  std::uint64_t ticks = 0;
+  std::uint64_t time_backwards = 0;
+  std::uint64_t long_gaps = 0;
+  std::uint64_t bad_spans = 0;
+  std::uint64_t surfaces_accepted = 0;
+  std::uint64_t surfaces_out_of_order = 0;  // older or repeated frame ids: ignored
+  std::uint64_t nonfinite_inputs = 0;       // NaN/Inf fingertip positions (tracking loss)
+  std::uint64_t stale_ticks = 0;
+  std::uint64_t clamped = 0;       // force limited to max_force_N
+  std::uint64_t rate_limited = 0;  // force change limited to max_force_step_N
+  std::uint64_t observer_active = 0;
+};
+
+// The fingertip force model. Pure: no threads, no clocks (time comes in), no allocation after
+// construction (a new snapshot only moves shared_ptrs; the publisher should keep retired snapshots
+// alive a little so the last release happens on its own thread).
+class HapticModel {
+ public:
+  static constexpr int kMaxFingertips = 10;
+
+  explicit HapticModel(const HapticParams& params, int fingertips = 5);
+
+  // One 1 kHz step. `newest` is the newest published snapshot (may be null, may repeat); `in` and
+  // `out` hold one entry per fingertip. Never throws.
+  TickStatus tick(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest,
+                  std::span<const FingertipInput> in, std::span<FingertipForce> out);
+
+  // Forgets proxies, ramps and the observer (e.g. after the operator re-engages).
+  void reset();
+
+  const HapticParams& params() const { return params_; }
+  const HapticCounters& counters() const { return counters_; }
+  int fingertips() const { return fingertips_; }
+
+ private:
+  struct Finger {
+    bool has_proxy = false;
+    glm::dvec3 proxy{0.0};
+    bool contact = false;
+    bool slipping = false;
+    bool side_contact = false;  // blocked by a step edge: force along proxy - device
+    glm::dvec3 normal{0.0, 0.0, -1.0};
+    double penetration_m = 0.0;
+    glm::dvec3 raw_force{0.0};  // before the safety stages, held through tracking loss
+    glm::dvec3 out_force{0.0};  // last output, for the rate limit and the observer
+    bool has_prev_p = false;
+    glm::dvec3 prev_p{0.0};
+    double gain = 0.0;
+    double observer_energy_J = 0.0;
+    FingertipStatus status = FingertipStatus::NoSurface;
+  };
+  struct View;
+
+  void update_proxy(Finger& f, const View& view, const glm::dvec3& x, double dt_s);
+
+  HapticParams params_;
+  int fingertips_;
+  std::array<Finger, kMaxFingertips> fingers_{};
+  std::shared_ptr<const Surface> current_;
+  std::shared_ptr<const Surface> previous_;
+  std::int64_t fade_start_ns_ = 0;
+  bool has_time_ = false;
+  std::int64_t last_ns_ = 0;
+  HapticCounters counters_{};
+};
+
+}  // namespace telex

@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: MIT
+// Registration of a depth map to another camera (the right eye): shift+scale, or full reprojection.
+#pragma once
+
+#include <glm/mat3x3.hpp>
+#include <glm/vec3.hpp>
+
+#include "telex/common/depth_image.h"
+
+namespace telex {
+
+// Image-space registration: a depth pixel centre (u, v) lands at
+//   u' = (u - depth.cx) * scale_x + target.cx + shift_x_px
+//   v' = (v - depth.cy) * scale_y + target.cy + shift_y_px
+// and its value gains depth_offset_mm. Exact only for surfaces at the nominal depth the shift was
+// derived for: a point at depth Z is misplaced by fx_target * t_x * (1/Z - 1/Z_nominal) pixels.
+struct ShiftScale {
+  double shift_x_px = 0.0;
+  double shift_y_px = 0.0;
+  double scale_x = 1.0;  // field-of-view ratio: target focal length / depth focal length
+  double scale_y = 1.0;
+  int depth_offset_mm = 0;
+};
+
+// The shift+scale that is exact at `nominal_depth_m` for a target camera whose frame is the depth
+// camera's translated (p_target = p_depth + t_target_from_depth_m), e.g. t = (-baseline, 0, 0)
+// for a target camera `baseline` to the right. Throws std::invalid_argument on nominal <= 0.
+ShiftScale shift_scale_from_calibration(const Intrinsics& depth, const Intrinsics& target,
+                                        const glm::dvec3& t_target_from_depth_m,
+                                        double nominal_depth_m);
+
+// Resamples `depth` into the target image (target.width x target.height): every depth pixel
+// covers the target pixels whose centres fall inside its mapped footprint, so no cracks open when
+// scaling up, or the single pixel nearest its mapped centre when the footprint holds none (scaling
+// down); where pixels collide the nearest depth wins; holes write nothing and stay holes.
+DepthImage register_shift_scale(const DepthImage& depth, const ShiftScale& params,
+                                const Intrinsics& target);
+
+// p_target = rotation * p_depth + translation_m.
+struct RigidTransform {
+  glm::dmat3 rotation{1.0};
+  glm::dvec3 translation_m{0.0};
+};
+
+// Full reprojection: back-projects every valid depth pixel with the depth intrinsics, transforms
+// it into the target frame, projects it with the target intrinsics to the nearest pixel and keeps
+// the nearest depth there (z-buffer). With fill_cracks, pixels still empty afterwards take the
+// nearest of the points whose 2x2 splat (the four pixels around the projected position) covers
+// them, which closes the one-pixel cracks that magnification and parallax leave.
+DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
+                           const RigidTransform& target_from_depth, bool fill_cracks = true);
+
+}  // namespace telex

@@ -1,0 +1,162 @@
+// SPDX-License-Identifier: MIT
+// Depth-to-target-camera registration kernels: shift+scale resampling and z-buffered reprojection.
+#include "telex/common/registration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace telex {
+namespace {
+
+void check_inputs(const DepthImage& depth, const Intrinsics& target, const char* who) {
+  if (depth.depth_mm.empty()) throw std::invalid_argument(std::string(who) + ": empty depth image");
+  if (target.width <= 0 || target.height <= 0 || !(target.fx > 0) || !(target.fy > 0))
+    throw std::invalid_argument(std::string(who) +
+                                ": target intrinsics need width, height, fx, fy > 0");
+  if (!(depth.intrinsics.fx > 0) || !(depth.intrinsics.fy > 0))
+    throw std::invalid_argument(std::string(who) + ": depth intrinsics need fx, fy > 0");
+}
+
+// Keeps the nearer of an existing value and a new one (0 = empty).
+inline void keep_nearest(std::uint16_t& dst, std::uint16_t z) {
+  if (dst == kNoDepth || z < dst) dst = z;
+}
+
+// Target pixel range [first, last) whose centres fall inside [lo, hi), clipped to [0, n). A
+// footprint narrower than a pixel that holds no centre still lands on the pixel nearest its
+// middle, so when minifying every source pixel competes (nearest wins) and thin objects survive.
+inline void centre_range(double lo, double hi, int n, int& first, int& last) {
+  first = static_cast<int>(std::ceil(lo));
+  last = static_cast<int>(std::ceil(hi));
+  if (first >= last) {
+    first = static_cast<int>(std::floor(0.5 * (lo + hi) + 0.5));
+    last = first + 1;
+  }
+  first = std::max(0, first);
+  last = std::min(n, last);
+}
+
+}  // namespace
+
+ShiftScale shift_scale_from_calibration(const Intrinsics& depth, const Intrinsics& target,
+                                        const glm::dvec3& t, double nominal_depth_m) {
+  if (!(nominal_depth_m > 0.0))
+    throw std::invalid_argument("shift_scale_from_calibration: nominal_depth_m must be > 0");
+  ShiftScale p;
+  p.scale_x = target.fx / depth.fx;
+  p.scale_y = target.fy / depth.fy;
+  // u' = fx' (X + t_x) / (Z + t_z) + cx' with X = (u - cx) Z / fx is, at Z = Z0, exactly the
+  // affine map below; any other Z shifts by fx' t_x (1 / (Z + t_z) - 1 / (Z0 + t_z)).
+  const double z_target = nominal_depth_m + t.z;
+  p.scale_x *= nominal_depth_m / z_target;
+  p.scale_y *= nominal_depth_m / z_target;
+  p.shift_x_px = target.fx * t.x / z_target;
+  p.shift_y_px = target.fy * t.y / z_target;
+  p.depth_offset_mm = static_cast<int>(std::lround(t.z * 1000.0));
+  return p;
+}
+
+DepthImage register_shift_scale(const DepthImage& depth, const ShiftScale& p,
+                                const Intrinsics& target) {
+  check_inputs(depth, target, "register_shift_scale");
+  if (!(p.scale_x > 0.0) || !(p.scale_y > 0.0))
+    throw std::invalid_argument("register_shift_scale: scale_x and scale_y must be > 0");
+  const Intrinsics& k = depth.intrinsics;
+  const int w = depth.width(), h = depth.height();
+  // The map is separable, so each source column / row has one target range.
+  std::vector<int> col_first(w), col_last(w), row_first(h), row_last(h);
+  for (int u = 0; u < w; ++u) {
+    const double lo = (u - 0.5 - k.cx) * p.scale_x + target.cx + p.shift_x_px;
+    centre_range(lo, lo + p.scale_x, target.width, col_first[u], col_last[u]);
+  }
+  for (int v = 0; v < h; ++v) {
+    const double lo = (v - 0.5 - k.cy) * p.scale_y + target.cy + p.shift_y_px;
+    centre_range(lo, lo + p.scale_y, target.height, row_first[v], row_last[v]);
+  }
+  DepthImage out;
+  out.intrinsics = target;
+  out.depth_mm = cv::Mat1w(target.height, target.width, kNoDepth);
+  for (int v = 0; v < h; ++v) {
+    if (row_first[v] >= row_last[v]) continue;
+    const std::uint16_t* src = depth.depth_mm[v];
+    for (int u = 0; u < w; ++u) {
+      if (src[u] == kNoDepth || col_first[u] >= col_last[u]) continue;
+      const int z = src[u] + p.depth_offset_mm;
+      if (z <= 0 || z > 65535) continue;
+      for (int tv = row_first[v]; tv < row_last[v]; ++tv) {
+        std::uint16_t* dst = out.depth_mm[tv];
+        for (int tu = col_first[u]; tu < col_last[u]; ++tu)
+          keep_nearest(dst[tu], static_cast<std::uint16_t>(z));
+      }
+    }
+  }
+  return out;
+}
+
+DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
+                           const RigidTransform& x, bool fill_cracks) {
+  check_inputs(depth, target, "reproject_depth");
+  const Intrinsics& k = depth.intrinsics;
+  const int w = depth.width(), h = depth.height();
+  DepthImage out;
+  out.intrinsics = target;
+  out.depth_mm = cv::Mat1w(target.height, target.width, kNoDepth);
+
+  struct Projected {
+    float u, v;
+    std::uint16_t z_mm;
+  };
+  std::vector<Projected> points;
+  if (fill_cracks) points.reserve(static_cast<std::size_t>(w) * h);
+
+  std::vector<double> xn(w);
+  for (int u = 0; u < w; ++u) xn[u] = (u - k.cx) / k.fx;
+  for (int v = 0; v < h; ++v) {
+    const std::uint16_t* src = depth.depth_mm[v];
+    const double yn = (v - k.cy) / k.fy;
+    for (int u = 0; u < w; ++u) {
+      if (src[u] == kNoDepth) continue;
+      const double z = src[u] * 1e-3;
+      const glm::dvec3 q = x.rotation * glm::dvec3(xn[u] * z, yn * z, z) + x.translation_m;
+      if (!(q.z > 0.0)) continue;
+      const double zmm = q.z * 1000.0 + 0.5;
+      if (zmm >= 65536.0 || zmm < 1.0) continue;
+      const std::uint16_t z_mm = static_cast<std::uint16_t>(zmm);
+      const double inv_z = 1.0 / q.z;
+      const double tu = target.fx * q.x * inv_z + target.cx;
+      const double tv = target.fy * q.y * inv_z + target.cy;
+      // Nearest pixel; the range test keeps the int conversion defined.
+      if (!(tu > -1.0 && tv > -1.0 && tu < target.width + 1.0 && tv < target.height + 1.0))
+        continue;
+      if (fill_cracks) points.push_back({static_cast<float>(tu), static_cast<float>(tv), z_mm});
+      const int iu = static_cast<int>(std::floor(tu + 0.5));
+      const int iv = static_cast<int>(std::floor(tv + 0.5));
+      if (iu < 0 || iv < 0 || iu >= target.width || iv >= target.height) continue;
+      keep_nearest(out.depth_mm(iv, iu), z_mm);
+    }
+  }
+  if (!fill_cracks) return out;
+
+  // Second pass into a separate buffer so splats never overwrite a direct hit.
+  cv::Mat1w splat(target.height, target.width, kNoDepth);
+  for (const Projected& p : points) {
+    const int u0 = static_cast<int>(std::floor(p.u)), v0 = static_cast<int>(std::floor(p.v));
+    for (int dv = 0; dv < 2; ++dv)
+      for (int du = 0; du < 2; ++du) {
+        const int iu = u0 + du, iv = v0 + dv;
+        if (iu < 0 || iv < 0 || iu >= target.width || iv >= target.height) continue;
+        keep_nearest(splat(iv, iu), p.z_mm);
+      }
+  }
+  for (int v = 0; v < target.height; ++v) {
+    std::uint16_t* d = out.depth_mm[v];
+    const std::uint16_t* s = splat[v];
+    for (int u = 0; u < target.width; ++u)
+      if (d[u] == kNoDepth) d[u] = s[u];
+  }
+  return out;
+}
+
+}  // namespace telex

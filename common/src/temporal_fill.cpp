@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: MIT
+// Temporal hole filling from a per-pixel history of the last valid depth and its age.
+#include "telex/common/temporal_fill.h"
+
+#include <stdexcept>
+#include <string>
+
+namespace telex {
+
+TemporalFill::TemporalFill(const TemporalFillOptions& options) : options_(options) {
+  if (options.max_age_frames < 1)
+    throw std::invalid_argument("TemporalFill: max_age_frames must be >= 1, got " +
+                                std::to_string(options.max_age_frames));
+  if (options.max_age_ms < 0.0)
+    throw std::invalid_argument("TemporalFill: max_age_ms must be >= 0, got " +
+                                std::to_string(options.max_age_ms));
+}
+
+void TemporalFill::reset() {
+  last_mm_.release();
+  last_frame_.release();
+  last_time_ms_.release();
+  frame_ = 0;
+  prev_time_ms_ = 0.0;
+}
+
+TemporalFillResult TemporalFill::apply(const cv::Mat1w& depth_mm, double time_ms,
+                                       cv::Mat1w& out_mm) {
+  TemporalFillResult r;
+  if (last_mm_.size() != depth_mm.size() || (frame_ > 0 && time_ms < prev_time_ms_)) {
+    r.history_reset = frame_ > 0;
+    last_mm_.create(depth_mm.size());
+    last_mm_.setTo(0);
+    last_frame_.create(depth_mm.size());
+    last_time_ms_.create(depth_mm.size());
+    frame_ = 0;
+  }
+  ++frame_;
+  prev_time_ms_ = time_ms;
+  out_mm.create(depth_mm.size());
+  const int frame = static_cast<int>(frame_);
+  const int max_age = options_.max_age_frames;
+  const double max_age_ms = options_.max_age_ms;
+  for (int y = 0; y < depth_mm.rows; ++y) {
+    const std::uint16_t* in = depth_mm[y];
+    std::uint16_t* out = out_mm[y];
+    std::uint16_t* last = last_mm_[y];
+    int* last_frame = last_frame_[y];
+    double* last_time = last_time_ms_[y];
+    for (int x = 0; x < depth_mm.cols; ++x) {
+      const std::uint16_t v = in[x];
+      if (v != 0) {
+        last[x] = v;
+        last_frame[x] = frame;
+        last_time[x] = time_ms;
+        out[x] = v;
+        continue;
+      }
+      ++r.holes_in;
+      const std::uint16_t h = last[x];
+      const bool young = h != 0 && frame - last_frame[x] <= max_age &&
+                         (max_age_ms <= 0.0 || time_ms - last_time[x] <= max_age_ms);
+      out[x] = young ? h : std::uint16_t{0};
+      r.filled += young ? 1 : 0;
+    }
+  }
+  r.holes_out = r.holes_in - r.filled;
+  return r;
+}
+
+}  // namespace telex

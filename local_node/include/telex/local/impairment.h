@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// Deterministic network impairment (loss, delay, jitter, reorder, duplicate, corrupt) for
+// datagrams.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace telex::local {
+
+// Probabilities are per datagram in [0, 1]; times in milliseconds. validate() names a bad field.
+struct ImpairmentConfig {
+  double loss = 0.0;
+  double delay_ms = 0.0;
+  double jitter_ms = 0.0;  // uniform in [-jitter, +jitter] around delay, never below zero
+  double reorder = 0.0;  // held back by reorder_hold_ms on top of its delay, so later ones pass it
+  double reorder_hold_ms = 10.0;
+  double duplicate = 0.0;  // a second copy delivered right after the first
+  double corrupt = 0.0;    // one random bit of one random byte flipped (what netem does)
+  std::uint64_t seed = 1;
+};
+
+// Throws std::invalid_argument naming the first field out of range.
+void validate(const ImpairmentConfig& config);
+
+struct ImpairmentCounters {
+  std::uint64_t received = 0;
+  std::uint64_t dropped = 0;     // lost
+  std::uint64_t delivered = 0;   // copies scheduled, duplicates included
+  std::uint64_t reordered = 0;   // held back
+  std::uint64_t duplicated = 0;  // extra copies
+  std::uint64_t corrupted = 0;   // datagrams with a flipped bit
+  std::uint64_t bytes_in = 0;
+};
+
+struct Delivery {
+  std::int64_t deliver_at_ns = 0;
+  std::vector<std::uint8_t> bytes;
+};
+
+// One direction of a link. Pure apart from its seeded generator: the same config, datagrams and
+// times give the same deliveries. Datagrams that are not held back keep their arrival order even
+// under jitter (a queue never lets a later packet overtake an earlier one unless told to reorder),
+// so reordering is only what `reorder` asks for.
+class Impairment {
+ public:
+  explicit Impairment(const ImpairmentConfig& config);
+
+  // The copies of `datagram` to send and when; empty when it is lost.
+  std::vector<Delivery> process(std::span<const std::uint8_t> datagram, std::int64_t now_ns);
+
+  const ImpairmentCounters& counters() const { return counters_; }
+  const ImpairmentConfig& config() const { return config_; }
+
+ private:
+  std::uint64_t next_u64();
+  double next_unit();  // [0, 1)
+  ImpairmentConfig config_;
+  ImpairmentCounters counters_;
+  std::uint64_t state_;
+  std::int64_t last_in_order_ns_ = 0;
+};
+
+// "received=... dropped=..." for logs and summaries.
+std::string to_string(const ImpairmentCounters& c);
+
+}  // namespace telex::local

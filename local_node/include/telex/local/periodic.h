@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: MIT
+// Fixed-rate loop timing (absolute deadlines, no drift) and period statistics for the haptic thread.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace telex::local {
+
+std::int64_t monotonic_ns();
+
+// Sleeps until absolute monotonic deadlines spaced by period_ns. A tick that overran by more than a
+// whole period skips ahead instead of bursting to catch up (counted as missed).
+class PeriodicTimer {
+ public:
+  explicit PeriodicTimer(std::int64_t period_ns);
+  // Waits for the next deadline; returns the actual wake-up time.
+  std::int64_t wait_next();
+  std::uint64_t missed() const { return missed_; }
+  std::int64_t period_ns() const { return period_ns_; }
+
+ private:
+  std::int64_t period_ns_;
+  std::int64_t next_ns_ = 0;
+  std::uint64_t missed_ = 0;
+};
+
+// Tries SCHED_FIFO at `priority` for the calling thread; returns a description of what was applied.
+std::string try_realtime(int priority);
+
+struct PeriodSummary {
+  std::size_t count = 0;
+  double mean_rate_hz = 0;
+  double median_period_us = 0;
+  double p99_jitter_us = 0;  // 99th percentile of |period - nominal|
+  double max_jitter_us = 0;
+};
+
+// Summary of observed periods (ns) against the nominal period.
+PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns, std::int64_t nominal_ns);
+
+// The p-quantile (0..1) of a sample, linearly interpolated (copies, does not modify input).
+double percentile(std::vector<double> values, double p);
+
+}  // namespace telex::local

@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// The operator station: network client, surface thread, 1 kHz haptic thread, logging, status and
+// operator view, wired together. telex-local is a thin main around it.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include "telex/common/haptic_model.h"
+#include "telex/local/haptic_display.h"
+#include "telex/local/surface_builder.h"
+#include "telex/local/surface_client.h"
+#include "telex/local/tracker.h"
+
+namespace telex::local {
+
+struct StationConfig {
+  ClientConfig client;
+  std::string hand_spec = "script:press";
+  TrackerConfig tracker;
+  std::string haptics_spec = "sim";
+  DisplayConfig display;
+  HapticParams haptic;
+  SurfaceOptions surface;
+  double rate_hz = 1000.0;
+  bool realtime = true;             // try SCHED_FIFO for the haptic thread
+  double max_tile_age_s = 0.5;      // a missing tile keeps its last value this long
+  double duration_s = 0.0;          // 0 = until stopped
+  double first_surface_timeout_s = 10.0;
+  std::filesystem::path log_forces_csv;    // empty = off
+  int log_every = 1;                       // one row per finger every N ticks
+  std::filesystem::path log_tracking_csv;  // empty = off
+  std::string view_spec = "none";          // none | png:DIR | window
+  double print_forces_hz = 0.0;            // live force lines on stdout (0 = off)
+  bool status_line = true;                 // one status line per second on stderr
+  bool roi_requests = true;                // ask the remote for full-rate tiles near the hands
+};
+
+// Summary a run returns (and the status line prints), for tests and the benchmark report.
+struct StationSummary {
+  std::uint64_t ticks = 0;
+  double haptic_rate_hz = 0;
+  double period_p99_jitter_us = 0;
+  double period_median_us = 0;
+  std::uint64_t missed_ticks = 0;
+  std::uint64_t surfaces = 0;
+  double latency_median_ms = 0;  // capture (remote clock, offset-corrected) to force output
+  double latency_p99_ms = 0;
+  double peak_pressure_N = 0;
+  double peak_shear_N = 0;
+  std::string scheduling;
+};
+
+class Station {
+ public:
+  explicit Station(StationConfig config);
+  ~Station();
+  // Runs until duration_s elapses or request_stop() (e.g. from a signal handler thread).
+  // Throws std::runtime_error / std::invalid_argument for start-up problems (bad device, file).
+  StationSummary run();
+  void request_stop() { stop_.store(true); }
+
+ private:
+  StationConfig cfg_;
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace telex::local

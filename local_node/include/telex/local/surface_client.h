@@ -1,0 +1,77 @@
+// SPDX-License-Identifier: MIT
+// Operator-side network client: session over TCP, depth tiles over UDP or TCP, heartbeats with
+// clock-offset estimation, ROI requests, and reconnection with back-off when the remote goes away.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "telex/proto/messages.h"
+
+namespace telex::local {
+
+struct ClientConfig {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7300;
+  bool use_udp = true;         // ask for depth over UDP (the remote may still choose TCP)
+  bool want_video = false;     // ask for the right-eye video
+  std::int64_t heartbeat_ns = 250'000'000;
+  std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
+  std::int64_t backoff_min_ns = 100'000'000;
+  std::int64_t backoff_max_ns = 1'000'000'000;
+  proto::DecodeLimits limits{};
+};
+
+enum class ClientState : std::uint8_t { Connecting, Handshaking, Streaming, Backoff, Stopped };
+std::string_view to_string(ClientState s);
+
+// Counters readable from any thread.
+struct ClientStats {
+  std::atomic<std::uint64_t> connects{0};
+  std::atomic<std::uint64_t> disconnects{0};
+  std::atomic<std::uint64_t> rejects{0};
+  std::atomic<std::uint64_t> messages{0};
+  std::atomic<std::uint64_t> bytes_in{0};
+  std::atomic<std::uint64_t> datagrams{0};
+  std::atomic<std::uint64_t> dropped_malformed{0};  // parser + reassembler rejections
+  std::atomic<std::uint64_t> dropped_foreign{0};    // wrong session or source
+  std::atomic<std::uint64_t> heartbeats{0};
+  std::atomic<std::int64_t> clock_offset_ns{0};  // remote clock minus local clock (NTP estimate)
+  std::atomic<std::int64_t> rtt_ns{0};
+  std::atomic<std::uint8_t> state{static_cast<std::uint8_t>(ClientState::Stopped)};
+};
+
+// Callbacks run on the client's network thread; they must be quick (hand work to another thread).
+struct ClientEvents {
+  std::function<void(const proto::StreamConfig&)> on_config;
+  std::function<void(const proto::Header&, const proto::DepthTile&)> on_tile;
+  std::function<void(const proto::Header&, const proto::FrameManifest&)> on_manifest;
+  std::function<void(const proto::Header&, const proto::VideoFrame&)> on_video;
+  std::function<void(ClientState, const std::string&)> on_state;  // with a human-readable reason
+};
+
+class SurfaceClient {
+ public:
+  SurfaceClient(ClientConfig config, ClientEvents events);
+  ~SurfaceClient();
+  SurfaceClient(const SurfaceClient&) = delete;
+  SurfaceClient& operator=(const SurfaceClient&) = delete;
+
+  void start();  // spawns the network thread; returns at once
+  void stop();   // sends Bye when connected, joins the thread
+  // Thread-safe: asks the remote for full-rate tiles in these rectangles.
+  void request_roi(const proto::RoiRequest& roi);
+
+  const ClientStats& stats() const { return stats_; }
+  ClientState state() const { return static_cast<ClientState>(stats_.state.load()); }
+
+ private:
+  struct Impl;
+  ClientStats stats_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace telex::local

@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: MIT
+// telex-local: the operator-station daemon (thin main around telex::local::Station).
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "telex/local/station.h"
+
+namespace {
+
+// Splits HOST:PORT; throws CLI::ValidationError naming the flag.
+std::pair<std::string, std::uint16_t> host_port(const std::string& s, const char* flag) {
+  const auto colon = s.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == s.size())
+    throw CLI::ValidationError(flag, "expected HOST:PORT, got '" + s + "'");
+  const std::string port_text = s.substr(colon + 1);
+  char* end = nullptr;
+  const long port = std::strtol(port_text.c_str(), &end, 10);
+  if (*end != '\0' || port < 1 || port > 65535)
+    throw CLI::ValidationError(flag, "port must be 1..65535, got '" + port_text + "'");
+  return {s.substr(0, colon), static_cast<std::uint16_t>(port)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace telex::local;
+  StationConfig cfg;
+  CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
+  app.set_config("--config", "", "read flags from an INI/TOML file (same names as the flags)");
+  std::string connect = "127.0.0.1:7300";
+  std::string transport = "udp";
+  std::string glove;
+  bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
+  app.add_option("--connect", connect, "remote node HOST:PORT")->capture_default_str();
+  app.add_option("--transport", transport, "depth transport: udp or tcp")
+      ->check(CLI::IsMember({"udp", "tcp"}))
+      ->capture_default_str();
+  app.add_option("--hand", cfg.hand_spec,
+                 "fingertips: script:press|stroke|tap|FILE, natnet:SERVER[,unicast][,local=IP], "
+                 "5dt-usb[:PATH], 5dt-serial:DEV")
+      ->capture_default_str();
+  app.add_flag("--repeat", cfg.tracker.repeat, "repeat a scripted hand until --duration ends");
+  app.add_option("--glove", glove, "finger bends with a NatNet wrist: 5dt-usb[:PATH] | 5dt-serial:DEV");
+  app.add_option("--glove-calibration", cfg.tracker.glove_calibration_path, "glove calibration JSON");
+  app.add_option("--head-body", cfg.tracker.head_body_id, "NatNet rigid body id of the head")
+      ->capture_default_str();
+  app.add_option("--hand-body", cfg.tracker.right_hand_body_id, "NatNet rigid body id of the hand")
+      ->capture_default_str();
+  app.add_option("--shoulder-body", cfg.tracker.right_shoulder_body_id,
+                 "NatNet rigid body id of the shoulder (-1 none)")
+      ->capture_default_str();
+  app.add_option("--natnet-cmd-port", cfg.tracker.natnet_command_port, "NatNet command port")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  app.add_option("--natnet-data-port", cfg.tracker.natnet_data_port, "NatNet data port")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  app.add_option("--natnet-multicast", cfg.tracker.natnet_multicast_group, "NatNet multicast group")
+      ->capture_default_str();
+  app.add_option("--haptics", cfg.haptics_spec,
+                 "display: sim[:CSV] | gravity-grabber:HIDPATH | udp:HOST[:PORT]")
+      ->capture_default_str();
+  app.add_option("--gg-config", cfg.display.gravity_grabber_config_path,
+                 "Gravity Grabber calibration JSON (docs/HARDWARE.md)");
+  app.add_option("--max-force", cfg.haptic.max_force_N, "force clamp, N")
+      ->check(CLI::Range(0.01, 100.0))
+      ->capture_default_str();
+  app.add_option("--stiffness", cfg.haptic.stiffness_N_per_m, "surface stiffness, N/m")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--max-force-step", cfg.haptic.max_force_step_N, "force rate limit per tick, N")
+      ->check(CLI::Range(1e-4, 100.0))
+      ->capture_default_str();
+  app.add_option("--mu-static", cfg.haptic.mu_static, "static friction coefficient")
+      ->check(CLI::Range(0.0, 5.0))
+      ->capture_default_str();
+  app.add_option("--mu-dynamic", cfg.haptic.mu_dynamic, "dynamic friction coefficient")
+      ->check(CLI::Range(0.0, 5.0))
+      ->capture_default_str();
+  app.add_option("--ramp", cfg.haptic.startup_ramp_s, "start-up force ramp, s")
+      ->check(CLI::Range(0.0, 60.0))
+      ->capture_default_str();
+  app.add_option("--stale-limit", cfg.haptic.stale_limit_s, "surface/tracking age that fades forces out, s")
+      ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  app.add_option("--rate", cfg.rate_hz, "haptic loop rate, Hz")->check(CLI::Range(10.0, 10000.0))->capture_default_str();
+  app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO for the haptic thread");
+  app.add_flag("--roi", cfg.surface.roi, "filter and build normals only near the fingertips");
+  app.add_flag("--no-bilateral", no_bilateral, "skip the bilateral filter");
+  app.add_option("--max-tile-age", cfg.max_tile_age_s, "a missing tile keeps its value this long, s")
+      ->check(CLI::Range(0.0, 60.0))
+      ->capture_default_str();
+  app.add_option("--log-forces", cfg.log_forces_csv, "CSV of forces, one row per finger per tick");
+  app.add_option("--log-tracking", cfg.log_tracking_csv,
+                 "CSV of every rigid body as the tracker reported it (tracker frame)");
+  app.add_option("--log-every", cfg.log_every, "log one tick in N")->check(CLI::Range(1, 1000000))->capture_default_str();
+  app.add_option("--view", cfg.view_spec, "operator view: none | png:DIR | window")->capture_default_str();
+  app.add_option("--print-forces", cfg.print_forces_hz, "print forces on stdout at this rate, Hz (0 off)")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  app.add_option("--duration", cfg.duration_s, "stop after this many seconds (0 = until Ctrl-C)")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--first-surface-timeout", cfg.first_surface_timeout_s,
+                 "give up when no surface arrives within this many seconds")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  app.add_flag("--json-summary", json_summary, "print a JSON summary on stdout at exit");
+  app.add_flag("--quiet", quiet, "no status line");
+  try {
+    app.parse(argc, argv);
+    auto [host, port] = host_port(connect, "--connect");
+    cfg.client.host = host;
+    cfg.client.port = port;
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+  cfg.client.use_udp = transport == "udp";
+  cfg.tracker.glove_spec = glove;
+  cfg.realtime = !no_realtime;
+  cfg.surface.bilateral = !no_bilateral;
+  cfg.status_line = !quiet;
+
+  // Signals go to one waiting thread, never interrupting the haptic loop.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);  // our own wake-up for the signal thread when the run ends
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+
+  try {
+    Station station(cfg);
+    std::thread signals([&] {
+      int sig = 0;
+      if (sigwait(&set, &sig) == 0 && sig != SIGUSR1) station.request_stop();
+    });
+    StationSummary s;
+    try {
+      s = station.run();
+    } catch (...) {
+      pthread_kill(signals.native_handle(), SIGUSR1);
+      signals.join();
+      throw;
+    }
+    // Wake the signal thread if the run ended by itself.
+    pthread_kill(signals.native_handle(), SIGUSR1);
+    signals.join();
+    std::fprintf(stderr,
+                 "telex-local: done: %llu ticks at %.2f Hz (p99 jitter %.0f us, %llu missed), %llu "
+                 "surfaces, capture-to-force latency median %.2f ms p99 %.2f ms, peak pressure "
+                 "%.2f N, peak shear %.2f N\n",
+                 static_cast<unsigned long long>(s.ticks), s.haptic_rate_hz, s.period_p99_jitter_us,
+                 static_cast<unsigned long long>(s.missed_ticks),
+                 static_cast<unsigned long long>(s.surfaces), s.latency_median_ms, s.latency_p99_ms,
+                 s.peak_pressure_N, s.peak_shear_N);
+    if (json_summary) {
+      nlohmann::json j{{"ticks", s.ticks},
+                       {"haptic_rate_hz", s.haptic_rate_hz},
+                       {"period_median_us", s.period_median_us},
+                       {"period_p99_jitter_us", s.period_p99_jitter_us},
+                       {"missed_ticks", s.missed_ticks},
+                       {"surfaces", s.surfaces},
+                       {"latency_median_ms", s.latency_median_ms},
+                       {"latency_p99_ms", s.latency_p99_ms},
+                       {"peak_pressure_N", s.peak_pressure_N},
+                       {"peak_shear_N", s.peak_shear_N},
+                       {"scheduling", s.scheduling}};
+      std::cout << j.dump() << std::endl;
+    }
+    return 0;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,89 @@
+// SPDX-License-Identifier: MIT
+// Operator view rendering with OpenCV drawing primitives.
+#include "telex/local/operator_view.h"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "telex/common/colorize.h"
+
+namespace telex::local {
+
+std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p) {
+  if (!(p.z > 1e-3) || !std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;
+  return cv::Point2d(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+}
+
+cv::Mat3b render_operator_view(const ViewInputs& in) {
+  cv::Mat3b img;
+  if (!in.camera_bgr.empty()) {
+    img = in.camera_bgr.clone();
+  } else if (!in.depth_mm.empty()) {
+    img = colorize_depth(in.depth_mm);
+  } else {
+    img = cv::Mat3b(480, 640, cv::Vec3b(32, 32, 32));
+  }
+  if (in.surface == nullptr) {
+    cv::putText(img, "waiting for the remote surface", {10, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6,
+                {255, 255, 255}, 1, cv::LINE_AA);
+    return img;
+  }
+  // The camera image may be larger or smaller than the depth: scale the intrinsics to it.
+  const Intrinsics k = in.surface->intrinsics.scaled(img.cols, img.rows);
+  const int thick = std::max(1, img.cols / 320);
+
+  // Normal-map inset, top right, a quarter of the width.
+  if (!in.surface->normals.empty()) {
+    cv::Mat3b inset = colorize_normals(in.surface->normals);
+    const int w = img.cols / 4, h = img.rows / 4;
+    cv::Mat3b small;
+    cv::resize(inset, small, {w, h}, 0, 0, cv::INTER_AREA);
+    small.copyTo(img(cv::Rect(img.cols - w - 4, 4, w, h)));
+    cv::rectangle(img, cv::Rect(img.cols - w - 5, 3, w + 2, h + 2), {255, 255, 255}, 1);
+  }
+
+  // Virtual hand: segments from wrist through the joints to the fingertips.
+  const cv::Scalar bone(230, 230, 230), tip_free(60, 220, 60), tip_contact(40, 40, 255);
+  for (int f = 0; f < kFingerCount; ++f) {
+    const auto& tip = in.hand.tips[static_cast<std::size_t>(f)];
+    if (!tip.valid) continue;
+    if (in.hand.skeleton_valid) {
+      auto prev = project(k, in.hand.wrist_camera);
+      for (const auto& j : in.hand.joints_camera[static_cast<std::size_t>(f)]) {
+        auto cur = project(k, j);
+        if (prev && cur) cv::line(img, *prev, *cur, bone, 2 * thick, cv::LINE_AA);
+        prev = cur;
+      }
+    }
+    const auto p = project(k, tip.p_camera_m);
+    if (!p) continue;
+    const auto& force = in.forces[static_cast<std::size_t>(f)];
+    const int radius = std::max(3, static_cast<int>(k.fx * 0.008 / tip.p_camera_m.z));
+    cv::circle(img, *p, radius, force.contact ? tip_contact : tip_free, cv::FILLED, cv::LINE_AA);
+    // Force arrow: the force vector drawn in the scene from the fingertip, then projected.
+    const double mag = glm::length(force.force_N);
+    if (mag > 1e-3 && std::isfinite(mag)) {
+      const glm::dvec3 end = tip.p_camera_m + force.force_N * in.arrow_m_per_N;
+      auto q = project(k, end);
+      if (q) {
+        // Pressure points straight at the camera: keep the arrow visible with a minimum length.
+        cv::Point2d d = *q - *p;
+        const double len = std::hypot(d.x, d.y);
+        const double min_len = 12.0 * thick + 8.0 * mag * thick;
+        if (len < min_len) d = (len > 1e-6 ? d * (min_len / len) : cv::Point2d(0, -min_len));
+        cv::arrowedLine(img, *p, *p + d, {0, 200, 255}, 2 * thick, cv::LINE_AA, 0, 0.25);
+      }
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.2f N", mag);
+      cv::putText(img, buf, *p + cv::Point2d(radius + 4, -radius), cv::FONT_HERSHEY_SIMPLEX,
+                  0.45 * thick, {0, 200, 255}, thick, cv::LINE_AA);
+    }
+  }
+  cv::rectangle(img, cv::Rect(0, img.rows - 22 * thick, img.cols, 22 * thick), {0, 0, 0},
+                cv::FILLED);
+  cv::putText(img, in.status, {6, img.rows - 7 * thick}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick,
+              {255, 255, 255}, thick, cv::LINE_AA);
+  return img;
+}
+
+}  // namespace telex::local

@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: MIT
+// Fixed-rate loop timing and period statistics.
+#include "telex/local/periodic.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+namespace telex::local {
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+PeriodicTimer::PeriodicTimer(std::int64_t period_ns) : period_ns_(period_ns) {}
+
+std::int64_t PeriodicTimer::wait_next() {
+  const std::int64_t now = monotonic_ns();
+  if (next_ns_ == 0) next_ns_ = now;
+  next_ns_ += period_ns_;
+  if (now - next_ns_ > period_ns_) {
+    // Overran by more than a period: realign rather than fire a burst of late ticks.
+    missed_ += static_cast<std::uint64_t>((now - next_ns_) / period_ns_);
+    next_ns_ = now + period_ns_;
+  }
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(next_ns_ / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(next_ns_ % 1'000'000'000);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+  return monotonic_ns();
+}
+
+std::string try_realtime(int priority) {
+  sched_param sp{};
+  sp.sched_priority = priority;
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  if (rc == 0) return "SCHED_FIFO priority " + std::to_string(priority);
+  return std::string("default scheduling (SCHED_FIFO refused: ") + std::strerror(rc) + ")";
+}
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const double pos = std::clamp(p, 0.0, 1.0) * static_cast<double>(values.size() - 1);
+  const auto k = static_cast<std::size_t>(pos);
+  if (k + 1 >= values.size()) return values.back();
+  return values[k] + (values[k + 1] - values[k]) * (pos - static_cast<double>(k));
+}
+
+PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns, std::int64_t nominal_ns) {
+  PeriodSummary s;
+  s.count = periods_ns.size();
+  if (periods_ns.empty()) return s;
+  double total = 0;
+  std::vector<double> periods_us, jitter_us;
+  periods_us.reserve(periods_ns.size());
+  jitter_us.reserve(periods_ns.size());
+  for (auto p : periods_ns) {
+    total += static_cast<double>(p);
+    periods_us.push_back(static_cast<double>(p) / 1e3);
+    jitter_us.push_back(std::abs(static_cast<double>(p - nominal_ns)) / 1e3);
+  }
+  s.mean_rate_hz = 1e9 * static_cast<double>(periods_ns.size()) / total;
+  s.median_period_us = percentile(periods_us, 0.5);
+  s.p99_jitter_us = percentile(jitter_us, 0.99);
+  s.max_jitter_us = *std::max_element(jitter_us.begin(), jitter_us.end());
+  return s;
+}
+
+}  // namespace telex::local

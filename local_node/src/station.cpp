@@ -1,0 +1,458 @@
+// SPDX-License-Identifier: MIT
+// The operator station's threads: network (SurfaceClient), surface building, the haptic loop, and
+// the main thread for logging, status lines and the operator view.
+#include "telex/local/station.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include "telex/common/latest_slot.h"
+#include "telex/local/frame_assembler.h"
+#include "telex/local/operator_view.h"
+#include "telex/local/periodic.h"
+#include "telex/local/spsc_ring.h"
+#include "telex/local/triple_buffer.h"
+
+namespace telex::local {
+namespace {
+
+using std::chrono::milliseconds;
+
+// What the haptic thread reports per tick; trivially copyable so the ring never allocates.
+struct TickSample {
+  std::int64_t t_ns = 0;
+  std::int64_t period_ns = 0;
+  std::uint64_t surface_frame = 0;
+  std::int64_t surface_capture_ns = 0;  // remote clock; 0 = no surface yet
+  std::array<FingertipForce, kFingerCount> forces{};
+  std::array<bool, kFingerCount> tracked{};
+  std::array<glm::dvec3, kFingerCount> p_camera{};
+};
+
+// Median depth (m) of the valid pixels in the central tenth of the image: where scripts aim.
+double centre_depth_m(const Surface& s) {
+  const int w = std::max(1, s.depth_m.cols / 10), h = std::max(1, s.depth_m.rows / 10);
+  const cv::Mat1f c = s.depth_m(cv::Rect((s.depth_m.cols - w) / 2, (s.depth_m.rows - h) / 2, w, h));
+  std::vector<float> v;
+  for (auto z : c)
+    if (z > 0) v.push_back(z);
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+std::string view_dir_of(const std::string& spec) {
+  if (spec == "none" || spec.empty()) return {};
+  if (spec.rfind("png:", 0) == 0 && spec.size() > 4) return spec.substr(4);
+  if (spec == "window") return {};
+  throw std::invalid_argument("--view '" + spec + "': expected none, window or png:DIR");
+}
+
+// Long runs keep the most recent samples for the final statistics, so memory stays flat.
+constexpr std::size_t kMaxKept = 1u << 20;
+
+const char* kFingerNames[kFingerCount] = {"thumb", "index", "middle", "ring", "little"};
+
+}  // namespace
+
+Station::Station(StationConfig config) : cfg_(std::move(config)) {
+  cfg_.haptic.validate();
+  if (!(cfg_.rate_hz >= 10 && cfg_.rate_hz <= 10000))
+    throw std::invalid_argument("haptic rate must be within 10..10000 Hz");
+  if (cfg_.log_every < 1) throw std::invalid_argument("--log-every must be >= 1");
+  view_dir_of(cfg_.view_spec);
+}
+
+Station::~Station() = default;
+
+StationSummary Station::run() {
+  StationSummary summary;
+  const std::int64_t t_start = monotonic_ns();
+  const std::int64_t period_ns = static_cast<std::int64_t>(std::llround(1e9 / cfg_.rate_hz));
+
+  // ---- outputs first, so a bad device or path fails before anything connects ----
+  auto display = make_display(cfg_.haptics_spec, cfg_.display);
+  std::ofstream forces_csv;
+  if (!cfg_.log_forces_csv.empty()) {
+    forces_csv.open(cfg_.log_forces_csv);
+    if (!forces_csv)
+      throw std::runtime_error("cannot write --log-forces file " + cfg_.log_forces_csv.string());
+    forces_csv << "time_s,finger,pressure_N,shear_N,contact,fx_N,fy_N,fz_N,penetration_m,status,"
+                  "x_m,y_m,z_m,surface_frame,surface_capture_ns\n";
+  }
+  std::ofstream tracking_csv;
+  if (!cfg_.log_tracking_csv.empty()) {
+    tracking_csv.open(cfg_.log_tracking_csv);
+    if (!tracking_csv)
+      throw std::runtime_error("cannot write --log-tracking file " + cfg_.log_tracking_csv.string());
+    tracking_csv << "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n";
+  }
+  const std::string view_dir = view_dir_of(cfg_.view_spec);
+  if (!view_dir.empty()) std::filesystem::create_directories(view_dir);
+  const bool view_window = cfg_.view_spec == "window";
+
+  // ---- network thread: tiles -> frames ----
+  FrameAssembler assembler(static_cast<std::int64_t>(cfg_.max_tile_age_s * 1e9));
+  LatestSlot<AssembledFrame> frames;
+  std::mutex video_mu;
+  std::vector<std::uint8_t> latest_jpeg;
+  ClientEvents events;
+  events.on_config = [&](const proto::StreamConfig& c) { assembler.configure(c); };
+  events.on_tile = [&](const proto::Header& h, const proto::DepthTile& t) {
+    assembler.apply_tile(h, t, monotonic_ns());
+  };
+  events.on_manifest = [&](const proto::Header& h, const proto::FrameManifest& m) {
+    if (auto f = assembler.finish(h, m, monotonic_ns())) frames.put(std::move(*f));
+  };
+  events.on_video = [&](const proto::Header&, const proto::VideoFrame& v) {
+    std::lock_guard lock(video_mu);
+    latest_jpeg = v.jpeg;
+  };
+  events.on_state = [](ClientState s, const std::string& why) {
+    std::fprintf(stderr, "telex-local: remote %s: %s\n", std::string(to_string(s)).c_str(),
+                 why.c_str());
+  };
+  ClientConfig client_cfg = cfg_.client;
+  client_cfg.want_video = client_cfg.want_video || view_window || !view_dir.empty();
+  SurfaceClient client(client_cfg, std::move(events));
+  client.start();
+
+  // ---- surface thread: frames -> snapshots for the haptic loop ----
+  TripleBuffer<std::shared_ptr<const Surface>> surfaces;
+  TripleBuffer<HandState> hand_for_surface, hand_for_view;
+  std::atomic<std::uint64_t> surfaces_built{0};
+  std::atomic<double> first_centre_depth{0.0};
+  std::atomic<double> build_ms{0.0};
+  std::mutex view_mu;
+  std::shared_ptr<const Surface> view_surface;
+  cv::Mat1w view_depth;
+  std::atomic<bool> surface_stop{false};
+  std::thread surface_thread([&] {
+    // Snapshots the haptic loop may still hold are released here, never on the 1 kHz thread.
+    std::deque<std::shared_ptr<const Surface>> retired;
+    HandState hand{};
+    std::vector<cv::Rect> last_windows;
+    while (!surface_stop.load()) {
+      auto frame = frames.take(milliseconds(50));
+      if (!frame) continue;
+      hand_for_surface.take(hand);
+      std::vector<cv::Rect> windows;
+      if (cfg_.surface.roi)
+        windows = fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
+      SurfaceBuildStats st;
+      std::shared_ptr<const Surface> s = build_surface(*frame, cfg_.surface, windows, &st);
+      build_ms.store(st.filter_ms + st.normals_ms);
+      if (surfaces_built.load() == 0) first_centre_depth.store(centre_depth_m(*s));
+      surfaces.publish(s);
+      retired.push_back(s);
+      if (retired.size() > 8) retired.pop_front();
+      surfaces_built.fetch_add(1);
+      {
+        std::lock_guard lock(view_mu);
+        view_surface = s;
+        view_depth = frame->depth_mm;
+      }
+      if (cfg_.roi_requests && cfg_.surface.roi && windows != last_windows) {
+        proto::RoiRequest roi;
+        for (const auto& r : windows) {
+          if (roi.rects.size() >= proto::kMaxRoiRects) break;
+          roi.rects.push_back({static_cast<std::uint16_t>(r.x), static_cast<std::uint16_t>(r.y),
+                               static_cast<std::uint16_t>(r.width),
+                               static_cast<std::uint16_t>(r.height), 1});
+        }
+        client.request_roi(roi);
+        last_windows = windows;
+      }
+    }
+  });
+
+  auto shutdown = [&] {
+    surface_stop.store(true);
+    frames.close();
+    if (surface_thread.joinable()) surface_thread.join();
+    client.stop();
+  };
+
+  // ---- wait for the first surface: scripted hands aim at it ----
+  const std::int64_t wait_deadline =
+      monotonic_ns() + static_cast<std::int64_t>(cfg_.first_surface_timeout_s * 1e9);
+  while (surfaces_built.load() == 0 && !stop_.load()) {
+    if (monotonic_ns() > wait_deadline) {
+      shutdown();
+      throw std::runtime_error(
+          "no depth surface from the remote at " + cfg_.client.host + ":" +
+          std::to_string(cfg_.client.port) + " within " +
+          std::to_string(static_cast<int>(cfg_.first_surface_timeout_s)) +
+          " s: is telex-remote running and listening there (telex-remote --listen HOST:PORT)?");
+    }
+    std::this_thread::sleep_for(milliseconds(10));
+  }
+  if (stop_.load()) {
+    shutdown();
+    return summary;
+  }
+  TrackerConfig tracker_cfg = cfg_.tracker;
+  if (first_centre_depth.load() > 0) tracker_cfg.surface_depth_m = first_centre_depth.load();
+  std::unique_ptr<HandTracker> tracker;
+  try {
+    tracker = make_tracker(cfg_.hand_spec, tracker_cfg);
+  } catch (...) {
+    shutdown();
+    throw;
+  }
+  std::fprintf(stderr, "telex-local: surface at %.3f m ahead; hand %s; haptics %s\n",
+               tracker_cfg.surface_depth_m, tracker->name().c_str(), display->name().c_str());
+
+  // ---- haptic thread ----
+  SpscRing<TickSample> samples(1 << 14);
+  SpscRing<HandState> tracking(tracking_csv.is_open() ? 1024 : 1);
+  std::atomic<bool> haptic_stop{false};
+  std::string scheduling;
+  std::atomic<bool> scheduling_ready{false};
+  std::atomic<std::uint64_t> missed{0};
+  HapticModel model(cfg_.haptic, kFingerCount);
+  std::thread haptic_thread([&] {
+    scheduling = cfg_.realtime ? try_realtime(80) : std::string("default scheduling");
+    scheduling_ready.store(true);
+    PeriodicTimer timer(period_ns);
+    std::shared_ptr<const Surface> newest;
+    HandState hand{};
+    std::array<FingertipInput, kFingerCount> in{};
+    std::array<FingertipForce, kFingerCount> out{};
+    std::array<FingerForce, kFingerCount> shown{};
+    TickSample sample{};
+    std::int64_t prev = 0;
+    const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
+    while (!haptic_stop.load(std::memory_order_relaxed)) {
+      const std::int64_t now = timer.wait_next();
+      if (tracker->poll(now, hand)) {
+        hand_for_surface.publish(hand);
+        hand_for_view.publish(hand);
+        if (hand.bodies_fresh && hand.body_count > 0) tracking.push(hand);
+      }
+      surfaces.take(newest);
+      const bool fresh = now - hand.time_ns <= tracking_stale_ns;
+      for (int i = 0; i < kFingerCount; ++i) {
+        const auto& tip = hand.tips[static_cast<std::size_t>(i)];
+        in[static_cast<std::size_t>(i)] = {tip.p_camera_m, tip.axis_camera, tip.valid && fresh};
+      }
+      model.tick(now, newest, in, out);
+      for (int i = 0; i < kFingerCount; ++i) {
+        const auto& f = out[static_cast<std::size_t>(i)];
+        shown[static_cast<std::size_t>(i)] = {i, f.normal_force_N, f.shear_along_axis_N, f.contact};
+      }
+      display->write(now, shown);
+      sample.t_ns = now;
+      sample.period_ns = prev ? now - prev : period_ns;
+      prev = now;
+      sample.surface_frame = newest ? newest->frame_id : 0;
+      sample.surface_capture_ns = newest ? newest->capture_ns : 0;
+      sample.forces = out;
+      for (int i = 0; i < kFingerCount; ++i)
+      {
+        sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
+        sample.p_camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].p_camera;
+      }
+      samples.push(sample);
+      missed.store(timer.missed(), std::memory_order_relaxed);
+    }
+    // Release the device: zero force on every finger.
+    for (auto& s : shown) s = {s.finger, 0.0, 0.0, false};
+    display->write(monotonic_ns(), shown);
+  });
+  while (!scheduling_ready.load()) std::this_thread::sleep_for(milliseconds(1));
+  summary.scheduling = scheduling;
+  std::fprintf(stderr, "telex-local: haptic loop at %.0f Hz, %s\n", cfg_.rate_hz,
+               scheduling.c_str());
+
+  // ---- main thread: drain samples, log, print, view ----
+  std::vector<std::int64_t> periods;
+  std::vector<double> latencies_ms;
+  periods.reserve(1 << 16);
+  latencies_ms.reserve(1 << 16);
+  std::vector<std::int64_t> window_periods;
+  std::vector<double> window_latency;
+  TickSample s{};
+  TickSample last{};
+  HandState view_hand{};
+  std::uint64_t tick_index = 0;
+  std::uint64_t last_latency_frame = 0;
+  std::int64_t next_status = monotonic_ns() + 1'000'000'000;
+  const std::int64_t print_period =
+      cfg_.print_forces_hz > 0 ? static_cast<std::int64_t>(1e9 / cfg_.print_forces_hz) : 0;
+  std::int64_t next_print = monotonic_ns();
+  std::uint64_t surfaces_at_last_status = 0;
+  const std::int64_t end_ns =
+      cfg_.duration_s > 0 ? t_start + static_cast<std::int64_t>(cfg_.duration_s * 1e9) : 0;
+
+  auto drain = [&] {
+    while (samples.pop(s)) {
+      ++tick_index;
+      last = s;
+      if (periods.size() >= kMaxKept) periods.erase(periods.begin(), periods.begin() + kMaxKept / 2);
+      if (latencies_ms.size() >= kMaxKept)
+        latencies_ms.erase(latencies_ms.begin(), latencies_ms.begin() + kMaxKept / 2);
+      if (tick_index > 1) {
+        periods.push_back(s.period_ns);
+        window_periods.push_back(s.period_ns);
+      }
+      // Capture-to-force latency: measured at the first tick that renders a newly arrived surface.
+      if (s.surface_capture_ns != 0 && s.surface_frame != last_latency_frame) {
+        last_latency_frame = s.surface_frame;
+        const std::int64_t offset = client.stats().clock_offset_ns.load();
+        const double lat = static_cast<double>(s.t_ns - (s.surface_capture_ns - offset)) / 1e6;
+        latencies_ms.push_back(lat);
+        window_latency.push_back(lat);
+      }
+      for (const auto& f : s.forces) {
+        summary.peak_pressure_N = std::max(summary.peak_pressure_N, f.normal_force_N);
+        summary.peak_shear_N = std::max(summary.peak_shear_N, std::abs(f.shear_along_axis_N));
+      }
+      if (forces_csv.is_open() && (tick_index - 1) % static_cast<std::uint64_t>(cfg_.log_every) == 0) {
+        const double t = static_cast<double>(s.t_ns - t_start) / 1e9;
+        for (int i = 0; i < kFingerCount; ++i) {
+          if (!s.tracked[static_cast<std::size_t>(i)] && !s.forces[static_cast<std::size_t>(i)].contact)
+            continue;
+          const auto& f = s.forces[static_cast<std::size_t>(i)];
+          const auto& p = s.p_camera[static_cast<std::size_t>(i)];
+          char row[400];
+          std::snprintf(row, sizeof row,
+                        "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%.6f,%.6f,%.6f,%llu,%lld\n", t,
+                        kFingerNames[i], f.normal_force_N, f.shear_along_axis_N, f.contact ? 1 : 0,
+                        f.force_N.x, f.force_N.y, f.force_N.z, f.penetration_m,
+                        std::string(to_string(f.status)).c_str(), p.x, p.y, p.z,
+                        static_cast<unsigned long long>(s.surface_frame),
+                        static_cast<long long>(s.surface_capture_ns));
+          forces_csv << row;
+        }
+      }
+      if (print_period && s.t_ns >= next_print) {
+        next_print = s.t_ns + print_period;
+        std::string line = "t=" + std::to_string(static_cast<double>(s.t_ns - t_start) / 1e9).substr(0, 6) + "s";
+        for (int i = 0; i < kFingerCount; ++i) {
+          const auto& f = s.forces[static_cast<std::size_t>(i)];
+          if (!s.tracked[static_cast<std::size_t>(i)]) continue;
+          char b[96];
+          std::snprintf(b, sizeof b, "  %s P=%5.2fN S=%+5.2fN%s", kFingerNames[i], f.normal_force_N,
+                        f.shear_along_axis_N, f.contact ? " contact" : "");
+          line += b;
+        }
+        std::printf("%s\n", line.c_str());
+        std::fflush(stdout);
+      }
+    }
+  };
+
+  HandState tracked_state{};
+  auto drain_tracking = [&] {
+    while (tracking.pop(tracked_state)) {
+      if (!tracking_csv.is_open()) continue;
+      const double t = static_cast<double>(tracked_state.time_ns - t_start) / 1e9;
+      for (int b = 0; b < tracked_state.body_count; ++b) {
+        const auto& body = tracked_state.bodies[static_cast<std::size_t>(b)];
+        char row[256];
+        std::snprintf(row, sizeof row, "%.6f,%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d\n", t,
+                      body.id, body.p_m.x, body.p_m.y, body.p_m.z, body.q.x, body.q.y, body.q.z,
+                      body.q.w, body.valid ? 1 : 0);
+        tracking_csv << row;
+      }
+    }
+  };
+
+  auto status_text = [&](double fps) {
+    const auto ps = summarize_periods(window_periods, period_ns);
+    char b[256];
+    std::snprintf(b, sizeof b,
+                  "surface %.1f fps | latency %.1f ms | haptic %.1f Hz jitter p99 %.0f us | "
+                  "build %.1f ms | %s",
+                  fps, percentile(window_latency, 0.5), ps.mean_rate_hz, ps.p99_jitter_us,
+                  build_ms.load(), std::string(to_string(client.state())).c_str());
+    return std::string(b);
+  };
+
+  while (!stop_.load()) {
+    std::this_thread::sleep_for(milliseconds(5));
+    drain();
+    drain_tracking();
+    const std::int64_t now = monotonic_ns();
+    if (end_ns && now >= end_ns) break;
+    if (now >= next_status) {
+      const std::uint64_t built = surfaces_built.load();
+      const double fps = static_cast<double>(built - surfaces_at_last_status);
+      surfaces_at_last_status = built;
+      next_status += 1'000'000'000;
+      const std::string text = status_text(fps);
+      if (cfg_.status_line) {
+        std::string forces;
+        for (int i = 0; i < kFingerCount; ++i) {
+          if (!last.tracked[static_cast<std::size_t>(i)]) continue;
+          char b[48];
+          std::snprintf(b, sizeof b, " %s %.2f/%+.2fN", kFingerNames[i],
+                        last.forces[static_cast<std::size_t>(i)].normal_force_N,
+                        last.forces[static_cast<std::size_t>(i)].shear_along_axis_N);
+          forces += b;
+        }
+        std::fprintf(stderr, "telex-local: %s |%s\n", text.c_str(), forces.c_str());
+      }
+      if (!view_dir.empty() || view_window) {
+        ViewInputs vi;
+        std::shared_ptr<const Surface> vs;
+        {
+          std::lock_guard lock(view_mu);
+          vs = view_surface;
+          vi.depth_mm = view_depth;
+        }
+        vi.surface = vs.get();
+        hand_for_view.take(view_hand);
+        vi.hand = view_hand;
+        vi.forces = last.forces;
+        vi.status = text;
+        {
+          std::lock_guard lock(video_mu);
+          if (!latest_jpeg.empty()) {
+            cv::Mat raw(1, static_cast<int>(latest_jpeg.size()), CV_8U, latest_jpeg.data());
+            vi.camera_bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
+          }
+        }
+        const cv::Mat3b img = render_operator_view(vi);
+        if (!view_dir.empty()) {
+          const auto path = std::filesystem::path(view_dir) / "view.png";
+          const auto tmp = std::filesystem::path(view_dir) / "view.tmp.png";
+          if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
+        }
+      }
+      window_periods.clear();
+      window_latency.clear();
+    }
+  }
+
+  haptic_stop.store(true);
+  haptic_thread.join();
+  drain();
+  drain_tracking();
+  shutdown();
+  if (forces_csv.is_open()) forces_csv.flush();
+
+  const auto ps = summarize_periods(periods, period_ns);
+  summary.ticks = tick_index;
+  summary.haptic_rate_hz = ps.mean_rate_hz;
+  summary.period_p99_jitter_us = ps.p99_jitter_us;
+  summary.period_median_us = ps.median_period_us;
+  summary.missed_ticks = missed.load();
+  summary.surfaces = surfaces_built.load();
+  summary.latency_median_ms = percentile(latencies_ms, 0.5);
+  summary.latency_p99_ms = percentile(latencies_ms, 0.99);
+  return summary;
+}
+
+}  // namespace telex::local

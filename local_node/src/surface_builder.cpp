@@ -1,0 +1,100 @@
+// SPDX-License-Identifier: MIT
+// Surface snapshot construction (full frame or fingertip windows).
+#include "telex/local/surface_builder.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace telex::local {
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& depth_mm,
+                                        const Intrinsics& k, const SurfaceOptions& o) {
+  std::vector<cv::Rect> out;
+  const cv::Rect image(0, 0, depth_mm.cols, depth_mm.rows);
+  for (const auto& tip : hand.tips) {
+    if (!tip.valid) continue;
+    const glm::dvec3& p = tip.p_camera_m;
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.z <= 0.05) continue;
+    const double u = k.fx * p.x / p.z + k.cx;
+    const double v = k.fy * p.y / p.z + k.cy;
+    const double speed = std::isfinite(glm::length(tip.v_camera_mps)) ? glm::length(tip.v_camera_mps) : 0.0;
+    const double reach_m = o.roi_radius_m + speed * o.roi_lookahead_s;
+    // A fingertip far in front of whatever lies under it needs no surface yet.
+    const int ui = static_cast<int>(std::lround(u)), vi = static_cast<int>(std::lround(v));
+    if (ui >= 0 && vi >= 0 && ui < depth_mm.cols && vi < depth_mm.rows) {
+      const double z_surface = depth_mm(vi, ui) * 1e-3;
+      if (z_surface > 0 && z_surface - p.z > o.roi_max_distance_m + speed * o.roi_lookahead_s)
+        continue;
+    }
+    const int half = std::max(o.roi_min_half_px, static_cast<int>(std::ceil(k.fx * reach_m / p.z)));
+    const cv::Rect r = cv::Rect(static_cast<int>(u) - half, static_cast<int>(v) - half, 2 * half + 1,
+                                2 * half + 1) &
+                       image;
+    if (r.area() > 0) out.push_back(r);
+  }
+  // Overlapping windows merge so no pixel is processed twice.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t i = 0; i < out.size() && !merged; ++i)
+      for (std::size_t j = i + 1; j < out.size() && !merged; ++j)
+        if ((out[i] & out[j]).area() > 0) {
+          out[i] = out[i] | out[j];
+          out.erase(out.begin() + static_cast<std::ptrdiff_t>(j));
+          merged = true;
+        }
+  }
+  return out;
+}
+
+std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const SurfaceOptions& o,
+                                       std::span<const cv::Rect> windows, SurfaceBuildStats* stats) {
+  SurfaceBuildStats local;
+  cv::Mat1f depth_m;
+  cv::Mat3f normals;
+  if (!o.roi) {
+    auto t0 = std::chrono::steady_clock::now();
+    if (o.bilateral)
+      bilateral_filter_depth(frame.depth_mm, depth_m, o.bilateral_options);
+    else
+      depth_m = depth_m_from_mm(frame.depth_mm);
+    local.filter_ms = ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    compute_normals(depth_m, frame.intrinsics, normals, o.normal_options);
+    local.normals_ms = ms_since(t0);
+    local.pixels_processed = frame.depth_mm.total();
+  } else {
+    depth_m = depth_m_from_mm(frame.depth_mm);
+    normals = cv::Mat3f(depth_m.size(), cv::Vec3f(0, 0, 0));
+    cv::Mat1f filtered;
+    cv::Mat3f n_roi;
+    auto t0 = std::chrono::steady_clock::now();
+    if (o.bilateral) {
+      // Filter every window from the raw depth first, then write them back, so a window never
+      // reads another's already-filtered pixels.
+      std::vector<cv::Mat1f> results(windows.size());
+      for (std::size_t i = 0; i < windows.size(); ++i)
+        bilateral_filter_depth_roi(frame.depth_mm, windows[i], results[i], o.bilateral_options);
+      for (std::size_t i = 0; i < windows.size(); ++i) results[i].copyTo(depth_m(windows[i]));
+    }
+    local.filter_ms = ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    for (const auto& r : windows) {
+      compute_normals_roi(depth_m, frame.intrinsics, r, n_roi, o.normal_options);
+      n_roi.copyTo(normals(r));
+      local.pixels_processed += static_cast<std::size_t>(r.area());
+    }
+    local.normals_ms = ms_since(t0);
+  }
+  if (stats) *stats = local;
+  return std::make_shared<Surface>(make_surface(std::move(depth_m), frame.intrinsics,
+                                                frame.capture_ns, frame.frame_id,
+                                                std::move(normals)));
+}
+
+}  // namespace telex::local

@@ -1,0 +1,349 @@
+// SPDX-License-Identifier: MIT
+// Asio implementation of the operator-side client. One thread owns every socket and timer.
+#include "telex/local/surface_client.h"
+
+#include <algorithm>
+#include <boost/asio.hpp>
+#include <deque>
+#include <thread>
+#include <vector>
+
+#include "telex/local/periodic.h"
+#include "telex/proto/fragment.h"
+#include "telex/proto/parser.h"
+
+namespace telex::local {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using asio::ip::udp;
+
+std::string_view to_string(ClientState s) {
+  switch (s) {
+    case ClientState::Connecting: return "connecting";
+    case ClientState::Handshaking: return "handshaking";
+    case ClientState::Streaming: return "streaming";
+    case ClientState::Backoff: return "backoff";
+    case ClientState::Stopped: return "stopped";
+  }
+  return "?";
+}
+
+struct SurfaceClient::Impl {
+  Impl(ClientConfig c, ClientEvents e, ClientStats& s)
+      : cfg(std::move(c)), ev(std::move(e)), stats(s), work(asio::make_work_guard(io)),
+        tcp_sock(io), udp_sock(io), resolver(io), heartbeat_timer(io), retry_timer(io),
+        parser(cfg.limits), dgram(cfg.limits), backoff_ns(cfg.backoff_min_ns) {}
+
+  ClientConfig cfg;
+  ClientEvents ev;
+  ClientStats& stats;
+  asio::io_context io;
+  asio::executor_work_guard<asio::io_context::executor_type> work;
+  tcp::socket tcp_sock;
+  udp::socket udp_sock;
+  tcp::resolver resolver;
+  asio::steady_timer heartbeat_timer;
+  asio::steady_timer retry_timer;
+  std::thread thread;
+
+  proto::StreamParser parser;
+  proto::DatagramParser dgram;
+  proto::Reassembler reassembler;
+  std::array<std::uint8_t, 64 * 1024> tcp_buf{};
+  std::array<std::uint8_t, 2048> udp_buf{};
+  udp::endpoint udp_from;
+  std::deque<std::vector<std::uint8_t>> out_queue;
+  bool writing = false;
+
+  std::uint64_t generation = 0;  // bumps on every (re)connect so stale handlers bail out
+  std::uint32_t session_id = 0;
+  std::uint32_t seq = 0;
+  std::int64_t last_rx_ns = 0;
+  std::int64_t backoff_ns;
+  bool stopping = false;
+  tcp::endpoint remote_tcp;
+
+  void set_state(ClientState s, const std::string& why) {
+    stats.state.store(static_cast<std::uint8_t>(s));
+    if (ev.on_state) ev.on_state(s, why);
+  }
+
+  void send(const proto::Message& m) {
+    proto::Header h;
+    h.session_id = session_id;
+    h.seq = seq++;
+    h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
+    out_queue.push_back(proto::encode_stream(h, m));
+    if (out_queue.size() > 64) out_queue.pop_front();  // a stuck link must not grow memory
+    if (!writing) write_next();
+  }
+
+  void write_next() {
+    if (out_queue.empty() || !tcp_sock.is_open()) {
+      writing = false;
+      return;
+    }
+    writing = true;
+    const auto gen = generation;
+    asio::async_write(tcp_sock, asio::buffer(out_queue.front()),
+                      [this, gen](boost::system::error_code ec, std::size_t) {
+                        if (gen != generation) return;
+                        if (!out_queue.empty()) out_queue.pop_front();
+                        if (ec) return disconnect("write failed: " + ec.message());
+                        write_next();
+                      });
+  }
+
+  void connect() {
+    if (stopping) return;
+    ++generation;
+    set_state(ClientState::Connecting, cfg.host + ":" + std::to_string(cfg.port));
+    const auto gen = generation;
+    resolver.async_resolve(
+        cfg.host, std::to_string(cfg.port),
+        [this, gen](boost::system::error_code ec, tcp::resolver::results_type results) {
+          if (gen != generation || stopping) return;
+          if (ec) return retry("cannot resolve " + cfg.host + ": " + ec.message());
+          asio::async_connect(tcp_sock, results,
+                              [this, gen](boost::system::error_code ec2, const tcp::endpoint& ep) {
+                                if (gen != generation || stopping) return;
+                                if (ec2) return retry("cannot connect: " + ec2.message());
+                                on_connected(ep);
+                              });
+        });
+  }
+
+  void on_connected(const tcp::endpoint& ep) {
+    remote_tcp = ep;
+    stats.connects.fetch_add(1);
+    boost::system::error_code ec;
+    tcp_sock.set_option(tcp::no_delay(true), ec);
+    parser = proto::StreamParser(cfg.limits);
+    reassembler = proto::Reassembler();
+    session_id = 0;
+    std::uint16_t udp_port = 0;
+    if (cfg.use_udp) {
+      // Receive UDP on the interface the TCP session uses, so loopback stays loopback.
+      udp_sock.open(ep.protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
+      if (!ec) udp_sock.set_option(asio::socket_base::receive_buffer_size(4 << 20), ec);
+      if (!ec) udp_sock.bind(udp::endpoint(tcp_sock.local_endpoint().address(), 0), ec);
+      if (ec) return disconnect("cannot open UDP socket: " + ec.message());
+      udp_port = udp_sock.local_endpoint().port();
+      udp_receive();
+    }
+    set_state(ClientState::Handshaking, "connected to " + ep.address().to_string());
+    last_rx_ns = monotonic_ns();
+    proto::Hello hello;
+    hello.capabilities = proto::kCapDepthTcp | proto::kCapRoi | proto::kCapStats |
+                         (cfg.use_udp ? proto::kCapDepthUdp : 0u) |
+                         (cfg.want_video ? proto::kCapVideo : 0u);
+    hello.codecs = {proto::Codec::Zip, proto::Codec::Fast, proto::Codec::Raw};
+    hello.udp_port = udp_port;
+    send(hello);
+    tcp_read();
+    arm_heartbeat();
+  }
+
+  void tcp_read() {
+    const auto gen = generation;
+    tcp_sock.async_read_some(asio::buffer(tcp_buf), [this, gen](boost::system::error_code ec,
+                                                                std::size_t n) {
+      if (gen != generation) return;
+      if (ec) return disconnect(ec == asio::error::eof ? "remote closed the connection"
+                                                       : "read failed: " + ec.message());
+      stats.bytes_in.fetch_add(n);
+      std::span<const std::uint8_t> rest(tcp_buf.data(), n);
+      while (true) {
+        const std::size_t took = parser.feed(rest);
+        rest = rest.subspan(took);
+        while (auto r = parser.next()) {
+          if (!r->ok()) {
+            stats.dropped_malformed.fetch_add(1);
+            continue;
+          }
+          handle(*r->envelope);
+          if (gen != generation) return;  // handling disconnected us
+        }
+        if (parser.failed()) return disconnect("malformed stream from remote");
+        if (rest.empty() || took == 0) break;
+      }
+      tcp_read();
+    });
+  }
+
+  void udp_receive() {
+    const auto gen = generation;
+    udp_sock.async_receive_from(
+        asio::buffer(udp_buf), udp_from, [this, gen](boost::system::error_code ec, std::size_t n) {
+          if (gen != generation || !udp_sock.is_open()) return;
+          if (!ec) on_datagram(std::span<const std::uint8_t>(udp_buf.data(), n));
+          if (ec == asio::error::operation_aborted) return;
+          udp_receive();
+        });
+  }
+
+  void on_datagram(std::span<const std::uint8_t> d) {
+    stats.datagrams.fetch_add(1);
+    stats.bytes_in.fetch_add(d.size());
+    if (udp_from.address() != remote_tcp.address()) {
+      stats.dropped_foreign.fetch_add(1);
+      return;
+    }
+    const auto now = static_cast<std::uint64_t>(monotonic_ns());
+    const auto before = reassembler.counters().malformed;
+    if (auto whole = reassembler.push(d, now)) {
+      auto r = dgram.parse(*whole);
+      if (!r.ok()) {
+        stats.dropped_malformed.fetch_add(1);
+        return;
+      }
+      handle(*r.envelope);
+    } else if (reassembler.counters().malformed != before) {
+      stats.dropped_malformed.fetch_add(1);
+    }
+  }
+
+  void handle(const proto::Envelope& env) {
+    last_rx_ns = monotonic_ns();
+    stats.messages.fetch_add(1);
+    const auto& h = env.header;
+    if (session_id != 0 && h.session_id != session_id &&
+        !std::holds_alternative<proto::Accept>(env.message)) {
+      stats.dropped_foreign.fetch_add(1);
+      return;
+    }
+    std::visit(
+        [&](const auto& m) {
+          using T = std::decay_t<decltype(m)>;
+          if constexpr (std::is_same_v<T, proto::Accept>) {
+            session_id = m.session_id;
+            backoff_ns = cfg.backoff_min_ns;
+            set_state(ClientState::Streaming,
+                      "session " + std::to_string(m.session_id) + ", " +
+                          (m.transport == proto::Transport::Udp ? "udp" : "tcp") + ", " +
+                          std::string(proto::codec_name(m.codec)));
+          } else if constexpr (std::is_same_v<T, proto::Reject>) {
+            stats.rejects.fetch_add(1);
+            disconnect("remote refused: " + m.text);
+          } else if constexpr (std::is_same_v<T, proto::Heartbeat>) {
+            on_heartbeat(m);
+          } else if constexpr (std::is_same_v<T, proto::Bye>) {
+            disconnect("remote said bye");
+          } else if constexpr (std::is_same_v<T, proto::StreamConfig>) {
+            parser.set_frame_size(m.width, m.height);
+            dgram.set_frame_size(m.width, m.height);
+            if (ev.on_config) ev.on_config(m);
+          } else if constexpr (std::is_same_v<T, proto::DepthTile>) {
+            if (ev.on_tile) ev.on_tile(h, m);
+          } else if constexpr (std::is_same_v<T, proto::FrameManifest>) {
+            if (ev.on_manifest) ev.on_manifest(h, m);
+          } else if constexpr (std::is_same_v<T, proto::VideoFrame>) {
+            if (ev.on_video) ev.on_video(h, m);
+          }
+        },
+        env.message);
+  }
+
+  void on_heartbeat(const proto::Heartbeat& hb) {
+    const auto now = static_cast<std::uint64_t>(monotonic_ns());
+    if (hb.t2_ns == 0) {
+      // The remote's own probe: answer with our receive and send times.
+      send(proto::Heartbeat{hb.t1_ns, now, static_cast<std::uint64_t>(monotonic_ns()), 0});
+      return;
+    }
+    // Our probe answered: RFC 5905 offset and round-trip delay.
+    stats.heartbeats.fetch_add(1);
+    const auto t1 = static_cast<std::int64_t>(hb.t1_ns), t2 = static_cast<std::int64_t>(hb.t2_ns),
+               t3 = static_cast<std::int64_t>(hb.t3_ns), t4 = static_cast<std::int64_t>(now);
+    stats.clock_offset_ns.store(((t2 - t1) + (t3 - t4)) / 2);
+    stats.rtt_ns.store((t4 - t1) - (t3 - t2));
+  }
+
+  void arm_heartbeat() {
+    const auto gen = generation;
+    heartbeat_timer.expires_after(std::chrono::nanoseconds(cfg.heartbeat_ns));
+    heartbeat_timer.async_wait([this, gen](boost::system::error_code ec) {
+      if (ec || gen != generation) return;
+      if (monotonic_ns() - last_rx_ns > cfg.timeout_ns)
+        return disconnect("remote silent for " + std::to_string(cfg.timeout_ns / 1'000'000) + " ms");
+      send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
+      arm_heartbeat();
+    });
+  }
+
+  void close_sockets() {
+    boost::system::error_code ec;
+    heartbeat_timer.cancel();
+    if (tcp_sock.is_open()) {
+      tcp_sock.shutdown(tcp::socket::shutdown_both, ec);
+      tcp_sock.close(ec);
+    }
+    if (udp_sock.is_open()) udp_sock.close(ec);
+    out_queue.clear();
+    writing = false;
+  }
+
+  void disconnect(const std::string& why) {
+    ++generation;
+    stats.disconnects.fetch_add(1);
+    close_sockets();
+    retry(why);
+  }
+
+  void retry(const std::string& why) {
+    if (stopping) return;
+    set_state(ClientState::Backoff, why + "; retrying in " + std::to_string(backoff_ns / 1'000'000) +
+                                        " ms");
+    retry_timer.expires_after(std::chrono::nanoseconds(backoff_ns));
+    backoff_ns = std::min(backoff_ns * 2, cfg.backoff_max_ns);
+    const auto gen = ++generation;
+    retry_timer.async_wait([this, gen](boost::system::error_code ec) {
+      if (ec || gen != generation) return;
+      close_sockets();
+      connect();
+    });
+  }
+};
+
+SurfaceClient::SurfaceClient(ClientConfig config, ClientEvents events)
+    : impl_(std::make_unique<Impl>(std::move(config), std::move(events), stats_)) {}
+
+SurfaceClient::~SurfaceClient() { stop(); }
+
+void SurfaceClient::start() {
+  if (impl_->thread.joinable()) return;
+  asio::post(impl_->io, [this] { impl_->connect(); });
+  impl_->thread = std::thread([this] { impl_->io.run(); });
+}
+
+void SurfaceClient::stop() {
+  if (!impl_->thread.joinable()) return;
+  asio::post(impl_->io, [this] {
+    impl_->stopping = true;
+    if (impl_->tcp_sock.is_open() && impl_->session_id != 0) {
+      // Best effort goodbye; the socket closes right after.
+      boost::system::error_code ec;
+      proto::Header h;
+      h.session_id = impl_->session_id;
+      h.seq = impl_->seq++;
+      auto bytes = proto::encode_stream(h, proto::Bye{0});
+      asio::write(impl_->tcp_sock, asio::buffer(bytes), ec);
+    }
+    ++impl_->generation;
+    impl_->retry_timer.cancel();
+    impl_->resolver.cancel();
+    impl_->close_sockets();
+    impl_->work.reset();
+    impl_->set_state(ClientState::Stopped, "stopped");
+  });
+  impl_->thread.join();
+}
+
+void SurfaceClient::request_roi(const proto::RoiRequest& roi) {
+  asio::post(impl_->io, [this, roi] {
+    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(roi);
+  });
+}
+
+}  // namespace telex::local

@@ -1,0 +1,248 @@
+// SPDX-License-Identifier: MIT
+// Wire messages: the fixed 36-byte header, one struct per payload, and their explicit LE encoding.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "telex/proto/depth_codec.h"
+
+namespace telex::proto {
+
+// "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
+inline constexpr std::uint32_t kMagic = 0x31584C54u;
+inline constexpr std::uint8_t kProtocolVersion = 1;
+inline constexpr std::size_t kHeaderSize = 36;
+// Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
+inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
+
+// Wire values are fixed; the std::variant Message below lists the payloads in this order.
+enum class MsgType : std::uint8_t {
+  Hello = 0,
+  Accept = 1,
+  Reject = 2,
+  Heartbeat = 3,
+  Bye = 4,
+  StreamConfig = 5,
+  DepthTile = 6,
+  FrameManifest = 7,
+  VideoFrame = 8,
+  RoiRequest = 9,
+  Stats = 10,
+};
+inline constexpr int kMsgTypeCount = 11;
+std::string_view msg_type_name(MsgType type);
+
+// Header flag bits.
+inline constexpr std::uint16_t kFlagKeyFrame =
+    1u << 0;  // the frame this message belongs to is a key frame
+
+struct Header {
+  std::uint32_t magic = kMagic;
+  std::uint8_t version = kProtocolVersion;
+  MsgType type = MsgType::Hello;  // encode() overwrites it from the payload
+  std::uint16_t flags = 0;
+  std::uint32_t session_id = 0;
+  std::uint32_t seq = 0;       // per-sender message counter (loss and reorder detection)
+  std::uint32_t frame_id = 0;  // depth/video frame the message belongs to (0 when none)
+  std::uint64_t capture_ns = 0;
+  std::uint32_t payload_len = 0;  // encode() fills it
+  std::uint32_t crc32c = 0;  // encode() fills it: over the header with this field zero + payload
+  bool operator==(const Header&) const = default;
+};
+
+// Capability bits announced in Hello.
+inline constexpr std::uint32_t kCapDepthTcp = 1u << 0;
+inline constexpr std::uint32_t kCapDepthUdp = 1u << 1;
+inline constexpr std::uint32_t kCapVideo = 1u << 2;
+inline constexpr std::uint32_t kCapRoi = 1u << 3;
+inline constexpr std::uint32_t kCapStats = 1u << 4;
+
+enum class Transport : std::uint8_t { Tcp = 0, Udp = 1 };
+
+// Bounds enforced by decode (and by encode, which throws std::invalid_argument past them).
+inline constexpr std::size_t kMaxHelloCodecs = 16;
+inline constexpr std::size_t kMaxText = 1024;
+inline constexpr std::size_t kMaxRoiRects = 16;
+inline constexpr std::size_t kMaxStatsEntries = 64;
+inline constexpr std::size_t kMaxStatsKey = 64;
+inline constexpr std::size_t kMaxManifestTiles = 4096;
+
+struct Hello {
+  std::uint8_t version = kProtocolVersion;
+  std::uint32_t capabilities = 0;
+  std::vector<Codec> codecs;   // in order of preference
+  std::uint16_t udp_port = 0;  // where the sender receives UDP (0 = none)
+  bool operator==(const Hello&) const = default;
+};
+
+struct Accept {
+  std::uint32_t session_id = 0;
+  Codec codec = Codec::Zip;
+  Transport transport = Transport::Tcp;
+  std::uint16_t udp_port = 0;  // the accepting side's UDP port (0 = none)
+  bool operator==(const Accept&) const = default;
+};
+
+enum class RejectReason : std::uint16_t {
+  Unspecified = 0,
+  VersionMismatch = 1,
+  NoCommonCodec = 2,
+  Busy = 3,
+  BadRequest = 4,
+};
+
+struct Reject {
+  RejectReason reason = RejectReason::Unspecified;
+  std::string text;  // UTF-8, at most kMaxText bytes
+  bool operator==(const Reject&) const = default;
+};
+
+// NTP-style round trip: t1 sent (client clock), t2 received and t3 answered (server clock),
+// t4 received (client clock; 0 on the wire when not yet known). Offset and delay follow RFC 5905.
+struct Heartbeat {
+  std::uint64_t t1_ns = 0;
+  std::uint64_t t2_ns = 0;
+  std::uint64_t t3_ns = 0;
+  std::uint64_t t4_ns = 0;
+  bool operator==(const Heartbeat&) const = default;
+};
+
+struct Bye {
+  std::uint16_t reason = 0;  // 0 = normal shutdown
+  bool operator==(const Bye&) const = default;
+};
+
+// How the depth map was brought into the right-eye camera: a 3-D translation of the depth camera
+// relative to the eye and the 2-D scale/shift applied to the image (identity when unregistered).
+struct RegistrationParams {
+  std::array<double, 3> t_eye_depth_m{0.0, 0.0, 0.0};
+  double scale_x = 1.0;
+  double scale_y = 1.0;
+  double shift_x_px = 0.0;
+  double shift_y_px = 0.0;
+  bool operator==(const RegistrationParams&) const = default;
+};
+
+struct StreamConfig {
+  std::uint16_t width = 640;
+  std::uint16_t height = 480;
+  double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;  // of the depth as sent (pixels)
+  RegistrationParams registration;
+  std::uint16_t tile_width = 80;
+  std::uint16_t tile_height = 60;
+  std::uint16_t grid_cols = 8;  // must equal ceil(width / tile_width)
+  std::uint16_t grid_rows = 8;  // must equal ceil(height / tile_height)
+  Codec codec = Codec::Zip;
+  float fps = 30.0f;
+  bool operator==(const StreamConfig&) const = default;
+};
+
+struct DepthTile {
+  std::uint16_t tile_index = 0;
+  std::uint16_t x = 0, y = 0, w = 0, h = 0;  // pixel rectangle in the frame
+  Codec codec = Codec::Zip;
+  std::vector<std::uint8_t> payload;  // codec bitstream of exactly w*h pixels
+  bool operator==(const DepthTile&) const = default;
+};
+
+struct FrameManifest {
+  std::uint32_t frame_id = 0;
+  std::uint16_t tile_count = 0;              // tiles in the grid
+  bool key_frame = false;                    // all tiles sent; otherwise only `changed_tiles`
+  std::vector<std::uint16_t> changed_tiles;  // strictly increasing, each < tile_count
+  bool operator==(const FrameManifest&) const = default;
+};
+
+struct VideoFrame {
+  std::uint8_t eye = 1;  // 0 left, 1 right
+  std::uint16_t width = 0, height = 0;
+  std::vector<std::uint8_t> jpeg;
+  bool operator==(const VideoFrame&) const = default;
+};
+
+struct RoiRect {
+  std::uint16_t x = 0, y = 0, w = 0, h = 0;
+  std::uint8_t priority = 0;  // higher = sooner
+  bool operator==(const RoiRect&) const = default;
+};
+
+struct RoiRequest {
+  std::vector<RoiRect> rects;  // at most kMaxRoiRects
+  bool operator==(const RoiRequest&) const = default;
+};
+
+struct Stats {
+  std::vector<std::pair<std::string, std::uint64_t>> counters;  // keys ASCII, <= kMaxStatsKey
+  bool operator==(const Stats&) const = default;
+};
+
+// Alternative index == MsgType wire value.
+using Message = std::variant<Hello, Accept, Reject, Heartbeat, Bye, StreamConfig, DepthTile,
+                             FrameManifest, VideoFrame, RoiRequest, Stats>;
+
+MsgType type_of(const Message& message);
+
+// Why bytes were rejected. Values index the drop counters; never renumber.
+enum class ErrorReason : std::uint8_t {
+  Truncated = 0,      // fewer bytes than the header or a length field claims
+  BadMagic,           // not "TLX1"
+  BadVersion,         // header version this build does not speak
+  BadLength,          // a length beyond the configured bound or inconsistent with the framing
+  BadChecksum,        // CRC32C mismatch
+  UnknownType,        // message type not in MsgType
+  BadTileGeometry,    // tile rectangle empty, outside the frame or inconsistent with the grid
+  DecompressionBomb,  // a tile claims more pixels than allowed
+  BadPayload,         // payload shape wrong (counts, enum values, trailing bytes)
+};
+inline constexpr int kErrorReasonCount = 9;
+std::string_view error_reason_name(ErrorReason reason);
+
+// Validation bounds for decoding. frame_width/height (0 = unknown) come from StreamConfig and make
+// tile rectangles checkable against the frame.
+struct DecodeLimits {
+  std::size_t max_message_bytes = kDefaultMaxMessageBytes;
+  std::uint32_t max_tile_pixels = 640u * 480u;
+  std::uint16_t frame_width = 0;
+  std::uint16_t frame_height = 0;
+};
+
+struct Envelope {
+  Header header;
+  Message message;
+};
+
+// Outcome of decoding one message: the message, or the reason and a static detail string.
+struct Result {
+  std::optional<Envelope> envelope;
+  ErrorReason error = ErrorReason::Truncated;  // meaningful only when !ok()
+  const char* detail = "";
+  bool ok() const { return envelope.has_value(); }
+};
+
+// Header + payload, ready for a datagram or the reassembler. Header type, payload_len and crc32c
+// are computed; magic and version are written as given. Throws std::invalid_argument when a
+// field is beyond the bounds above (a sender bug, not wire input).
+std::vector<std::uint8_t> encode(const Header& header, const Message& message);
+// The same prefixed with the u32 little-endian length of what follows: the TCP stream framing.
+std::vector<std::uint8_t> encode_stream(const Header& header, const Message& message);
+
+struct Error {
+  ErrorReason reason;
+  const char* detail;  // static string naming the field
+};
+// Parses and validates the 36-byte header (magic, version, type, length bound); no CRC check.
+std::optional<Error> decode_header(std::span<const std::uint8_t> bytes, Header& out,
+                                   const DecodeLimits& limits = {});
+// Decodes one whole message (header + payload, no length prefix), checking everything.
+Result decode(std::span<const std::uint8_t> bytes, const DecodeLimits& limits = {});
+
+}  // namespace telex::proto

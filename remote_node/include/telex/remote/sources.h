@@ -1,0 +1,108 @@
+// SPDX-License-Identifier: MIT
+// Depth and stereo sources behind interfaces, chosen at start-up by a spec string.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "telex/common/depth_image.h"
+
+namespace telex::remote {
+
+// One depth frame as the source delivered it. capture_ns is on the host's steady clock so that
+// every stage and the stats line can compare it with other host times.
+struct DepthFrame {
+  DepthImage image;
+  std::int64_t capture_ns = 0;
+  std::uint64_t frame_id = 0;
+  // Time of the scene this frame shows (synthetic and playback sources); equals capture time for
+  // live devices. Kept apart so animated synthetic scenes stay deterministic under load.
+  double scene_time_s = 0.0;
+};
+
+// A rectified colour pair from the operator-facing cameras (BGR, 8 bit).
+struct StereoFrame {
+  cv::Mat3b left_bgr;
+  cv::Mat3b right_bgr;
+  std::int64_t capture_ns = 0;
+  std::uint64_t frame_id = 0;
+};
+
+// Result of one read: the running capture loop never throws, it acts on the status.
+enum class ReadStatus { Frame, Timeout, EndOfStream, Error };
+
+template <typename FrameT>
+struct ReadResult {
+  ReadStatus status = ReadStatus::Timeout;
+  FrameT frame;
+  std::string error;  // set when status == Error
+};
+
+class DepthSource {
+ public:
+  virtual ~DepthSource() = default;
+  // Opens the device or files; throws std::runtime_error naming the device and what to try.
+  virtual void start() = 0;
+  virtual void stop() = 0;
+  // Waits at most `timeout` for the next frame; never blocks longer, never throws.
+  virtual ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) = 0;
+  // Valid after start().
+  virtual Intrinsics intrinsics() const = 0;
+  // Nominal frame rate, for pacing and for the stats line.
+  virtual double nominal_fps() const = 0;
+  // Frames in a recording or file sequence (valid after start()); -1 for live and endless sources.
+  virtual std::int64_t frame_count() const { return -1; }
+  virtual std::string describe() const = 0;
+};
+
+class StereoSource {
+ public:
+  virtual ~StereoSource() = default;
+  virtual void start() = 0;
+  virtual void stop() = 0;
+  virtual ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) = 0;
+  virtual std::string describe() const = 0;
+};
+
+// "kind:ARG[,opt][,key=value]..." split into its parts. ARG may itself hold commas only for the
+// v4l2 stereo spec, which takes two device paths.
+struct SourceSpec {
+  std::string kind;                            // openni | oni | files | synthetic | v4l2
+  std::string arg;                             // URI, path, glob pattern or scene name
+  std::map<std::string, std::string> options;  // flags map to "" (e.g. "loop"), key=value otherwise
+  std::vector<std::string> flags;  // value-less tokens in order (the right-eye path of v4l2)
+  bool has(std::string_view key) const { return options.count(std::string(key)) != 0; }
+};
+
+// Throws std::invalid_argument naming the spec and the valid forms.
+SourceSpec parse_source_spec(std::string_view spec);
+
+struct SourceOptions {
+  // Fallback when the device reports no field of view (OpenNI's Dummy device reports 0).
+  bool use_kinect_intrinsics_fallback = true;
+  double synthetic_fps = 30.0;
+  std::uint64_t seed = 1;
+  int width = 640;  // synthetic and stereo render size
+  int height = 480;
+};
+
+// Valid depth specs: openni[:URI] | oni:PATH[,loop][,realtime|fast] |
+// files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | synthetic[:SCENE][,animate].
+std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
+                                               const SourceOptions& options = {});
+
+// Valid stereo specs: v4l2:/dev/videoL,/dev/videoR[,WxH][,mjpeg|yuyv] | files:LEFT_GLOB,RIGHT_GLOB
+// | synthetic[:SCENE][,animate].
+std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec,
+                                                 const SourceOptions& options = {});
+
+// Host steady clock in ns: the single time base of the remote node.
+std::int64_t steady_now_ns();
+
+}  // namespace telex::remote

@@ -1,0 +1,355 @@
+// SPDX-License-Identifier: MIT
+// Depth and stereo sources that run without hardware: image sequences and the synthetic renderer.
+#include <fmt/format.h>
+#include <glob.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+#include <thread>
+
+#include "source_impl.h"
+#include "telex/common/depth_io.h"
+#include "telex/common/synthetic.h"
+#include "telex/remote/synthetic_view.h"
+
+namespace telex::remote {
+
+namespace {
+
+std::vector<std::string> expand_glob(const std::string& pattern) {
+  glob_t g{};
+  const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
+  std::vector<std::string> out;
+  if (rc == 0)
+    for (std::size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
+  globfree(&g);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+double parse_positive(const SourceSpec& spec, const std::string& key, double fallback) {
+  if (!spec.has(key)) return fallback;
+  const std::string& text = spec.options.at(key);
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end != '\0' || !(v > 0.0) || !std::isfinite(v))
+    throw std::invalid_argument(
+        fmt::format("source '{}': {}='{}' is not a positive number", spec.kind, key, text));
+  return v;
+}
+
+// Paces a sequence at a nominal rate: frames are due at start + n / fps on the steady clock.
+// Waits at most `timeout`; returns false when the frame is not yet due by then.
+class Pacer {
+ public:
+  explicit Pacer(double fps) : period_ns_(static_cast<std::int64_t>(1e9 / fps)) {}
+  bool wait_due(std::chrono::milliseconds timeout) {
+    const std::int64_t now = steady_now_ns();
+    if (next_ns_ == 0) next_ns_ = now;
+    const std::int64_t wait = next_ns_ - now;
+    if (wait > std::chrono::duration_cast<std::chrono::nanoseconds>(timeout).count()) {
+      std::this_thread::sleep_for(timeout);
+      return false;
+    }
+    if (wait > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(wait));
+    // A consumer that fell behind does not get a burst of catch-up frames.
+    next_ns_ = std::max(next_ns_ + period_ns_, steady_now_ns());
+    return true;
+  }
+  void reset() { next_ns_ = 0; }
+
+ private:
+  std::int64_t period_ns_;
+  std::int64_t next_ns_ = 0;
+};
+
+class FilesDepthSource final : public DepthSource {
+ public:
+  FilesDepthSource(std::string pattern, DepthUnits units, double fps, bool loop)
+      : pattern_(std::move(pattern)), units_(units), fps_(fps), loop_(loop), pacer_(fps) {}
+
+  void start() override {
+    files_ = expand_glob(pattern_);
+    if (files_.empty())
+      throw std::runtime_error(fmt::format(
+          "depth files '{}' match no file (quote the pattern so the shell does not expand it)",
+          pattern_));
+    // Load the first frame now so a bad file or unit fails at start-up, not in the loop.
+    const DepthImage first = load_depth(files_.front(), units_);
+    intrinsics_ = first.intrinsics;
+    next_ = 0;
+    frames_ = 0;
+    pacer_.reset();
+  }
+  void stop() override {}
+
+  ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) override {
+    ReadResult<DepthFrame> out;
+    if (files_.empty()) {
+      out.status = ReadStatus::Error;
+      out.error = "files source read before start";
+      return out;
+    }
+    if (next_ >= files_.size()) {
+      if (!loop_) {
+        out.status = ReadStatus::EndOfStream;
+        return out;
+      }
+      next_ = 0;
+    }
+    if (!pacer_.wait_due(timeout)) return out;  // Timeout
+    const std::string& file = files_[next_++];
+    try {
+      out.frame.image = load_depth(file, units_);
+    } catch (const std::exception& e) {
+      out.status = ReadStatus::Error;
+      out.error = e.what();
+      return out;
+    }
+    out.frame.capture_ns = steady_now_ns();
+    out.frame.frame_id = ++frames_;
+    out.frame.scene_time_s = static_cast<double>(frames_ - 1) / fps_;
+    out.status = ReadStatus::Frame;
+    return out;
+  }
+
+  Intrinsics intrinsics() const override { return intrinsics_; }
+  double nominal_fps() const override { return fps_; }
+  std::int64_t frame_count() const override { return static_cast<std::int64_t>(files_.size()); }
+  std::string describe() const override {
+    return fmt::format("files:{} ({} files, {}, {} fps{})", pattern_, files_.size(),
+                       to_string(units_), fps_, loop_ ? ", loop" : "");
+  }
+
+ private:
+  std::string pattern_;
+  DepthUnits units_;
+  double fps_;
+  bool loop_;
+  Pacer pacer_;
+  std::vector<std::string> files_;
+  std::size_t next_ = 0;
+  std::uint64_t frames_ = 0;
+  Intrinsics intrinsics_;
+};
+
+class SyntheticDepthSource final : public DepthSource {
+ public:
+  SyntheticDepthSource(std::string scene_name, bool animate, bool noise,
+                       const SourceOptions& options)
+      : scene_name_(std::move(scene_name)),
+        animate_(animate),
+        fps_(options.synthetic_fps),
+        pacer_(options.synthetic_fps),
+        intrinsics_(kinect_v1_intrinsics(options.width, options.height)) {
+    sensor_ = noise ? synth::SensorModel{} : synth::SensorModel::ideal();
+    sensor_.seed = options.seed;
+  }
+
+  void start() override {
+    scene_ = synth::Scene::named(scene_name_);  // throws naming the valid scenes
+    frames_ = 0;
+    pacer_.reset();
+  }
+  void stop() override {}
+
+  ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) override {
+    ReadResult<DepthFrame> out;
+    if (!pacer_.wait_due(timeout)) return out;
+    // Scene time follows the frame count, not the wall clock, so a run is reproducible.
+    const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
+    auto rendered = synth::render(scene_.at_time(t_s), intrinsics_, sensor_, frames_);
+    out.frame.image = std::move(rendered.depth);
+    out.frame.capture_ns = steady_now_ns();
+    out.frame.frame_id = ++frames_;
+    out.frame.scene_time_s = t_s;
+    out.status = ReadStatus::Frame;
+    return out;
+  }
+
+  Intrinsics intrinsics() const override { return intrinsics_; }
+  double nominal_fps() const override { return fps_; }
+  std::string describe() const override {
+    return fmt::format("synthetic:{}{} ({}x{} @ {} fps)", scene_name_, animate_ ? ",animate" : "",
+                       intrinsics_.width, intrinsics_.height, fps_);
+  }
+
+ private:
+  std::string scene_name_;
+  bool animate_;
+  double fps_;
+  Pacer pacer_;
+  Intrinsics intrinsics_;
+  synth::SensorModel sensor_;
+  synth::Scene scene_;
+  std::uint64_t frames_ = 0;
+};
+
+class FilesStereoSource final : public StereoSource {
+ public:
+  FilesStereoSource(std::string left, std::string right, double fps, bool loop)
+      : left_pattern_(std::move(left)),
+        right_pattern_(std::move(right)),
+        loop_(loop),
+        pacer_(fps) {}
+  void start() override {
+    left_ = expand_glob(left_pattern_);
+    right_ = expand_glob(right_pattern_);
+    if (left_.empty())
+      throw std::runtime_error(fmt::format("left images '{}' match no file", left_pattern_));
+    if (right_.empty())
+      throw std::runtime_error(fmt::format("right images '{}' match no file", right_pattern_));
+    if (left_.size() != right_.size())
+      throw std::runtime_error(
+          fmt::format("left images '{}' ({}) and right images '{}' ({}) differ in count",
+                      left_pattern_, left_.size(), right_pattern_, right_.size()));
+    next_ = 0;
+  }
+  void stop() override {}
+  ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
+    ReadResult<StereoFrame> out;
+    if (left_.empty()) {
+      out.status = ReadStatus::Error;
+      out.error = "files stereo source read before start";
+      return out;
+    }
+    if (next_ >= left_.size()) {
+      if (!loop_) {
+        out.status = ReadStatus::EndOfStream;
+        return out;
+      }
+      next_ = 0;
+    }
+    if (!pacer_.wait_due(timeout)) return out;
+    const std::size_t i = next_++;
+    out.frame.left_bgr = cv::imread(left_[i], cv::IMREAD_COLOR);
+    out.frame.right_bgr = cv::imread(right_[i], cv::IMREAD_COLOR);
+    if (out.frame.left_bgr.empty() || out.frame.right_bgr.empty()) {
+      out.status = ReadStatus::Error;
+      out.error =
+          fmt::format("cannot read image '{}'", out.frame.left_bgr.empty() ? left_[i] : right_[i]);
+      return out;
+    }
+    out.frame.capture_ns = steady_now_ns();
+    out.frame.frame_id = ++frames_;
+    out.status = ReadStatus::Frame;
+    return out;
+  }
+  std::string describe() const override {
+    return fmt::format("files:{},{}", left_pattern_, right_pattern_);
+  }
+
+ private:
+  std::string left_pattern_, right_pattern_;
+  bool loop_;
+  Pacer pacer_;
+  std::vector<std::string> left_, right_;
+  std::size_t next_ = 0;
+  std::uint64_t frames_ = 0;
+};
+
+class SyntheticStereoSource final : public StereoSource {
+ public:
+  SyntheticStereoSource(std::string scene_name, bool animate, const SourceOptions& options)
+      : scene_name_(std::move(scene_name)),
+        animate_(animate),
+        fps_(options.synthetic_fps),
+        pacer_(options.synthetic_fps),
+        intrinsics_(kinect_v1_intrinsics(options.width, options.height)) {}
+  void start() override {
+    scene_ = synth::Scene::named(scene_name_);
+    frames_ = 0;
+  }
+  void stop() override {}
+  ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
+    ReadResult<StereoFrame> out;
+    if (!pacer_.wait_due(timeout)) return out;
+    const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
+    const auto views = render_stereo_views(scene_.at_time(t_s), intrinsics_);
+    out.frame.left_bgr = views.left_bgr;
+    out.frame.right_bgr = views.right_bgr;
+    out.frame.capture_ns = steady_now_ns();
+    out.frame.frame_id = ++frames_;
+    out.status = ReadStatus::Frame;
+    return out;
+  }
+  std::string describe() const override {
+    return fmt::format("synthetic:{}{} stereo", scene_name_, animate_ ? ",animate" : "");
+  }
+
+ private:
+  std::string scene_name_;
+  bool animate_;
+  double fps_;
+  Pacer pacer_;
+  Intrinsics intrinsics_;
+  synth::Scene scene_;
+  std::uint64_t frames_ = 0;
+};
+
+// The default scene animates; a named static scene animates only when asked.
+bool wants_animation(const SourceSpec& spec, const std::string& scene) {
+  return spec.has("animate") || scene == "moving";
+}
+
+}  // namespace
+
+namespace detail {
+
+std::unique_ptr<DepthSource> make_files_depth_source(const SourceSpec& spec, const SourceOptions&) {
+  require_options(spec, {"units", "fps", "loop"});
+  if (spec.arg.empty())
+    throw std::invalid_argument(
+        "source 'files' needs a pattern: files:PATTERN[,units=mm|tum|kinect-disparity]");
+  const DepthUnits units =
+      spec.has("units") ? parse_depth_units(spec.options.at("units")) : DepthUnits::Millimetres;
+  return std::make_unique<FilesDepthSource>(spec.arg, units, parse_positive(spec, "fps", 30.0),
+                                            spec.has("loop"));
+}
+
+std::unique_ptr<DepthSource> make_synthetic_depth_source(const SourceSpec& spec,
+                                                         const SourceOptions& options) {
+  require_options(spec, {"animate", "noise"});
+  const std::string scene = spec.arg.empty() ? "moving" : spec.arg;
+  const auto names = synth::Scene::names();
+  if (std::find(names.begin(), names.end(), scene) == names.end())
+    synth::Scene::named(scene);  // throws the renderer's message listing the valid scenes
+  bool noise = true;
+  if (spec.has("noise")) {
+    const auto& v = spec.options.at("noise");
+    if (v != "on" && v != "off")
+      throw std::invalid_argument(
+          fmt::format("source 'synthetic': noise='{}' is not on or off", v));
+    noise = v == "on";
+  }
+  return std::make_unique<SyntheticDepthSource>(scene, wants_animation(spec, scene), noise,
+                                                options);
+}
+
+std::unique_ptr<StereoSource> make_files_stereo_source(const SourceSpec& spec,
+                                                       const SourceOptions&) {
+  if (spec.arg.empty() || spec.flags.empty())
+    throw std::invalid_argument(
+        "stereo source 'files' needs two patterns: files:LEFT_PATTERN,RIGHT_PATTERN");
+  const std::string right = spec.flags[0];
+  SourceSpec rest = spec;
+  rest.options.erase(right);
+  require_options(rest, {"fps", "loop"});
+  return std::make_unique<FilesStereoSource>(spec.arg, right, parse_positive(spec, "fps", 30.0),
+                                             spec.has("loop"));
+}
+
+std::unique_ptr<StereoSource> make_synthetic_stereo_source(const SourceSpec& spec,
+                                                           const SourceOptions& options) {
+  require_options(spec, {"animate"});
+  const std::string scene = spec.arg.empty() ? "moving" : spec.arg;
+  synth::Scene::named(scene);
+  return std::make_unique<SyntheticStereoSource>(scene, wants_animation(spec, scene), options);
+}
+
+}  // namespace detail
+
+}  // namespace telex::remote

@@ -1,0 +1,302 @@
+// SPDX-License-Identifier: MIT
+// OpenNI2 depth sources: a live device by URI (including OpenNI2's "Dummy" device) and .oni
+// playback.
+#include <OpenNI.h>
+#include <fmt/format.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+#include <stdexcept>
+
+#include "source_impl.h"
+#include "telex/remote/openni_record.h"
+
+namespace telex::remote {
+
+namespace {
+
+// OpenNI2 is initialised once per process and never shut down: the Dummy driver's frame thread
+// outlives Device::close, and OpenNI::shutdown unloads the driver under it (SIGSEGV seen here).
+void ensure_openni() {
+  static const std::string error = [] {
+    if (openni::OpenNI::initialize() != openni::STATUS_OK)
+      return std::string(openni::OpenNI::getExtendedError());
+    return std::string();
+  }();
+  if (!error.empty())
+    throw std::runtime_error(fmt::format("OpenNI2 failed to initialise: {}", error));
+}
+
+std::string list_devices() {
+  openni::Array<openni::DeviceInfo> devices;
+  openni::OpenNI::enumerateDevices(&devices);
+  if (devices.getSize() == 0) return "no devices found";
+  std::string out = "devices found:";
+  for (int i = 0; i < devices.getSize(); ++i)
+    out += fmt::format(" '{}' ({} {})", devices[i].getUri(), devices[i].getVendor(),
+                       devices[i].getName());
+  return out;
+}
+
+// Prefers millimetre depth so no per-pixel conversion is needed; 100 um is converted on read.
+void choose_depth_mode(openni::VideoStream& stream) {
+  const auto& modes = stream.getSensorInfo().getSupportedVideoModes();
+  const auto current = stream.getVideoMode();
+  if (current.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM) return;
+  for (int i = 0; i < modes.getSize(); ++i) {
+    if (modes[i].getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_1_MM &&
+        modes[i].getResolutionX() == current.getResolutionX() &&
+        modes[i].getResolutionY() == current.getResolutionY()) {
+      stream.setVideoMode(modes[i]);
+      return;
+    }
+  }
+}
+
+Intrinsics intrinsics_of(openni::VideoStream& stream, int width, int height) {
+  const double hfov = stream.getHorizontalFieldOfView();
+  const double vfov = stream.getVerticalFieldOfView();
+  // Devices and recordings without a field of view (the Dummy device reports 0) get Kinect v1
+  // optics.
+  if (!(hfov > 0.01 && vfov > 0.01)) return kinect_v1_intrinsics(width, height);
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = width / (2.0 * std::tan(hfov / 2.0));
+  k.fy = height / (2.0 * std::tan(vfov / 2.0));
+  k.cx = (width - 1) / 2.0;
+  k.cy = (height - 1) / 2.0;
+  return k;
+}
+
+// OpenNI reports the end of a non-repeating recording only as a device state change.
+class EofListener final : public openni::OpenNI::DeviceStateChangedListener {
+ public:
+  explicit EofListener(std::string uri) : uri_(std::move(uri)) {}
+  void onDeviceStateChanged(const openni::DeviceInfo* info, openni::DeviceState state) override {
+    if (state == openni::DEVICE_STATE_EOF && info != nullptr && uri_ == info->getUri()) eof_ = true;
+  }
+  bool eof() const { return eof_; }
+
+ private:
+  std::string uri_;
+  std::atomic<bool> eof_{false};
+};
+
+class OpenNiDepthSource final : public DepthSource {
+ public:
+  enum class Mode { Live, Playback };
+  OpenNiDepthSource(Mode mode, std::string uri, bool loop, bool realtime)
+      : mode_(mode), uri_(std::move(uri)), loop_(loop), realtime_(realtime) {}
+  ~OpenNiDepthSource() override { stop(); }
+
+  void start() override {
+    if (started_) return;
+    if (mode_ == Mode::Playback && !std::filesystem::is_regular_file(uri_))
+      throw std::runtime_error(
+          fmt::format("oni recording '{}' does not exist or is not a file", uri_));
+    ensure_openni();
+    const char* uri = uri_.empty() ? openni::ANY_DEVICE : uri_.c_str();
+    if (device_.open(uri) != openni::STATUS_OK) {
+      const std::string err = openni::OpenNI::getExtendedError();
+      const std::string devices = list_devices();
+      if (mode_ == Mode::Playback)
+        throw std::runtime_error(fmt::format("cannot open oni recording '{}': {}", uri_, err));
+      throw std::runtime_error(
+          fmt::format("cannot open OpenNI2 device '{}': {}; {}. Try 'openni:Dummy' (OpenNI2's test "
+                      "device), plug in a "
+                      "Kinect/Carmine and check the udev rules (lsusb, "
+                      "/lib/udev/rules.d/60-libopenni2-0.rules), or play a "
+                      "recording with 'oni:PATH'",
+                      uri_.empty() ? "any device" : uri_, err, devices));
+    }
+    if (stream_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK) {
+      const std::string err = openni::OpenNI::getExtendedError();
+      device_.close();
+      throw std::runtime_error(
+          fmt::format("OpenNI2 device '{}' has no depth stream: {}", uri_, err));
+    }
+    choose_depth_mode(stream_);
+    if (mode_ == Mode::Playback) {
+      eof_ = std::make_unique<EofListener>(device_.getDeviceInfo().getUri());
+      openni::OpenNI::addDeviceStateChangedListener(eof_.get());
+      auto* playback = device_.getPlaybackControl();
+      if (playback != nullptr) {
+        playback->setRepeatEnabled(loop_);
+        // OpenNI.h: 0 plays as fast as possible, -1 is manual stepping; the newest-wins slot
+        // downstream absorbs any surplus.
+        playback->setSpeed(realtime_ ? 1.0f : 0.0f);
+        frames_in_file_ = playback->getNumberOfFrames(stream_);
+      }
+    }
+    if (stream_.start() != openni::STATUS_OK) {
+      const std::string err = openni::OpenNI::getExtendedError();
+      stream_.destroy();
+      device_.close();
+      throw std::runtime_error(
+          fmt::format("OpenNI2 device '{}' failed to start depth: {}", uri_, err));
+    }
+    const auto vm = stream_.getVideoMode();
+    started_ = true;
+    intrinsics_ = intrinsics_of(stream_, vm.getResolutionX(), vm.getResolutionY());
+    fps_ = vm.getFps() > 0 ? vm.getFps() : 30.0;
+  }
+
+  void stop() override {
+    if (!started_) return;
+    stream_.stop();
+    stream_.destroy();
+    device_.close();
+    if (eof_) openni::OpenNI::removeDeviceStateChangedListener(eof_.get());
+    eof_.reset();
+    started_ = false;
+  }
+
+  ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) override {
+    ReadResult<DepthFrame> out;
+    if (!started_) {
+      out.status = ReadStatus::Error;
+      out.error = "OpenNI2 source read before start";
+      return out;
+    }
+    if (mode_ == Mode::Playback && !loop_ && frames_in_file_ > 0 &&
+        frames_read_ >= static_cast<std::uint64_t>(frames_in_file_)) {
+      out.status = ReadStatus::EndOfStream;
+      return out;
+    }
+    openni::VideoStream* streams[] = {&stream_};
+    int ready = -1;
+    const auto rc =
+        openni::OpenNI::waitForAnyStream(streams, 1, &ready, static_cast<int>(timeout.count()));
+    if (rc == openni::STATUS_TIME_OUT) {
+      out.status = (eof_ && eof_->eof() && !loop_) ? ReadStatus::EndOfStream : ReadStatus::Timeout;
+      return out;
+    }
+    if (rc != openni::STATUS_OK) {
+      out.status = ReadStatus::Error;
+      out.error =
+          fmt::format("OpenNI2 wait on '{}' failed: {}", uri_, openni::OpenNI::getExtendedError());
+      return out;
+    }
+    openni::VideoFrameRef ref;
+    if (stream_.readFrame(&ref) != openni::STATUS_OK || !ref.isValid()) {
+      out.status = ReadStatus::Error;
+      out.error =
+          fmt::format("OpenNI2 read on '{}' failed: {}", uri_, openni::OpenNI::getExtendedError());
+      return out;
+    }
+    const int w = ref.getWidth();
+    const int h = ref.getHeight();
+    const auto format = ref.getVideoMode().getPixelFormat();
+    if (format != openni::PIXEL_FORMAT_DEPTH_1_MM && format != openni::PIXEL_FORMAT_DEPTH_100_UM) {
+      out.status = ReadStatus::Error;
+      out.error =
+          fmt::format("OpenNI2 '{}' delivers pixel format {} (need DEPTH_1_MM or DEPTH_100_UM)",
+                      uri_, static_cast<int>(format));
+      return out;
+    }
+    const cv::Mat1w view(
+        h, w, const_cast<std::uint16_t*>(static_cast<const std::uint16_t*>(ref.getData())),
+        static_cast<std::size_t>(ref.getStrideInBytes()));
+    DepthFrame& f = out.frame;
+    if (format == openni::PIXEL_FORMAT_DEPTH_100_UM)
+      view.convertTo(f.image.depth_mm, CV_16U, 0.1);
+    else
+      view.copyTo(f.image.depth_mm);
+    f.image.intrinsics = intrinsics_.width == w && intrinsics_.height == h
+                             ? intrinsics_
+                             : kinect_v1_intrinsics(w, h);
+    f.capture_ns = steady_now_ns();
+    f.frame_id = ++frames_read_;
+    f.scene_time_s = static_cast<double>(ref.getTimestamp()) * 1e-6;
+    out.status = ReadStatus::Frame;
+    return out;
+  }
+
+  Intrinsics intrinsics() const override { return intrinsics_; }
+  double nominal_fps() const override { return fps_; }
+  std::int64_t frame_count() const override {
+    return mode_ == Mode::Playback ? frames_in_file_ : -1;
+  }
+  std::string describe() const override {
+    if (mode_ == Mode::Playback)
+      return fmt::format("oni:{}{}{}", uri_, loop_ ? ",loop" : "",
+                         realtime_ ? ",realtime" : ",fast");
+    return fmt::format("openni:{}", uri_.empty() ? "ANY" : uri_);
+  }
+
+ private:
+  Mode mode_;
+  std::string uri_;
+  bool loop_ = false;
+  bool realtime_ = true;
+  bool started_ = false;
+  std::unique_ptr<EofListener> eof_;
+  openni::Device device_;
+  openni::VideoStream stream_;
+  Intrinsics intrinsics_;
+  double fps_ = 30.0;
+  int frames_in_file_ = 0;
+  std::uint64_t frames_read_ = 0;
+};
+
+}  // namespace
+
+namespace detail {
+
+std::unique_ptr<DepthSource> make_openni_source(const SourceSpec& spec, const SourceOptions&) {
+  require_options(spec, {});
+  return std::make_unique<OpenNiDepthSource>(OpenNiDepthSource::Mode::Live, spec.arg, false, true);
+}
+
+std::unique_ptr<DepthSource> make_oni_source(const SourceSpec& spec, const SourceOptions&) {
+  require_options(spec, {"loop", "realtime", "fast"});
+  if (spec.arg.empty())
+    throw std::invalid_argument("source 'oni' needs a path: oni:PATH[,loop][,realtime|fast]");
+  if (spec.has("realtime") && spec.has("fast"))
+    throw std::invalid_argument("source 'oni': choose one of 'realtime' and 'fast'");
+  return std::make_unique<OpenNiDepthSource>(OpenNiDepthSource::Mode::Playback, spec.arg,
+                                             spec.has("loop"), !spec.has("fast"));
+}
+
+}  // namespace detail
+
+int record_oni(const std::string& uri, const std::filesystem::path& path, int frames,
+               std::chrono::milliseconds timeout) {
+  ensure_openni();
+  openni::Device device;
+  if (device.open(uri.empty() ? openni::ANY_DEVICE : uri.c_str()) != openni::STATUS_OK)
+    throw std::runtime_error(fmt::format("record_oni: cannot open OpenNI2 device '{}': {}; {}", uri,
+                                         openni::OpenNI::getExtendedError(), list_devices()));
+  openni::VideoStream stream;
+  if (stream.create(device, openni::SENSOR_DEPTH) != openni::STATUS_OK)
+    throw std::runtime_error(fmt::format("record_oni: device '{}' has no depth stream", uri));
+  openni::Recorder recorder;
+  if (recorder.create(path.c_str()) != openni::STATUS_OK ||
+      recorder.attach(stream, false) != openni::STATUS_OK)
+    throw std::runtime_error(fmt::format("record_oni: cannot record to '{}': {}", path.string(),
+                                         openni::OpenNI::getExtendedError()));
+  stream.start();
+  recorder.start();
+  int recorded = 0;
+  while (recorded < frames) {
+    openni::VideoStream* streams[] = {&stream};
+    int ready = -1;
+    if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, static_cast<int>(timeout.count())) !=
+        openni::STATUS_OK)
+      break;
+    openni::VideoFrameRef ref;
+    if (stream.readFrame(&ref) != openni::STATUS_OK) break;
+    ++recorded;
+  }
+  recorder.stop();
+  recorder.destroy();
+  stream.stop();
+  stream.destroy();
+  device.close();
+  return recorded;
+}
+
+}  // namespace telex::remote

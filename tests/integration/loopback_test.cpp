@@ -1,0 +1,226 @@
+// SPDX-License-Identifier: MIT
+// Both daemons as processes over loopback: scripted press and stroke against the synthetic plane,
+// the forces checked from telex-local's CSV log, and the operator view's PNG.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <map>
+#include <sstream>
+
+#include "process.h"
+#include "test_support.h"
+
+namespace telex::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct ForceRow {
+  double t = 0, pressure = 0, shear = 0, fx = 0, x = 0, y = 0, z = 0;
+  bool contact = false;
+  std::string finger;
+};
+
+std::vector<ForceRow> read_forces(const std::filesystem::path& csv) {
+  std::vector<ForceRow> rows;
+  std::istringstream in(read_text(csv));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line.rfind("time_s,finger,pressure_N,shear_N,contact", 0), 0u) << line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    if (f.size() < 13) continue;
+    ForceRow r;
+    r.t = std::stod(f[0]);
+    r.finger = f[1];
+    r.pressure = std::stod(f[2]);
+    r.shear = std::stod(f[3]);
+    r.contact = f[4] == "1";
+    r.fx = std::stod(f[5]);
+    r.x = std::stod(f[10]);
+    r.y = std::stod(f[11]);
+    r.z = std::stod(f[12]);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// One remote daemon on a free port, stopped (SIGINT) at the end of the test.
+struct Remote {
+  std::uint16_t port = free_port();
+  Process proc;
+  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
+      : proc(
+            [&] {
+              std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
+                                         "127.0.0.1:" + std::to_string(port)};
+              a.insert(a.end(), extra.begin(), extra.end());
+              return a;
+            }(),
+            dir / "remote.out", dir / "remote.err") {}
+  ~Remote() {
+    proc.signal(SIGINT);
+    proc.wait(5s);
+  }
+};
+
+std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::path& dir,
+                                    std::vector<std::string> extra) {
+  std::vector<std::string> a{built_binary("telex-local").string(),
+                             "--connect",
+                             "127.0.0.1:" + std::to_string(port),
+                             "--haptics",
+                             "sim",
+                             "--log-forces",
+                             (dir / "forces.csv").string(),
+                             "--json-summary",
+                             "--no-realtime"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+nlohmann::json summary_of(const Process& p) {
+  const std::string out = p.stdout_text();
+  const auto brace = out.rfind('{');
+  if (brace == std::string::npos) return {};
+  return nlohmann::json::parse(out.substr(brace), nullptr, false);
+}
+
+TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
+  const auto dir = scratch_dir("loopback_press");
+  Remote remote(dir, {"--source", "synthetic:plane"});
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:press", "--stiffness", "500", "--max-force", "10",
+                            "--duration", "7.5"}),
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(30s);
+  ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+  ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
+  const auto rows = read_forces(dir / "forces.csv");
+  ASSERT_GT(rows.size(), 5000u);
+  double peak = 0;
+  std::size_t first_contact = rows.size(), last_contact = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].finger != "index") continue;
+    peak = std::max(peak, rows[i].pressure);
+    if (rows[i].contact) {
+      first_contact = std::min(first_contact, i);
+      last_contact = i;
+    }
+  }
+  ASSERT_LT(first_contact, rows.size()) << "never touched the plane";
+  EXPECT_NEAR(peak, 5.0, 0.5) << "k 500 N/m x 10 mm";
+  for (std::size_t i = 0; i < first_contact; ++i) EXPECT_EQ(rows[i].pressure, 0.0) << rows[i].t;
+  // After release the force has rate-limited down to zero and stays there.
+  ASSERT_LT(last_contact + 200, rows.size()) << "the press did not release within the run";
+  for (std::size_t i = last_contact + 100; i < rows.size(); ++i)
+    EXPECT_EQ(rows[i].pressure, 0.0) << rows[i].t;
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.is_object()) << local.stdout_text();
+  EXPECT_GT(j["surfaces"].get<int>(), 100);
+}
+
+TEST(Loopback, StrokeShearOpposesSliding) {
+  const auto dir = scratch_dir("loopback_stroke");
+  Remote remote(dir, {"--source", "synthetic:plane", "--transport", "tcp"});
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:stroke", "--stiffness", "500", "--max-force", "10",
+                            "--transport", "tcp", "--duration", "9.5"}),
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(30s);
+  ASSERT_TRUE(rc.has_value());
+  ASSERT_EQ(*rc, 0) << local.stderr_text();
+  const auto rows = read_forces(dir / "forces.csv");
+  int opposing = 0, agreeing = 0, axis_opposing = 0;
+  for (std::size_t i = 10; i < rows.size(); ++i) {
+    const auto& r = rows[i];
+    const auto& p = rows[i - 10];
+    if (r.finger != "index" || p.finger != "index" || !r.contact) continue;
+    const double vx = (r.x - p.x) / (r.t - p.t);
+    if (std::abs(vx) < 0.03 || std::abs(r.fx) < 0.05) continue;  // sliding, with friction
+    (vx * r.fx < 0 ? opposing : agreeing)++;
+    // The finger axis has a +x component, so the along-axis shear has the sign of fx.
+    axis_opposing += (vx * r.shear < 0);
+  }
+  ASSERT_GT(opposing + agreeing, 500) << "too few sliding samples";
+  EXPECT_GT(opposing, 20 * agreeing) << opposing << " vs " << agreeing;
+  EXPECT_GT(axis_opposing, (opposing + agreeing) * 9 / 10);
+}
+
+TEST(Loopback, ViewPngShowsHandAndForceArrow) {
+  const auto dir = scratch_dir("loopback_view");
+  Remote remote(dir, {"--source", "synthetic:plane"});
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:press", "--stiffness", "500", "--duration", "4.6",
+                            "--view", "png:" + (dir / "view").string()}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
+  const cv::Mat img = cv::imread((dir / "view" / "view.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(img.empty());
+  // The fingertip is drawn in the contact colour at the image centre and the force arrow in its own
+  // colour (operator_view.cpp); neither colour occurs in the background.
+  const cv::Vec3b contact(40, 40, 255), arrow(0, 200, 255);
+  int contact_px = 0, arrow_px = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const auto c = img.at<cv::Vec3b>(y, x);
+      contact_px += (c == contact);
+      arrow_px += (c == arrow);
+    }
+  EXPECT_GT(contact_px, 30);
+  EXPECT_GT(arrow_px, 30);
+  EXPECT_EQ(img.at<cv::Vec3b>(img.rows / 2, img.cols / 2), contact);
+}
+
+}  // namespace
+}  // namespace telex::test
+
+namespace telex::test {
+namespace {
+
+TEST(Loopback, NatNetSimulatorDrivesTheFingertips) {
+  const auto dir = scratch_dir("loopback_natnet");
+  Remote remote(dir, {"--source", "synthetic:plane"});
+  const std::uint16_t cmd_port = free_port();
+  Process sim({built_binary("telex-sim-natnet").string(), "--command-port",
+               std::to_string(cmd_port), "--duration", "20", "--natnet-version", "4.1"},
+              dir / "sim.out", dir / "sim.err");
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "natnet:127.0.0.1,unicast", "--natnet-cmd-port",
+                            std::to_string(cmd_port), "--log-tracking",
+                            (dir / "tracking.csv").string(), "--duration", "4"}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
+  sim.signal(SIGINT);
+  // Every rigid body as reported: head 1, hand 2, shoulder 3, tracked.
+  std::istringstream in(read_text(dir / "tracking.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid");
+  std::map<int, int> valid_rows;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    ASSERT_EQ(f.size(), 10u) << line;
+    if (f[9] == "1") valid_rows[std::stoi(f[1])]++;
+  }
+  for (int id : {1, 2, 3}) EXPECT_GT(valid_rows[id], 100) << "body " << id;
+  // The index fingertip follows the simulated hand: it moves in depth by several centimetres.
+  const auto rows = read_forces(dir / "forces.csv");
+  double zmin = 1e9, zmax = -1e9;
+  for (const auto& r : rows)
+    if (r.finger == "index") {
+      zmin = std::min(zmin, r.z);
+      zmax = std::max(zmax, r.z);
+    }
+  EXPECT_GT(zmax - zmin, 0.05);
+}
+
+}  // namespace
+}  // namespace telex::test

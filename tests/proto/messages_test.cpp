@@ -1,0 +1,198 @@
+// SPDX-License-Identifier: MIT
+// Message encoding: exact byte layout, round trips of every type, and every rejection reason.
+#include "telex/proto/messages.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "proto_samples.h"
+#include "telex/proto/crc32c.h"
+
+namespace telex::proto {
+namespace {
+
+void put_u32(std::vector<std::uint8_t>& b, std::size_t off, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) b[off + i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
+// Recomputes the CRC after a deliberate edit, so a test reaches the check behind it.
+void reseal(std::vector<std::uint8_t>& b) {
+  put_u32(b, 32, 0);
+  put_u32(b, 32, crc32c(b));
+}
+
+TEST(Messages, HeaderLayoutIsLittleEndianFieldByField) {
+  const auto bytes = encode(test::sample_header(), Bye{0x0A0B});
+  ASSERT_EQ(bytes.size(), kHeaderSize + 2);
+  const std::uint8_t expect[] = {'T',
+                                 'L',
+                                 'X',
+                                 '1',                                      // magic
+                                 1,                                        // version
+                                 static_cast<std::uint8_t>(MsgType::Bye),  // type
+                                 0x01,
+                                 0x00,  // flags
+                                 0x04,
+                                 0x03,
+                                 0x02,
+                                 0x01,  // session
+                                 9,
+                                 0,
+                                 0,
+                                 0,  // seq
+                                 77,
+                                 0,
+                                 0,
+                                 0,  // frame id
+                                 21,
+                                 205,
+                                 133,
+                                 61,
+                                 254,
+                                 156,
+                                 151,
+                                 23,  // capture ns
+                                 2,
+                                 0,
+                                 0,
+                                 0};  // payload len
+  ASSERT_EQ(std::memcmp(bytes.data(), expect, sizeof expect), 0);
+  EXPECT_EQ(bytes[36], 0x0B);
+  EXPECT_EQ(bytes[37], 0x0A);
+  std::vector<std::uint8_t> zeroed = bytes;
+  put_u32(zeroed, 32, 0);
+  const std::uint32_t crc = crc32c(zeroed);
+  EXPECT_EQ(
+      bytes[32] | bytes[33] << 8 | bytes[34] << 16 | static_cast<std::uint32_t>(bytes[35]) << 24,
+      crc);
+}
+
+TEST(Messages, EveryTypeRoundTrips) {
+  for (const Message& m : test::sample_messages()) {
+    const Header h = test::sample_header();
+    const auto bytes = encode(h, m);
+    const Result r = decode(bytes);
+    ASSERT_TRUE(r.ok()) << msg_type_name(type_of(m)) << ": " << error_reason_name(r.error) << " "
+                        << r.detail;
+    EXPECT_EQ(r.envelope->message, m) << msg_type_name(type_of(m));
+    EXPECT_EQ(r.envelope->header.type, type_of(m));
+    EXPECT_EQ(r.envelope->header.seq, h.seq);
+    EXPECT_EQ(r.envelope->header.capture_ns, h.capture_ns);
+    EXPECT_EQ(r.envelope->header.payload_len, bytes.size() - kHeaderSize);
+  }
+}
+
+TEST(Messages, StreamFramingPrefixesTheLength) {
+  const auto s = encode_stream(test::sample_header(), Heartbeat{1, 2, 3, 4});
+  const auto m = encode(test::sample_header(), Heartbeat{1, 2, 3, 4});
+  ASSERT_EQ(s.size(), m.size() + 4);
+  EXPECT_EQ(s[0] | s[1] << 8 | s[2] << 16 | s[3] << 24, static_cast<int>(m.size()));
+  EXPECT_TRUE(std::equal(m.begin(), m.end(), s.begin() + 4));
+}
+
+TEST(Messages, EncodeRefusesOversizedFields) {
+  Reject r{RejectReason::Busy, std::string(kMaxText + 1, 'x')};
+  EXPECT_THROW(encode({}, r), std::invalid_argument);
+  RoiRequest roi;
+  roi.rects.resize(kMaxRoiRects + 1, RoiRect{0, 0, 1, 1, 0});
+  EXPECT_THROW(encode({}, roi), std::invalid_argument);
+}
+
+Result decode_bytes(const std::vector<std::uint8_t>& b, DecodeLimits lim = {}) {
+  return decode(b, lim);
+}
+
+TEST(Messages, RejectsTruncated) {
+  auto b = encode(test::sample_header(), Heartbeat{1, 2, 3, 4});
+  b.resize(20);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::Truncated);
+  b = encode(test::sample_header(), Heartbeat{1, 2, 3, 4});
+  b.pop_back();
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::Truncated);
+}
+
+TEST(Messages, RejectsBadMagic) {
+  auto b = encode(test::sample_header(), Bye{});
+  b[0] = 'X';
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadMagic);
+}
+
+TEST(Messages, RejectsBadVersion) {
+  auto b = encode(test::sample_header(), Bye{});
+  b[4] = 2;
+  reseal(b);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadVersion);
+}
+
+TEST(Messages, RejectsBadLength) {
+  auto b = encode(test::sample_header(), VideoFrame{0, 2, 2, std::vector<std::uint8_t>(100, 7)});
+  EXPECT_EQ(decode_bytes(b, {.max_message_bytes = 64}).error, ErrorReason::BadLength);
+  b.push_back(0);  // a byte beyond payload_len
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadLength);
+}
+
+TEST(Messages, RejectsBadChecksum) {
+  auto b = encode(test::sample_header(), Heartbeat{1, 2, 3, 4});
+  b[40] ^= 0x10;
+  const Result r = decode_bytes(b);
+  EXPECT_EQ(r.error, ErrorReason::BadChecksum);
+  EXPECT_STRNE(r.detail, "");
+}
+
+TEST(Messages, RejectsUnknownType) {
+  auto b = encode(test::sample_header(), Bye{});
+  b[5] = kMsgTypeCount;
+  reseal(b);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::UnknownType);
+}
+
+TEST(Messages, RejectsBadTileGeometry) {
+  EXPECT_EQ(decode_bytes(encode({}, DepthTile{0, 0, 0, 0, 60, Codec::Zip, {1}})).error,
+            ErrorReason::BadTileGeometry);
+  DecodeLimits lim;
+  lim.frame_width = 640;
+  lim.frame_height = 480;
+  EXPECT_EQ(decode_bytes(encode({}, DepthTile{0, 600, 0, 80, 60, Codec::Zip, {1}}), lim).error,
+            ErrorReason::BadTileGeometry);
+  EXPECT_TRUE(decode_bytes(encode({}, DepthTile{0, 560, 420, 80, 60, Codec::Zip, {1}}), lim).ok());
+  StreamConfig sc;
+  sc.grid_cols = 9;  // 640 / 80 is 8
+  EXPECT_EQ(decode_bytes(encode({}, sc)).error, ErrorReason::BadTileGeometry);
+  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {64}})).error,
+            ErrorReason::BadTileGeometry);
+}
+
+TEST(Messages, RejectsDecompressionBomb) {
+  // 4096 x 4096 pixels claimed by a few payload bytes.
+  EXPECT_EQ(decode_bytes(encode({}, DepthTile{0, 0, 0, 4096, 4096, Codec::Zip, {1, 2}})).error,
+            ErrorReason::DecompressionBomb);
+  // Raw payload must be exactly w*h*2 bytes.
+  EXPECT_EQ(decode_bytes(encode({}, DepthTile{0, 0, 0, 2, 2, Codec::Raw, {1, 2}})).error,
+            ErrorReason::DecompressionBomb);
+}
+
+TEST(Messages, RejectsBadPayload) {
+  auto b = encode({}, Accept{1, Codec::Zip, Transport::Tcp, 0});
+  b[kHeaderSize + 4] = 9;  // codec
+  reseal(b);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadPayload);
+  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {5, 5}})).error,
+            ErrorReason::BadPayload);
+  EXPECT_EQ(decode_bytes(encode({}, Stats{{{"has space", 1}}})).error, ErrorReason::BadPayload);
+  // A trailing byte inside payload_len that no field claims.
+  b = encode({}, Bye{1});
+  b.push_back(0);
+  put_u32(b, 28, 3);
+  reseal(b);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadPayload);
+  // A short payload whose header length is consistent: the field reader runs out.
+  b = encode({}, Heartbeat{});
+  b.resize(kHeaderSize + 8);
+  put_u32(b, 28, 8);
+  reseal(b);
+  EXPECT_EQ(decode_bytes(b).error, ErrorReason::Truncated);
+}
+
+}  // namespace
+}  // namespace telex::proto

@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: MIT
+// One valid sample of every message type, shared by the proto tests.
+#pragma once
+
+#include <vector>
+
+#include "telex/proto/messages.h"
+
+namespace telex::proto::test {
+
+inline std::vector<Message> sample_messages() {
+  std::vector<Message> m;
+  m.push_back(Hello{1, kCapDepthTcp | kCapVideo, {Codec::Zip, Codec::Fast, Codec::Raw}, 40000});
+  m.push_back(Accept{0xDEADBEEF, Codec::Fast, Transport::Udp, 40001});
+  m.push_back(Reject{RejectReason::NoCommonCodec, "no common codec: offered raw only"});
+  m.push_back(Heartbeat{1, 2, 3, 0xFFFFFFFFFFFFFFFFull});
+  m.push_back(Bye{7});
+  StreamConfig sc;
+  sc.registration.t_eye_depth_m = {0.025, 0.0, -0.01};
+  sc.registration.scale_x = 1.05;
+  sc.fps = 29.97f;
+  m.push_back(sc);
+  m.push_back(DepthTile{5, 400, 0, 80, 60, Codec::Zip, {1, 2, 3, 4, 5, 6, 7}});
+  m.push_back(FrameManifest{42, 64, false, {0, 3, 63}});
+  m.push_back(VideoFrame{1, 640, 480, {0xFF, 0xD8, 0xFF, 0xD9}});
+  m.push_back(RoiRequest{{{10, 20, 80, 60, 3}, {0, 0, 640, 480, 0}}});
+  m.push_back(Stats{{{"tiles_sent", 123456789}, {"drops.crc", 0}}});
+  return m;
+}
+
+inline Header sample_header(std::uint32_t seq = 9) {
+  Header h;
+  h.flags = kFlagKeyFrame;
+  h.session_id = 0x01020304;
+  h.seq = seq;
+  h.frame_id = 77;
+  h.capture_ns = 1'700'000'000'123'456'789ull;
+  return h;
+}
+
+}  // namespace telex::proto::test

@@ -1,0 +1,149 @@
+// SPDX-License-Identifier: MIT
+// Hardware-free sources: the real desk frames through `files:`, synthetic depth and stereo views.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "telex/common/depth_io.h"
+#include "telex/common/synthetic.h"
+#include "telex/remote/sources.h"
+#include "telex/remote/synthetic_view.h"
+#include "test_support.h"
+
+namespace telex::remote {
+namespace {
+
+using namespace std::chrono_literals;
+
+TEST(FilesSource, DeliversTheRealDeskFramesInOrderThenEnds) {
+  TELEX_REQUIRE_REAL_DATA();
+  const auto dir = test::real_data_dir() / "desk";
+  auto source =
+      make_depth_source("files:" + (dir / "desk_*_depth_mm.png").string() + ",units=mm,fps=200");
+  source->start();
+  EXPECT_EQ(source->frame_count(), 3);
+  for (int i = 0; i < 3; ++i) {
+    auto r = source->read(1000ms);
+    ASSERT_EQ(r.status, ReadStatus::Frame) << r.error;
+    const auto truth = cv::imread((dir / ("desk_" + std::to_string(i) + "_depth_mm.png")).string(),
+                                  cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(truth.type(), CV_16UC1);
+    EXPECT_EQ(cv::norm(r.frame.image.depth_mm, truth, cv::NORM_INF), 0.0) << "frame " << i;
+    EXPECT_EQ(r.frame.frame_id, static_cast<std::uint64_t>(i + 1));
+  }
+  EXPECT_EQ(source->read(100ms).status, ReadStatus::EndOfStream);
+}
+
+TEST(FilesSource, LoopsAndNamesBadPatternsAndUnits) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("telex_files_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  cv::Mat1w a(4, 6, std::uint16_t(1000)), b(4, 6, std::uint16_t(2000));
+  save_depth_png(dir / "f0.png", a);
+  save_depth_png(dir / "f1.png", b);
+  auto source = make_depth_source("files:" + (dir / "f*.png").string() + ",loop,fps=500");
+  source->start();
+  std::vector<std::uint16_t> seen;
+  for (int i = 0; i < 5; ++i) {
+    auto r = source->read(500ms);
+    ASSERT_EQ(r.status, ReadStatus::Frame) << r.error;
+    seen.push_back(r.frame.image.depth_mm(0, 0));
+  }
+  EXPECT_EQ(seen, (std::vector<std::uint16_t>{1000, 2000, 1000, 2000, 1000}));
+
+  auto none = make_depth_source("files:" + (dir / "nothing*.png").string());
+  try {
+    none->start();
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("nothing*.png"), std::string::npos);
+  }
+  EXPECT_THROW(make_depth_source("files:x*.png,units=inches"), std::invalid_argument);
+  EXPECT_THROW(make_depth_source("files:x*.png,fps=-3"), std::invalid_argument);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SyntheticSource, PlaneSceneMatchesGroundTruthWithinSensorNoise) {
+  SourceOptions opt;
+  opt.synthetic_fps = 500;
+  auto source = make_depth_source("synthetic:plane", opt);
+  source->start();
+  const auto r = source->read(1000ms);
+  ASSERT_EQ(r.status, ReadStatus::Frame);
+  // The "plane" wall stands at 0.8 m facing the camera: sigma_z there is about 1.5 mm plus ~2 mm
+  // quantisation, so the median valid depth is within a few mm of 800.
+  cv::Mat1w d = r.frame.image.depth_mm;
+  std::vector<std::uint16_t> valid;
+  for (auto v : d)
+    if (v) valid.push_back(v);
+  ASSERT_GT(valid.size(), d.total() * 9 / 10);
+  std::nth_element(valid.begin(), valid.begin() + valid.size() / 2, valid.end());
+  EXPECT_NEAR(valid[valid.size() / 2], 800, 4);
+  // Noise varies per frame even on a static scene.
+  const auto r2 = source->read(1000ms);
+  ASSERT_EQ(r2.status, ReadStatus::Frame);
+  EXPECT_GT(cv::norm(r.frame.image.depth_mm, r2.frame.image.depth_mm, cv::NORM_L1), 0.0);
+  EXPECT_THROW(make_depth_source("synthetic:nowhere"), std::invalid_argument);
+  EXPECT_THROW(make_depth_source("synthetic:plane,noise=maybe"), std::invalid_argument);
+}
+
+TEST(SyntheticSource, MovingSceneAnimatesAndNoiseOffIsDeterministic) {
+  SourceOptions opt;
+  opt.synthetic_fps = 500;
+  opt.width = 160;
+  opt.height = 120;
+  auto a = make_depth_source("synthetic:moving,noise=off", opt);
+  auto b = make_depth_source("synthetic:moving,noise=off", opt);
+  a->start();
+  b->start();
+  const auto a0 = a->read(1000ms), a1 = a->read(1000ms);
+  const auto b0 = b->read(1000ms);
+  ASSERT_EQ(a0.status, ReadStatus::Frame);
+  ASSERT_EQ(a1.status, ReadStatus::Frame);
+  EXPECT_EQ(cv::norm(a0.frame.image.depth_mm, b0.frame.image.depth_mm, cv::NORM_INF), 0.0);
+  EXPECT_GT(a1.frame.scene_time_s, a0.frame.scene_time_s);
+  EXPECT_GT(cv::norm(a0.frame.image.depth_mm, a1.frame.image.depth_mm, cv::NORM_L1),
+            0.0);  // the sphere moved
+}
+
+TEST(SyntheticStereo, EyesSeeTheSceneFromTheirOwnPositions) {
+  SourceOptions opt;
+  opt.synthetic_fps = 500;
+  opt.width = 160;
+  opt.height = 120;
+  auto source = make_stereo_source("synthetic:sphere", opt);
+  source->start();
+  const auto r = source->read(1000ms);
+  ASSERT_EQ(r.status, ReadStatus::Frame);
+  ASSERT_EQ(r.frame.left_bgr.size(), cv::Size(160, 120));
+  // Right eye = depth camera: its shading is lit wherever the ground truth has a surface.
+  const auto truth = synth::render(synth::Scene::named("sphere"), kinect_v1_intrinsics(160, 120),
+                                   synth::SensorModel::ideal());
+  EXPECT_EQ(cv::norm(r.frame.right_bgr, shade_render(truth), cv::NORM_INF), 0.0);
+  // The left eye sits 65 mm to the left, so the near sphere shifts right by f*b/z ~ 13 px at 0.55
+  // m.
+  EXPECT_GT(cv::norm(r.frame.left_bgr, r.frame.right_bgr, cv::NORM_L1), 0.0);
+  cv::Mat gl, gr;
+  cv::extractChannel(r.frame.left_bgr, gl, 1);
+  cv::extractChannel(r.frame.right_bgr, gr, 1);
+  const cv::Moments ml = cv::moments(gl > 100, true), mr = cv::moments(gr > 100, true);
+  ASSERT_GT(ml.m00, 0);
+  ASSERT_GT(mr.m00, 0);
+  EXPECT_GT(ml.m10 / ml.m00, mr.m10 / mr.m00);
+}
+
+TEST(FilesStereo, MissingImagesAreNamed) {
+  EXPECT_THROW(make_stereo_source("files:/only/left*.png"), std::invalid_argument);
+  auto s = make_stereo_source("files:/nope/l*.png,/nope/r*.png");
+  try {
+    s->start();
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nope/l*.png"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace telex::remote

@@ -1,0 +1,49 @@
+// SPDX-License-Identifier: MIT
+// Child processes for integration tests: spawn built daemons, signal them, wait with a bound.
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace telex::test {
+
+class Process {
+ public:
+  // Starts argv[0] (a path) with stdout and stderr redirected to files. Throws on failure.
+  Process(const std::vector<std::string>& argv, const std::filesystem::path& stdout_path,
+          const std::filesystem::path& stderr_path);
+  ~Process();  // SIGKILLs and reaps a child still running
+  Process(Process&& other) noexcept;
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool running();
+  void signal(int sig);
+  // Exit code (128 + signal when killed by one), or nothing when it is still running after timeout.
+  std::optional<int> wait(std::chrono::milliseconds timeout);
+  std::string stdout_text() const;
+  std::string stderr_text() const;
+
+ private:
+  pid_t pid_ = -1;
+  std::optional<int> status_;
+  std::filesystem::path out_, err_;
+};
+
+// A fresh empty directory under the build tree for one test's files.
+std::filesystem::path scratch_dir(const std::string& name);
+// A port nobody listens on right now (bound once with port 0, then released).
+std::uint16_t free_port();
+std::string read_text(const std::filesystem::path& p);
+// Polls `pred` every 20 ms until it holds or the timeout passes.
+bool eventually(std::chrono::milliseconds timeout, const std::function<bool()>& pred);
+
+}  // namespace telex::test

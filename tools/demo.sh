@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Quick-start command 1: install what is missing, build, then run both nodes on loopback with the
+# built-in synthetic scene and a scripted hand, printing fingertip forces live. Ctrl-C stops both.
+# Extra arguments go to telex-local (e.g. --hand script:stroke, --view png:out/view).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$root/tools/build.sh"
+bin="${TELEX_BUILD_DIR:-$root/build}/tools"
+duration="${TELEX_DEMO_SECONDS:-20}"
+port="${TELEX_DEMO_PORT:-7300}"
+
+"$bin/telex-remote" --listen "127.0.0.1:$port" --source synthetic:plane --duration $((duration + 5)) \
+  --stats-every 0 &
+remote=$!
+trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
+
+"$bin/telex-local" --connect "127.0.0.1:$port" --hand script:press --repeat --duration "$duration" \
+  --haptics sim --print-forces 10 "$@"

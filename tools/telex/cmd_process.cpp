@@ -1,0 +1,171 @@
+// SPDX-License-Identifier: MIT
+// `telex process`: one depth frame through hole fill, bilateral and normals; images and JSON out.
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "command.h"
+#include "telex/common/bilateral.h"
+#include "telex/common/colorize.h"
+#include "telex/common/depth_io.h"
+#include "telex/common/hole_fill.h"
+#include "telex/common/normals.h"
+#include "telex/common/registration.h"
+
+namespace telex::tool {
+namespace {
+
+struct ProcessArgs {
+  std::string in;
+  std::string units = "mm";
+  std::string out_dir;
+  bool json = false;
+  double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;  // Kinect v1 at 640x480
+  HoleFillOptions fill;
+  BilateralOptions bilateral;
+  NormalOptions normals;
+  // Registration to the right-eye image (same size and intrinsics as the depth): shift+scale.
+  double register_shift_px = 0.0;
+  double register_scale = 1.0;
+  bool register_depth = false;
+};
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void write_png(const std::filesystem::path& file, const cv::Mat& image) {
+  if (!cv::imwrite(file.string(), image)) throw std::runtime_error("cannot write " + file.string());
+}
+
+int run_process(const ProcessArgs& a) {
+  using clock = std::chrono::steady_clock;
+  nlohmann::json j;
+  j["input"] = a.in;
+  j["units"] = a.units;
+
+  auto t0 = clock::now();
+  const Intrinsics intr{a.fx, a.fy, a.cx, a.cy, 640, 480};
+  DepthImage depth = load_depth(a.in, parse_depth_units(a.units), intr);
+  j["load_ms"] = ms_since(t0);
+  if (a.register_depth) {
+    if (!(a.register_scale > 0.0))
+      throw std::invalid_argument("--register-scale must be > 0, got " +
+                                  std::to_string(a.register_scale));
+    ShiftScale params;
+    params.shift_x_px = a.register_shift_px;
+    params.scale_x = params.scale_y = a.register_scale;
+    t0 = clock::now();
+    depth = register_shift_scale(depth, params, depth.intrinsics);
+    j["register_ms"] = ms_since(t0);
+    j["register_shift_px"] = a.register_shift_px;
+    j["register_scale"] = a.register_scale;
+  }
+  j["width"] = depth.width();
+  j["height"] = depth.height();
+
+  t0 = clock::now();
+  const HoleFillResult filled = fill_holes_mode(depth.depth_mm, a.fill);
+  j["fill_ms"] = ms_since(t0);
+  j["holes_in"] = filled.holes_in;
+  j["holes_out"] = filled.holes_out;
+  j["fill_passes"] = filled.passes_run;
+
+  t0 = clock::now();
+  cv::Mat1f smooth_m;
+  bilateral_filter_depth(filled.depth_mm, smooth_m, a.bilateral);
+  j["bilateral_ms"] = ms_since(t0);
+
+  t0 = clock::now();
+  cv::Mat3f normals;
+  compute_normals(smooth_m, depth.intrinsics, normals, a.normals);
+  j["normals_ms"] = ms_since(t0);
+  std::size_t valid = 0;
+  for (int y = 0; y < normals.rows; ++y)
+    for (int x = 0; x < normals.cols; ++x) valid += normals(y, x) != cv::Vec3f(0, 0, 0);
+  j["valid_normals"] = valid;
+
+  if (!a.out_dir.empty()) {
+    const std::filesystem::path dir(a.out_dir);
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec)
+      throw std::runtime_error("cannot create output directory " + dir.string() + ": " +
+                               ec.message());
+    const std::string stem = std::filesystem::path(a.in).stem().string();
+    const auto filled_png = dir / (stem + "_filled_mm.png");
+    const auto normals_png = dir / (stem + "_normals.png");
+    const auto colour_png = dir / (stem + "_depth_colour.png");
+    save_depth_png(filled_png, filled.depth_mm);
+    cv::Mat3b bgr;
+    cv::cvtColor(normals_to_rgb(normals), bgr, cv::COLOR_RGB2BGR);
+    write_png(normals_png, bgr);
+    write_png(colour_png, colorize_depth(filled.depth_mm));
+    j["outputs"] = {{"filled_depth_mm", filled_png.string()},
+                    {"normals_rgb", normals_png.string()},
+                    {"depth_colour", colour_png.string()}};
+  }
+
+  if (a.json) {
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << a.in << ": " << depth.width() << "x" << depth.height() << ", holes "
+              << filled.holes_in << " -> " << filled.holes_out << " in " << filled.passes_run
+              << " passes; fill " << j["fill_ms"].get<double>() << " ms, bilateral "
+              << j["bilateral_ms"].get<double>() << " ms, normals " << j["normals_ms"].get<double>()
+              << " ms\n";
+  }
+  return 0;
+}
+
+const RegisterCommand kRegister{
+    "process", "Fill holes, smooth and compute normals of one depth frame", [](CLI::App& app) {
+      auto a = std::make_shared<ProcessArgs>();
+      app.add_option("--in", a->in, "Depth file (16-bit PNG, or 16-bit PGM for kinect-disparity)")
+          ->required();  // a missing file is bad input (exit 1 from load_depth), not a bad flag
+      app.add_option("--units", a->units, "Stored units: mm | tum | kinect-disparity")
+          ->check(CLI::IsMember({"mm", "tum", "kinect-disparity"}))
+          ->capture_default_str();
+      app.add_option("--out", a->out_dir,
+                     "Directory for the filled depth, normals and colour PNGs");
+      app.add_flag("--json", a->json, "Print one JSON object with sizes, hole counts and timings");
+      app.add_option("--fx", a->fx, "Focal length x (px) at 640x480")->capture_default_str();
+      app.add_option("--fy", a->fy, "Focal length y (px) at 640x480")->capture_default_str();
+      app.add_option("--cx", a->cx, "Principal point x (px) at 640x480")->capture_default_str();
+      app.add_option("--cy", a->cy, "Principal point y (px) at 640x480")->capture_default_str();
+      app.add_option("--register-shift", a->register_shift_px,
+                     "Register to the right eye: horizontal shift (px) after scaling")
+          ->each([a](const std::string&) { a->register_depth = true; });
+      app.add_option("--register-scale", a->register_scale,
+                     "Register to the right eye: field-of-view scale about the principal point")
+          ->each([a](const std::string&) { a->register_depth = true; });
+      app.add_option("--fill-window", a->fill.window_px, "Hole-fill window side (odd)")
+          ->capture_default_str();
+      app.add_option("--fill-bin-mm", a->fill.bin_mm, "Hole-fill depth bin (mm)")
+          ->capture_default_str();
+      app.add_option("--fill-passes", a->fill.max_passes, "Hole-fill passes")
+          ->capture_default_str();
+      app.add_option("--bilateral-radius", a->bilateral.radius_px, "Bilateral window radius (px)")
+          ->capture_default_str();
+      app.add_option("--sigma-space", a->bilateral.sigma_space_px, "Bilateral spatial sigma (px)")
+          ->capture_default_str();
+      app.add_option("--sigma-depth-mm", a->bilateral.sigma_depth_mm, "Bilateral depth sigma (mm)")
+          ->capture_default_str();
+      app.add_flag("--noise-sigma", a->bilateral.sigma_from_noise_model,
+                   "Depth sigma per pixel from the Nguyen noise model (x --noise-factor)");
+      app.add_option("--noise-factor", a->bilateral.noise_sigma_factor,
+                     "Multiplier of the noise sigma")
+          ->capture_default_str();
+      app.add_option("--normal-smooth", a->normals.smooth_radius_px,
+                     "Half-width of the derivative box (0 = central differences)")
+          ->capture_default_str();
+      return [a] { return run_process(*a); };
+    }};
+
+}  // namespace
+}  // namespace telex::tool
