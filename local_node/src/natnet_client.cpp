@@ -37,7 +37,7 @@ struct NatNetClient::Impl {
   std::array<std::uint8_t, natnet::kMaxPacketBytes> cmd_buf{};
   std::array<std::uint8_t, natnet::kMaxPacketBytes> data_buf{};
   udp::endpoint cmd_from, data_from;
-  natnet::Frame frame;  // reused: parsing stops allocating once capacities settle
+  natnet::Frame frame;  // reused, so the top-level arrays stop reallocating
 
   std::atomic<int> version_major{0}, version_minor{0};
   mutable std::mutex info_mu;  // server info and last error; never touched by the haptic thread

@@ -90,7 +90,7 @@ struct Frame {
   std::uint32_t precision_s = 0, precision_frac = 0;                                  // 4.0+
   std::int16_t params = 0;  // bit 0 recording, bit 1 tracked models changed
 
-  void clear();  // keeps capacity so a reused Frame stops allocating
+  void clear();  // keeps the top-level arrays' capacity for a reused Frame
   const RigidBody* find_body(std::int32_t id) const;
 };
 

@@ -100,7 +100,8 @@ class HandTracker {
 
 // Spec grammar (docs/HARDWARE.md):
 //   script:press | script:stroke | script:tap | script:FILE
-//   natnet:SERVER_IP[,multicast|,unicast][,local=IP]      (glove from config.glove_spec)
+//   natnet:SERVER_IP[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT][,version=X.Y]
+//                                                          (glove from config.glove_spec)
 //   5dt-usb[:HIDPATH] | 5dt-serial:DEV                     (glove alone, wrist fixed)
 // Throws std::invalid_argument naming the spec and the valid forms; std::runtime_error when a
 // device cannot be opened (the message names it and says what to try).
