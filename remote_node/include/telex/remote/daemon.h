@@ -1,0 +1,97 @@
+// SPDX-License-Identifier: MIT
+// The remote daemon: capture threads, the processing thread, the server, and the stats line.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "telex/remote/latest_slot.h"
+#include "telex/remote/pipeline.h"
+#include "telex/remote/server.h"
+#include "telex/remote/sources.h"
+
+namespace telex::remote {
+
+struct DaemonConfig {
+  std::string depth_source = "synthetic";  // see make_depth_source
+  std::string stereo_source;               // empty: no video
+  SourceOptions source_options;
+  PipelineConfig pipeline;
+  ServerConfig server;
+  int jpeg_quality = 80;  // 1..100
+  int video_width = 0;    // 0: the stereo source's size
+  int video_height = 0;
+  double duration_s = 0.0;  // 0: until SIGINT/SIGTERM
+  bool stats_line = true;   // one line a second on stderr
+};
+
+// Throws std::invalid_argument naming the first bad value.
+void validate(const DaemonConfig& config);
+
+struct DaemonStats {
+  std::uint64_t frames_in = 0;            // captured
+  std::uint64_t frames_slot_dropped = 0;  // replaced in the slot before processing
+  std::uint64_t frames_processed = 0;
+  std::uint64_t frames_sent = 0;
+  std::uint64_t frames_queue_dropped = 0;
+  std::uint64_t tiles_sent = 0;
+  std::uint64_t tiles_skipped = 0;
+  std::uint64_t bytes_sent = 0;
+  std::uint64_t source_errors = 0;
+  std::uint64_t video_frames = 0;
+  std::uint64_t malformed_in = 0;
+  std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
+  StageTimes stage_ms_sum;  // summed over frames_processed
+  ClientState client = ClientState::Waiting;
+  bool source_ended = false;
+};
+
+// "frames in/out", mean ms per stage, bytes/s, tiles skipped and client state between two
+// snapshots.
+std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds);
+
+class RemoteDaemon {
+ public:
+  explicit RemoteDaemon(DaemonConfig config);  // validates and creates the sources (throws)
+  ~RemoteDaemon();
+  RemoteDaemon(const RemoteDaemon&) = delete;
+  RemoteDaemon& operator=(const RemoteDaemon&) = delete;
+
+  void start();  // opens the devices, binds, starts the threads (throws naming what failed)
+  void stop();
+  std::uint16_t port() const;
+  DaemonStats stats() const;
+  const DepthSource& depth_source() const { return *depth_; }
+  // Called on the processing thread with every processed frame, before it is published.
+  void set_frame_observer(std::function<void(const ProcessedFrame&)> observer);
+
+  // Runs until SIGINT/SIGTERM, the configured duration, or the end of a non-looping recording,
+  // printing the stats line every second. Returns the process exit code.
+  int run();
+
+ private:
+  void capture_loop();
+  void stereo_loop();
+  void process_loop();
+  void video_loop();
+
+  DaemonConfig config_;
+  std::unique_ptr<DepthSource> depth_;
+  std::unique_ptr<StereoSource> stereo_;
+  std::unique_ptr<RemoteServer> server_;
+  FramePipeline pipeline_;
+  LatestSlot<DepthFrame> depth_slot_;
+  LatestSlot<StereoFrame> stereo_slot_;
+  std::atomic<bool> running_{false};
+  std::atomic<bool> source_ended_{false};
+  std::thread capture_thread_, stereo_thread_, process_thread_, video_thread_;
+  std::function<void(const ProcessedFrame&)> observer_;
+  mutable std::mutex stats_mu_;
+  DaemonStats stats_;
+};
+
+}  // namespace telex::remote

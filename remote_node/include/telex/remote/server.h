@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: MIT
+// The remote node's network side: TCP control (one operator at a time), depth and video over UDP or
+// TCP.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "telex/proto/messages.h"
+#include "telex/remote/pipeline.h"
+
+namespace telex::remote {
+
+struct ServerConfig {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7300;  // 0 = any free port (tests)
+  bool force_tcp = false;  // depth and video on the TCP connection even when the client offers UDP
+  std::chrono::milliseconds client_timeout{3000};  // a silent operator is dropped after this
+  std::size_t max_queued_frames = 3;       // frames waiting to go out; older ones are dropped
+  proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
+  bool video_available = false;            // a stereo source is configured
+  float fps = 30.0f;
+};
+
+// Monotonic counters, readable from any thread.
+struct ServerCounters {
+  std::atomic<std::uint64_t> clients_accepted{0};
+  std::atomic<std::uint64_t> clients_rejected{0};
+  std::atomic<std::uint64_t> client_timeouts{0};
+  std::atomic<std::uint64_t> frames_sent{0};
+  std::atomic<std::uint64_t> frames_dropped{0};  // dropped from a full send queue
+  std::atomic<std::uint64_t> messages_sent{0};
+  std::atomic<std::uint64_t> datagrams_sent{0};
+  std::atomic<std::uint64_t> bytes_sent{0};  // depth + video payload bytes on the wire (UDP or TCP)
+  std::atomic<std::uint64_t> malformed_in{0};  // messages from the client rejected by the parser
+  std::atomic<std::uint64_t> key_frame_requests{0};
+};
+
+enum class ClientState { Waiting, Connected };
+std::string_view client_state_name(ClientState state);
+
+// Owns an io_context and its thread. publish*() are called from the processing thread: they encode
+// on the caller's thread and hand finished buffers to the network thread.
+class RemoteServer {
+ public:
+  explicit RemoteServer(
+      ServerConfig config);  // binds now; throws std::runtime_error naming HOST:PORT
+  ~RemoteServer();
+  RemoteServer(const RemoteServer&) = delete;
+  RemoteServer& operator=(const RemoteServer&) = delete;
+
+  void start();
+  void stop();
+
+  std::uint16_t port() const;  // the bound TCP port
+  ClientState state() const;
+  bool video_wanted() const;  // the connected client asked for video
+  const ServerCounters& counters() const;
+
+  // The receiver's wishes for the next frame; clears a pending key-frame request.
+  FrameRequest take_request();
+  // Queues one processed frame (tiles + manifest) for the connected client; no-op without one.
+  void publish(const ProcessedFrame& frame);
+  // Queues JPEG views (eye 0 left, 1 right).
+  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
+                     const std::vector<std::uint8_t>& left_jpeg,
+                     const std::vector<std::uint8_t>& right_jpeg, int width, int height);
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace telex::remote

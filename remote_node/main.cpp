@@ -1,0 +1,202 @@
+// SPDX-License-Identifier: MIT
+// telex-remote: the robot-head daemon (depth source -> pipeline -> operator over TCP/UDP).
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "telex/remote/daemon.h"
+
+namespace {
+
+// --config accepts CLI11's ini/toml or a JSON object whose keys are the long option names
+// (nested objects become sections, as in ini).
+class JsonOrIniConfig : public CLI::ConfigINI {
+ public:
+  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
+    std::string text((std::istreambuf_iterator<char>(input)), std::istreambuf_iterator<char>());
+    const auto first = text.find_first_not_of(" \t\r\n");
+    if (first == std::string::npos || text[first] != '{') {
+      std::istringstream ini(text);
+      return CLI::ConfigINI::from_config(ini);
+    }
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+      throw CLI::ConversionError(fmt::format("--config: invalid JSON: {}", e.what()));
+    }
+    std::vector<CLI::ConfigItem> items;
+    add(j, {}, items);
+    return items;
+  }
+
+ private:
+  static void add(const nlohmann::json& j, std::vector<std::string> parents,
+                  std::vector<CLI::ConfigItem>& items) {
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (it->is_object()) {
+        auto p = parents;
+        p.push_back(it.key());
+        add(*it, p, items);
+        continue;
+      }
+      CLI::ConfigItem item;
+      item.parents = parents;
+      item.name = it.key();
+      const auto one = [](const nlohmann::json& v) {
+        return v.is_string() ? v.get<std::string>() : v.dump();
+      };
+      if (it->is_array())
+        for (const auto& v : *it) item.inputs.push_back(one(v));
+      else
+        item.inputs.push_back(one(*it));
+      items.push_back(std::move(item));
+    }
+  }
+};
+
+bool parse_size(const std::string& text, int& w, int& h) {
+  char x = 0;
+  std::istringstream in(text);
+  return static_cast<bool>(in >> w >> x >> h) && x == 'x' && in.peek() == EOF;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using telex::remote::DaemonConfig;
+  DaemonConfig cfg;
+  CLI::App app{
+      "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
+      "operator"};
+  app.config_formatter(std::make_shared<JsonOrIniConfig>());
+  app.set_config("--config", "",
+                 "Read options from FILE (JSON object or ini/toml, keys = long option names)");
+  app.option_defaults()->always_capture_default();
+
+  std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
+              size = "640x480", video_size = "0x0";
+  int client_timeout_ms = 3000;
+  bool no_fill = false, no_temporal = false, no_stats = false;
+  app.add_option("--source", cfg.depth_source,
+                 "Depth source: openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
+                 "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
+                 "synthetic[:SCENE][,animate][,noise=on|off]");
+  app.add_option("--stereo", cfg.stereo_source,
+                 "Stereo video source (empty = none): "
+                 "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg] | "
+                 "files:LEFT,RIGHT | synthetic[:SCENE]");
+  app.add_option("--listen", listen, "TCP control endpoint HOST:PORT");
+  app.add_option("--transport", transport,
+                 "Depth/video transport when the client offers UDP: udp | tcp")
+      ->check(CLI::IsMember({"udp", "tcp"}));
+  app.add_option("--codec", codec, "Preferred depth codec: raw | zip | fast")
+      ->check(CLI::IsMember({"raw", "zip", "fast"}));
+  app.add_option("--zip-level", cfg.pipeline.zip_level,
+                 "Deflate level of the zip codec (0 = Huffman only)")
+      ->check(CLI::Range(0, 9));
+  app.add_option("--tile", tile, "Tile size WxH in pixels");
+  app.add_option("--key-every", cfg.pipeline.key_frame_every, "Frames between key frames")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--background-every", cfg.pipeline.background_every,
+                 "While an ROI is requested, tiles outside it are considered every Nth frame")
+      ->check(CLI::Range(1, 1000));
+  app.add_option(
+         "--stabilise", cfg.pipeline.stabilise_k_sigma,
+         "Hold a pixel's last sent depth while within K sensor-noise sigmas (0 = off, bit-exact)")
+      ->check(CLI::Range(0.0, 100.0));
+  app.add_flag("--no-fill", no_fill, "Send holes as they are (no spatial or temporal fill)");
+  app.add_flag("--no-temporal", no_temporal, "Spatial fill only");
+  app.add_option("--fill-window", cfg.pipeline.hole_fill.window_px,
+                 "Odd window side of the mode fill (3..15)")
+      ->check(CLI::Range(3, 15));
+  app.add_option("--fill-bin", cfg.pipeline.hole_fill.bin_mm, "Depth bin of the mode fill in mm")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--fill-passes", cfg.pipeline.hole_fill.max_passes, "Passes of the mode fill")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--temporal-age", cfg.pipeline.temporal.max_age_frames,
+                 "Frames a remembered depth stays usable")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--fps", cfg.source_options.synthetic_fps, "Frame rate of synthetic sources");
+  app.add_option("--size", size, "Render size WxH of synthetic sources");
+  app.add_option("--seed", cfg.source_options.seed, "Noise seed of synthetic sources");
+  app.add_option("--jpeg-quality", cfg.jpeg_quality, "JPEG quality of the video (1..100)");
+  app.add_option("--video-size", video_size,
+                 "Video size WxH sent to the operator (0x0 = source size)");
+  app.add_option("--client-timeout-ms", client_timeout_ms, "Drop an operator silent for this long")
+      ->check(CLI::Range(100, 600000));
+  app.add_option("--max-queued-frames", cfg.server.max_queued_frames,
+                 "Frames queued per client before the oldest is dropped")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--duration", cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--no-stats", no_stats, "No stats line every second");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n(run with --help for the options)\n";
+    return 2;
+  }
+
+  try {
+    const auto colon = listen.rfind(':');
+    if (colon == std::string::npos || colon == 0)
+      throw std::invalid_argument(fmt::format("--listen '{}' is not HOST:PORT", listen));
+    cfg.server.host = listen.substr(0, colon);
+    const std::string port_text = listen.substr(colon + 1);
+    std::size_t used = 0;
+    const long port = port_text.empty() ? -1 : std::stol(port_text, &used);
+    if (used != port_text.size() || port < 0 || port > 65535)
+      throw std::invalid_argument(
+          fmt::format("--listen '{}': port '{}' is not 0..65535", listen, port_text));
+    cfg.server.port = static_cast<std::uint16_t>(port);
+    cfg.server.force_tcp = transport == "tcp";
+    cfg.server.client_timeout = std::chrono::milliseconds(client_timeout_ms);
+    cfg.pipeline.codec = *telex::proto::parse_codec(codec);
+    if (!parse_size(tile, cfg.pipeline.tile_width, cfg.pipeline.tile_height))
+      throw std::invalid_argument(fmt::format("--tile '{}' is not WxH", tile));
+    if (!parse_size(size, cfg.source_options.width, cfg.source_options.height) ||
+        cfg.source_options.width < 16 || cfg.source_options.height < 16 ||
+        cfg.source_options.width > 4096 || cfg.source_options.height > 4096)
+      throw std::invalid_argument(fmt::format("--size '{}' is not WxH within 16..4096", size));
+    if (!parse_size(video_size, cfg.video_width, cfg.video_height))
+      throw std::invalid_argument(fmt::format("--video-size '{}' is not WxH", video_size));
+    cfg.pipeline.fill = !no_fill;
+    cfg.pipeline.temporal_fill = !no_temporal;
+    if (cfg.pipeline.hole_fill.window_px % 2 == 0)
+      throw std::invalid_argument(
+          fmt::format("--fill-window {} must be odd", cfg.pipeline.hole_fill.window_px));
+    cfg.stats_line = !no_stats;
+    telex::remote::validate(cfg);
+  } catch (const std::exception& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n";
+    return 2;
+  }
+
+  std::unique_ptr<telex::remote::RemoteDaemon> daemon;
+  try {
+    daemon = std::make_unique<telex::remote::RemoteDaemon>(cfg);  // bad source specs are bad flags
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n";
+    return 2;
+  }
+  try {
+    daemon->start();
+  } catch (const std::exception& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n";
+    return 1;
+  }
+  spdlog::info("telex-remote: {} -> listening on {}:{} ({})", daemon->depth_source().describe(),
+               cfg.server.host, daemon->port(),
+               cfg.server.force_tcp ? "tcp" : "udp if the client offers it");
+  return daemon->run();
+}

@@ -1,0 +1,261 @@
+// SPDX-License-Identifier: MIT
+// Threads of the remote daemon and its run loop (signals, duration, stats line).
+#include "telex/remote/daemon.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <boost/asio.hpp>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace telex::remote {
+
+using namespace std::chrono_literals;
+
+void validate(const DaemonConfig& c) {
+  if (c.depth_source.empty()) throw std::invalid_argument("--source must not be empty");
+  if (c.jpeg_quality < 1 || c.jpeg_quality > 100)
+    throw std::invalid_argument(fmt::format("--jpeg-quality {} is outside 1..100", c.jpeg_quality));
+  if (c.video_width < 0 || c.video_height < 0 || (c.video_width == 0) != (c.video_height == 0))
+    throw std::invalid_argument(
+        "--video-size must be WxH with both positive (or 0x0 for the source size)");
+  if (c.duration_s < 0)
+    throw std::invalid_argument(fmt::format("--duration {} is negative", c.duration_s));
+  if (c.server.client_timeout.count() <= 0)
+    throw std::invalid_argument("--client-timeout must be positive");
+  if (c.server.max_queued_frames < 1)
+    throw std::invalid_argument("--max-queued-frames must be >= 1");
+  if (c.source_options.synthetic_fps <= 0 || c.source_options.synthetic_fps > 1000)
+    throw std::invalid_argument(
+        fmt::format("--fps {} is outside (0, 1000]", c.source_options.synthetic_fps));
+  if (c.pipeline.tile_width < 8 || c.pipeline.tile_height < 8)
+    throw std::invalid_argument("--tile must be at least 8x8 pixels");
+  if (c.pipeline.stabilise_k_sigma < 0) throw std::invalid_argument("--stabilise must be >= 0");
+}
+
+std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
+  const double dt = seconds > 0 ? seconds : 1.0;
+  const std::uint64_t n = now.frames_processed - before.frames_processed;
+  const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
+  return fmt::format(
+      "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms fill {:.2f} stab {:.2f} tile "
+      "{:.2f} enc {:.2f} total {:.2f} | "
+      "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
+      "timeouts {}) | "
+      "errors {} malformed {}",
+      static_cast<double>(now.frames_in - before.frames_in) / dt,
+      static_cast<double>(now.frames_sent - before.frames_sent) / dt,
+      now.frames_slot_dropped - before.frames_slot_dropped,
+      now.frames_queue_dropped - before.frames_queue_dropped,
+      mean(now.stage_ms_sum.fill_ms, before.stage_ms_sum.fill_ms),
+      mean(now.stage_ms_sum.stabilise_ms, before.stage_ms_sum.stabilise_ms),
+      mean(now.stage_ms_sum.tile_ms, before.stage_ms_sum.tile_ms),
+      mean(now.stage_ms_sum.encode_ms, before.stage_ms_sum.encode_ms),
+      mean(now.stage_ms_sum.total_ms, before.stage_ms_sum.total_ms),
+      static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
+      now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
+      now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
+      now.clients_rejected, now.client_timeouts, now.source_errors, now.malformed_in);
+}
+
+RemoteDaemon::RemoteDaemon(DaemonConfig config)
+    : config_(std::move(config)), pipeline_(config_.pipeline) {
+  validate(config_);
+  depth_ = make_depth_source(config_.depth_source, config_.source_options);
+  if (!config_.stereo_source.empty())
+    stereo_ = make_stereo_source(config_.stereo_source, config_.source_options);
+  config_.server.video_available = stereo_ != nullptr;
+  config_.server.codec = config_.pipeline.codec;
+}
+
+RemoteDaemon::~RemoteDaemon() { stop(); }
+
+void RemoteDaemon::set_frame_observer(std::function<void(const ProcessedFrame&)> observer) {
+  observer_ = std::move(observer);
+}
+
+void RemoteDaemon::start() {
+  if (running_) return;
+  depth_->start();
+  if (stereo_) stereo_->start();
+  config_.server.fps = static_cast<float>(depth_->nominal_fps());
+  server_ = std::make_unique<RemoteServer>(config_.server);
+  server_->start();
+  running_ = true;
+  capture_thread_ = std::thread([this] { capture_loop(); });
+  process_thread_ = std::thread([this] { process_loop(); });
+  if (stereo_) {
+    stereo_thread_ = std::thread([this] { stereo_loop(); });
+    video_thread_ = std::thread([this] { video_loop(); });
+  }
+}
+
+void RemoteDaemon::stop() {
+  if (!running_.exchange(false)) return;
+  depth_slot_.close();
+  stereo_slot_.close();
+  for (auto* t : {&capture_thread_, &stereo_thread_, &process_thread_, &video_thread_})
+    if (t->joinable()) t->join();
+  server_->stop();
+  depth_->stop();
+  if (stereo_) stereo_->stop();
+}
+
+std::uint16_t RemoteDaemon::port() const { return server_ ? server_->port() : 0; }
+
+DaemonStats RemoteDaemon::stats() const {
+  DaemonStats s;
+  {
+    std::lock_guard lock(stats_mu_);
+    s = stats_;
+  }
+  s.frames_slot_dropped = depth_slot_.dropped();
+  s.source_ended = source_ended_;
+  if (server_) {
+    const auto& c = server_->counters();
+    s.frames_sent = c.frames_sent;
+    s.frames_queue_dropped = c.frames_dropped;
+    s.bytes_sent = c.bytes_sent;
+    s.malformed_in = c.malformed_in;
+    s.clients_accepted = c.clients_accepted;
+    s.clients_rejected = c.clients_rejected;
+    s.client_timeouts = c.client_timeouts;
+    s.client = server_->state();
+  }
+  return s;
+}
+
+void RemoteDaemon::capture_loop() {
+  auto last_log = std::chrono::steady_clock::time_point{};
+  while (running_) {
+    auto r = depth_->read(100ms);
+    if (r.status == ReadStatus::Frame) {
+      {
+        std::lock_guard lock(stats_mu_);
+        ++stats_.frames_in;
+      }
+      depth_slot_.put(std::move(r.frame));
+    } else if (r.status == ReadStatus::Error) {
+      {
+        std::lock_guard lock(stats_mu_);
+        ++stats_.source_errors;
+      }
+      // Errors are counted every time, logged at most once a second.
+      const auto now = std::chrono::steady_clock::now();
+      if (now - last_log > 1s) {
+        spdlog::warn("depth source {}: {}", depth_->describe(), r.error);
+        last_log = now;
+      }
+      std::this_thread::sleep_for(10ms);
+    } else if (r.status == ReadStatus::EndOfStream) {
+      source_ended_ = true;
+      return;
+    }
+  }
+}
+
+void RemoteDaemon::stereo_loop() {
+  while (running_) {
+    auto r = stereo_->read(100ms);
+    if (r.status == ReadStatus::Frame) {
+      stereo_slot_.put(std::move(r.frame));
+    } else if (r.status == ReadStatus::Error) {
+      std::lock_guard lock(stats_mu_);
+      ++stats_.source_errors;
+    } else if (r.status == ReadStatus::EndOfStream) {
+      return;
+    }
+  }
+}
+
+void RemoteDaemon::process_loop() {
+  while (running_) {
+    auto frame = depth_slot_.take(100ms);
+    if (!frame) continue;
+    FrameRequest request = server_->take_request();
+    // Fill and stabiliser keep their history; tiles are only cut and encoded for a receiver.
+    request.select_tiles = server_->state() == ClientState::Connected;
+    ProcessedFrame p = pipeline_.process(*frame, request);
+    if (observer_) observer_(p);
+    server_->publish(p);
+    std::lock_guard lock(stats_mu_);
+    ++stats_.frames_processed;
+    stats_.tiles_sent += p.tiles.size();
+    stats_.tiles_skipped += p.tiles_skipped;
+    stats_.stage_ms_sum.fill_ms += p.times.fill_ms;
+    stats_.stage_ms_sum.stabilise_ms += p.times.stabilise_ms;
+    stats_.stage_ms_sum.tile_ms += p.times.tile_ms;
+    stats_.stage_ms_sum.encode_ms += p.times.encode_ms;
+    stats_.stage_ms_sum.total_ms += p.times.total_ms;
+  }
+}
+
+void RemoteDaemon::video_loop() {
+  const std::vector<int> params{cv::IMWRITE_JPEG_QUALITY, config_.jpeg_quality};
+  while (running_) {
+    auto frame = stereo_slot_.take(100ms);
+    // Encoding costs CPU: only when the operator asked for video.
+    if (!frame || !server_->video_wanted()) continue;
+    std::vector<std::uint8_t> left, right;
+    cv::Mat3b l = frame->left_bgr, r = frame->right_bgr;
+    if (config_.video_width > 0) {
+      cv::resize(l, l, cv::Size(config_.video_width, config_.video_height), 0, 0, cv::INTER_AREA);
+      cv::resize(r, r, cv::Size(config_.video_width, config_.video_height), 0, 0, cv::INTER_AREA);
+    }
+    cv::imencode(".jpg", l, left, params);
+    cv::imencode(".jpg", r, right, params);
+    server_->publish_video(static_cast<std::uint32_t>(frame->frame_id), frame->capture_ns, left,
+                           right, r.cols, r.rows);
+    std::lock_guard lock(stats_mu_);
+    ++stats_.video_frames;
+  }
+}
+
+int RemoteDaemon::run() {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  asio::signal_set signals(io, SIGINT, SIGTERM);
+  int exit_code = 0;
+  signals.async_wait([&](boost::system::error_code ec, int sig) {
+    if (!ec) spdlog::info("signal {}: stopping", sig);
+    io.stop();
+  });
+  const auto t_start = std::chrono::steady_clock::now();
+  auto last = t_start;
+  DaemonStats before = stats();
+  asio::steady_timer tick(io);
+  std::function<void()> arm = [&] {
+    tick.expires_after(100ms);
+    tick.async_wait([&](boost::system::error_code ec) {
+      if (ec) return;
+      const auto now = std::chrono::steady_clock::now();
+      if (config_.stats_line && now - last >= 1s) {
+        const DaemonStats s = stats();
+        std::cerr << format_stats_line(s, before, std::chrono::duration<double>(now - last).count())
+                  << std::endl;
+        before = s;
+        last = now;
+      }
+      if (config_.duration_s > 0 &&
+          now - t_start >= std::chrono::duration<double>(config_.duration_s)) {
+        io.stop();
+        return;
+      }
+      if (source_ended_ &&
+          depth_slot_.put_count() == stats().frames_processed + depth_slot_.dropped()) {
+        spdlog::info("depth source {} ended", depth_->describe());
+        io.stop();
+        return;
+      }
+      arm();
+    });
+  };
+  arm();
+  io.run();
+  stop();
+  return exit_code;
+}
+
+}  // namespace telex::remote

@@ -1,0 +1,243 @@
+// SPDX-License-Identifier: MIT
+// The remote daemon end to end over loopback: Dummy device, tile skipping, refusals, timeouts, CLI.
+#include "telex/remote/daemon.h"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <mutex>
+
+#include "test_client.h"
+#include "test_support.h"
+
+namespace telex::remote {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Records the sender's view of every processed frame, keyed by frame id.
+struct SenderLog {
+  std::mutex mu;
+  std::map<std::uint32_t, cv::Mat1w> views;
+  std::map<std::uint32_t, bool> keys;
+  void attach(RemoteDaemon& d) {
+    d.set_frame_observer([this](const ProcessedFrame& f) {
+      std::lock_guard lock(mu);
+      views[f.frame_id] = f.sent_view_mm;
+      keys[f.frame_id] = f.key_frame;
+    });
+  }
+  cv::Mat1w view(std::uint32_t id) {
+    std::lock_guard lock(mu);
+    auto it = views.find(id);
+    return it == views.end() ? cv::Mat1w() : it->second;
+  }
+};
+
+DaemonConfig base_config(const std::string& source) {
+  DaemonConfig c;
+  c.depth_source = source;
+  c.server.port = 0;
+  c.stats_line = false;
+  return c;
+}
+
+TEST(RemoteDaemon, DummyDeviceFramesReachTheClientIntactOverUdp) {
+  SenderLog log;  // declared first: outlives the daemon thread that feeds it
+  RemoteDaemon d(base_config("openni:Dummy"));
+  log.attach(d);
+  d.start();
+  test::TestClient client(d.port(), /*udp=*/true);
+  ASSERT_TRUE(client.run_until([&] { return client.frames_.size() >= 5; }, 10s))
+      << "frames received: " << client.frames_.size();
+  ASSERT_TRUE(client.accept_.has_value());
+  EXPECT_EQ(client.accept_->transport, proto::Transport::Udp);
+  ASSERT_TRUE(client.config_.has_value());
+  EXPECT_EQ(client.config_->width, 320);
+  EXPECT_EQ(client.config_->height, 240);
+  EXPECT_EQ(client.decode_errors_, 0u);
+  for (const auto& [id, f] : client.frames_) {
+    const cv::Mat1w sent = log.view(id);
+    ASSERT_FALSE(sent.empty());
+    EXPECT_EQ(cv::norm(f.depth_mm, sent, cv::NORM_INF), 0.0) << "frame " << id;
+  }
+  EXPECT_TRUE(client.frames_.begin()->second.key_frame);  // a new receiver starts with a key frame
+  client.close();
+  d.stop();
+}
+
+TEST(RemoteDaemon, StaticNoisySceneSkipsTilesAndReceiverMatchesSender) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.source_options.synthetic_fps = 30;
+  cfg.pipeline.stabilise_k_sigma = 5.0;
+  cfg.pipeline.key_frame_every = 1000;  // measure the skipping, not the key frame interval
+  SenderLog log;                        // declared first: outlives the daemon thread that feeds it
+  RemoteDaemon d(cfg);
+  log.attach(d);
+  d.start();
+  test::TestClient client(d.port(), true);
+  ASSERT_TRUE(client.run_until([&] { return client.frames_.size() >= 16; }, 30s))
+      << client.frames_.size() << " frames; daemon processed " << d.stats().frames_processed
+      << ", sent " << d.stats().frames_sent << ", queue drops " << d.stats().frames_queue_dropped
+      << "; client decode errors " << client.decode_errors_ << ", reassembled "
+      << client.reassembly().completed << ", stale " << client.reassembly().stale << ", timed out "
+      << client.reassembly().dropped_timeout << ", superseded "
+      << client.reassembly().dropped_superseded << ", malformed " << client.reassembly().malformed;
+  EXPECT_EQ(client.decode_errors_, 0u);
+  const auto first = client.frames_.begin();
+  ASSERT_TRUE(first->second.key_frame);
+  std::size_t later_bytes = 0, later_frames = 0;
+  for (auto it = std::next(first); it != client.frames_.end(); ++it) {
+    later_bytes += it->second.wire_bytes;
+    ++later_frames;
+    EXPECT_EQ(cv::norm(it->second.depth_mm, log.view(it->first), cv::NORM_INF), 0.0)
+        << "frame " << it->first;
+  }
+  const double key_bytes = static_cast<double>(first->second.wire_bytes);
+  const double mean_later = static_cast<double>(later_bytes) / static_cast<double>(later_frames);
+  RecordProperty("key_frame_bytes", std::to_string(key_bytes));
+  RecordProperty("mean_later_frame_bytes", std::to_string(mean_later));
+  std::printf("static plane: key frame %.0f B, later frames mean %.0f B (%.1fx less)\n", key_bytes,
+              mean_later, key_bytes / mean_later);
+  EXPECT_GE(key_bytes / mean_later, 10.0);
+  client.close();
+  d.stop();
+}
+
+TEST(RemoteDaemon, TcpTransportCarriesTheSameFrames) {
+  auto cfg = base_config("synthetic:box,noise=on");
+  cfg.server.force_tcp = true;
+  cfg.source_options.synthetic_fps = 30;
+  cfg.source_options.width = 320;
+  cfg.source_options.height = 240;
+  SenderLog log;  // declared first: outlives the daemon thread that feeds it
+  RemoteDaemon d(cfg);
+  log.attach(d);
+  d.start();
+  test::TestClient client(d.port(), true);  // offers UDP, server insists on TCP
+  ASSERT_TRUE(client.run_until([&] { return client.frames_.size() >= 4; }, 10s));
+  EXPECT_EQ(client.accept_->transport, proto::Transport::Tcp);
+  for (const auto& [id, f] : client.frames_)
+    EXPECT_EQ(cv::norm(f.depth_mm, log.view(id), cv::NORM_INF), 0.0);
+  d.stop();
+}
+
+TEST(RemoteDaemon, SecondOperatorIsRejectedWithAReasonAndHeartbeatsAreAnswered) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient first(d.port(), true);
+  ASSERT_TRUE(first.run_until([&] { return first.accept_.has_value(); }, 5s));
+  test::TestClient second(d.port(), true);
+  ASSERT_TRUE(second.run_until([&] { return second.reject_.has_value(); }, 5s));
+  EXPECT_EQ(second.reject_->reason, proto::RejectReason::Busy);
+  EXPECT_NE(second.reject_->text.find("another operator"), std::string::npos);
+  EXPECT_FALSE(second.accept_.has_value());
+
+  proto::Heartbeat hb;
+  hb.t1_ns = 12345;
+  first.send(hb);
+  ASSERT_TRUE(first.run_until([&] { return !first.heartbeats_.empty(); }, 5s));
+  EXPECT_EQ(first.heartbeats_[0].t1_ns, 12345u);
+  EXPECT_GE(first.heartbeats_[0].t3_ns, first.heartbeats_[0].t2_ns);
+  EXPECT_EQ(d.stats().clients_rejected, 1u);
+  d.stop();
+}
+
+TEST(RemoteDaemon, SilentClientTimesOutAndTheNextIsAccepted) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  cfg.server.client_timeout = 300ms;
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient silent(d.port(), true);
+  ASSERT_TRUE(silent.run_until([&] { return silent.accept_.has_value(); }, 5s));
+  ASSERT_TRUE(silent.run_until([&] { return silent.tcp_closed_; }, 5s));  // the server hung up
+  EXPECT_EQ(d.stats().client_timeouts, 1u);
+  test::TestClient next(d.port(), true);
+  ASSERT_TRUE(
+      next.run_until([&] { return next.accept_.has_value() && !next.frames_.empty(); }, 5s));
+  EXPECT_GT(next.accept_->session_id, silent.accept_->session_id);
+  d.stop();
+}
+
+TEST(RemoteDaemon, MalformedBytesAreCountedAndTheServerKeepsServing) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  RemoteDaemon d(cfg);
+  d.start();
+  {
+    test::TestClient bad(d.port(), true);
+    ASSERT_TRUE(bad.run_until([&] { return bad.accept_.has_value(); }, 5s));
+    std::vector<std::uint8_t> junk(64, 0xAB);
+    junk[0] = 60;  // a length prefix that frames 60 bytes of garbage
+    junk[1] = junk[2] = junk[3] = 0;
+    bad.send_raw(junk);
+    ASSERT_TRUE(bad.run_until([&] { return bad.tcp_closed_; }, 5s));
+  }
+  EXPECT_GE(d.stats().malformed_in, 1u);
+  test::TestClient good(d.port(), true);
+  ASSERT_TRUE(good.run_until([&] { return !good.frames_.empty(); }, 5s));
+  d.stop();
+}
+
+TEST(RemoteDaemon, VideoIsSentOnlyWhenAsked) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.stereo_source = "synthetic:sphere";
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient plain(d.port(), true);
+  ASSERT_TRUE(plain.run_until([&] { return plain.frames_.size() >= 5; }, 5s));
+  EXPECT_TRUE(plain.video_.empty());
+  plain.close();
+  test::TestClient viewer(d.port(), true, proto::kCapVideo);
+  ASSERT_TRUE(viewer.run_until([&] { return viewer.video_.size() >= 2; }, 10s));
+  EXPECT_EQ(viewer.video_[0].width, 160);
+  EXPECT_GT(viewer.video_[0].jpeg.size(), 100u);
+  d.stop();
+}
+
+int run_remote(const std::string& args) {
+  const auto bin = telex::test::built_binary("telex-remote");
+  const std::string cmd = bin.string() + " " + args + " >/dev/null 2>&1";
+  const int rc = std::system(cmd.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+TEST(TelexRemoteCli, BadFlagsAndValuesExitTwo) {
+  ASSERT_TRUE(std::filesystem::exists(telex::test::built_binary("telex-remote")));
+  EXPECT_EQ(run_remote("--no-such-flag"), 2);
+  EXPECT_EQ(run_remote("--codec gzip"), 2);
+  EXPECT_EQ(run_remote("--listen nonsense"), 2);
+  EXPECT_EQ(run_remote("--listen 127.0.0.1:99999"), 2);
+  EXPECT_EQ(run_remote("--tile 80by60"), 2);
+  EXPECT_EQ(run_remote("--source kinect9"), 2);
+  EXPECT_EQ(run_remote("--stabilise -1"), 2);
+  EXPECT_EQ(run_remote("--fill-window 4"), 2);
+  EXPECT_EQ(run_remote("--help"), 0);
+}
+
+TEST(TelexRemoteCli, RunsForADurationFromAJsonConfigAndMissingDeviceExitsOne) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("telex_cli_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto json = dir / "remote.json";
+  std::ofstream(json)
+      << R"({"source": "synthetic:plane", "listen": "127.0.0.1:0", "size": "160x120", "duration": 0.5})";
+  EXPECT_EQ(run_remote("--config " + json.string()), 0);
+  std::ofstream(dir / "bad.json") << R"({"codec": "gzip"})";
+  EXPECT_EQ(run_remote("--config " + (dir / "bad.json").string()), 2);
+  EXPECT_EQ(run_remote("--source openni:no-such-device --listen 127.0.0.1:0 --duration 1"), 1);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace telex::remote
