@@ -37,7 +37,7 @@ std::string format_tick(double v) {
   const double a = std::abs(v);
   if (a == 0.0)
     std::snprintf(buf, sizeof buf, "0");
-  else if (a >= 1e5 || a < 1e-3)
+  else if (a >= 1e7 || a < 1e-3)
     std::snprintf(buf, sizeof buf, "%.0e", v);
   else if (a >= 100)
     std::snprintf(buf, sizeof buf, "%.0f", v);
