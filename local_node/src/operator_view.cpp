@@ -8,6 +8,13 @@
 #include "telex/common/colorize.h"
 
 namespace telex::local {
+namespace {
+constexpr std::uint16_t kViewNearMm = 400;
+constexpr std::uint16_t kViewFarMm = 2500;
+// Phalanx lengths (distal first) drawn back along the finger axis when the tracker gives only
+// fingertips (scripted hands).
+constexpr double kPhalanxM[3] = {0.022, 0.025, 0.045};
+}  // namespace
 
 std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p) {
   if (!(p.z > 1e-3) || !std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;
@@ -19,7 +26,9 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
   if (!in.camera_bgr.empty()) {
     img = in.camera_bgr.clone();
   } else if (!in.depth_mm.empty()) {
-    img = colorize_depth(in.depth_mm);
+    // A fixed range: a percentile range would stretch the sensor noise of a flat wall over the
+    // whole colour map.
+    img = colorize_depth(in.depth_mm, kViewNearMm, kViewFarMm);
   } else {
     img = cv::Mat3b(480, 640, cv::Vec3b(32, 32, 32));
   }
@@ -54,12 +63,21 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
         if (prev && cur) cv::line(img, *prev, *cur, bone, 2 * thick, cv::LINE_AA);
         prev = cur;
       }
+    } else {
+      // Only the fingertip is known: draw a straight finger back along its axis.
+      glm::dvec3 joint = tip.p_camera_m;
+      for (double len : kPhalanxM) {
+        const glm::dvec3 next = joint - tip.axis_camera * len;
+        auto a = project(k, joint), b = project(k, next);
+        if (a && b) cv::line(img, *a, *b, bone, 3 * thick, cv::LINE_AA);
+        if (b) cv::circle(img, *b, 2 * thick, bone, cv::FILLED, cv::LINE_AA);
+        joint = next;
+      }
     }
     const auto p = project(k, tip.p_camera_m);
     if (!p) continue;
     const auto& force = in.forces[static_cast<std::size_t>(f)];
-    const int radius = std::max(3, static_cast<int>(k.fx * 0.008 / tip.p_camera_m.z));
-    cv::circle(img, *p, radius, force.contact ? tip_contact : tip_free, cv::FILLED, cv::LINE_AA);
+    const int radius = std::max(4, static_cast<int>(k.fx * 0.009 / tip.p_camera_m.z));
     // Force arrow: the force vector drawn in the scene from the fingertip, then projected.
     const double mag = glm::length(force.force_N);
     if (mag > 1e-3 && std::isfinite(mag)) {
@@ -78,6 +96,8 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
       cv::putText(img, buf, *p + cv::Point2d(radius + 4, -radius), cv::FONT_HERSHEY_SIMPLEX,
                   0.45 * thick, {0, 200, 255}, thick, cv::LINE_AA);
     }
+    // The fingertip last, so it stays visible on top of its arrow.
+    cv::circle(img, *p, radius, force.contact ? tip_contact : tip_free, cv::FILLED, cv::LINE_AA);
   }
   cv::rectangle(img, cv::Rect(0, img.rows - 22 * thick, img.cols, 22 * thick), {0, 0, 0},
                 cv::FILLED);
