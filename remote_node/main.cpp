@@ -191,6 +191,9 @@ int main(int argc, char** argv) {
   }
   try {
     daemon->start();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n";
+    return 2;
   } catch (const std::exception& e) {
     std::cerr << "telex-remote: " << e.what() << "\n";
     return 1;

@@ -142,9 +142,13 @@ StationSummary Station::run() {
     std::deque<std::shared_ptr<const Surface>> retired;
     HandState hand{};
     std::vector<cv::Rect> last_windows;
+    std::uint64_t surface_seq = 0;
     while (!surface_stop.load()) {
       auto frame = frames.take(milliseconds(50));
       if (!frame) continue;
+      // Snapshot ids are the station's own sequence: a restarted remote numbers its frames from
+      // the start again, and the haptic model ignores snapshots that go backwards.
+      frame->frame_id = static_cast<std::uint32_t>(++surface_seq);
       hand_for_surface.take(hand);
       std::vector<cv::Rect> windows;
       if (cfg_.surface.roi)

@@ -61,7 +61,7 @@ class RemoteServer::Impl {
     boost::system::error_code ec;
     const auto address = asio::ip::make_address(config_.host, ec);
     if (ec)
-      throw std::runtime_error(
+      throw std::invalid_argument(
           fmt::format("--listen host '{}' is not an IP address: {}", config_.host, ec.message()));
     const tcp::endpoint endpoint(address, config_.port);
     acceptor_.open(endpoint.protocol(), ec);
@@ -69,8 +69,10 @@ class RemoteServer::Impl {
     if (!ec) acceptor_.bind(endpoint, ec);
     if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
     if (ec)
-      throw std::runtime_error(
-          fmt::format("cannot listen on {}:{}: {} (is another telex-remote running?)", config_.host,
+      // A bad --listen value (port in use, address not ours) is a configuration error: exit 2.
+      throw std::invalid_argument(
+          fmt::format("cannot listen on {}:{}: {} (is another telex-remote running? pick another "
+                      "--listen port)", config_.host,
                       config_.port, ec.message()));
     udp_.open(address.is_v4() ? udp::v4() : udp::v6(), ec);
     if (!ec) udp_.bind(udp::endpoint(address, 0), ec);
