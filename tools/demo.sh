@@ -11,7 +11,7 @@ duration="${TELEX_DEMO_SECONDS:-20}"
 port="${TELEX_DEMO_PORT:-7300}"
 
 "$bin/telex-remote" --listen "127.0.0.1:$port" --source synthetic:plane --duration $((duration + 5)) \
-  --stats-every 0 &
+  --no-stats &
 remote=$!
 trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 
