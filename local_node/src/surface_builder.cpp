@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <new>
 
 namespace telex::local {
 namespace {
@@ -23,7 +25,8 @@ std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& 
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.z <= 0.05) continue;
     const double u = k.fx * p.x / p.z + k.cx;
     const double v = k.fy * p.y / p.z + k.cy;
-    const double speed = std::isfinite(glm::length(tip.v_camera_mps)) ? glm::length(tip.v_camera_mps) : 0.0;
+    const double speed =
+        std::isfinite(glm::length(tip.v_camera_mps)) ? glm::length(tip.v_camera_mps) : 0.0;
     const double reach_m = o.roi_radius_m + speed * o.roi_lookahead_s;
     // A fingertip far in front of whatever lies under it needs no surface yet.
     const int ui = static_cast<int>(std::lround(u)), vi = static_cast<int>(std::lround(v));
@@ -33,8 +36,8 @@ std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& 
         continue;
     }
     const int half = std::max(o.roi_min_half_px, static_cast<int>(std::ceil(k.fx * reach_m / p.z)));
-    const cv::Rect r = cv::Rect(static_cast<int>(u) - half, static_cast<int>(v) - half, 2 * half + 1,
-                                2 * half + 1) &
+    const cv::Rect r = cv::Rect(static_cast<int>(u) - half, static_cast<int>(v) - half,
+                                2 * half + 1, 2 * half + 1) &
                        image;
     if (r.area() > 0) out.push_back(r);
   }
@@ -52,49 +55,81 @@ std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& 
   return out;
 }
 
+namespace {
+
+// A snapshot whose pixel buffers come from calloc: the kernel hands out zero pages lazily, so a
+// region-of-interest snapshot only pays for the windows it writes, not for the whole frame.
+struct WindowedSurface : Surface {
+  struct Free {
+    void operator()(void* p) const { std::free(p); }
+  };
+  std::unique_ptr<void, Free> depth_buf, normal_buf;
+
+  WindowedSurface(cv::Size size) {
+    const auto n = static_cast<std::size_t>(size.area());
+    depth_buf.reset(std::calloc(n, sizeof(float)));
+    normal_buf.reset(std::calloc(n, 3 * sizeof(float)));
+    if (!depth_buf || !normal_buf) throw std::bad_alloc();
+    depth_m = cv::Mat1f(size.height, size.width, static_cast<float*>(depth_buf.get()));
+    normals = cv::Mat3f(size.height, size.width, static_cast<cv::Vec3f*>(normal_buf.get()));
+  }
+};
+
+}  // namespace
+
 std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const SurfaceOptions& o,
-                                       std::span<const cv::Rect> windows, SurfaceBuildStats* stats) {
+                                       std::span<const cv::Rect> windows,
+                                       SurfaceBuildStats* stats) {
   SurfaceBuildStats local;
-  cv::Mat1f depth_m;
-  cv::Mat3f normals;
+  // The kernels' outputs are valid by construction (finite metres or 0, unit or zero normals) and
+  // freshly allocated per frame, so the snapshot takes them as they are: no copy, no re-check.
   if (!o.roi) {
+    auto s = std::make_shared<Surface>();
     auto t0 = std::chrono::steady_clock::now();
     if (o.bilateral)
-      bilateral_filter_depth(frame.depth_mm, depth_m, o.bilateral_options);
+      bilateral_filter_depth(frame.depth_mm, s->depth_m, o.bilateral_options);
     else
-      depth_m = depth_m_from_mm(frame.depth_mm);
+      s->depth_m = depth_m_from_mm(frame.depth_mm);
     local.filter_ms = ms_since(t0);
     t0 = std::chrono::steady_clock::now();
-    compute_normals(depth_m, frame.intrinsics, normals, o.normal_options);
+    compute_normals(s->depth_m, frame.intrinsics, s->normals, o.normal_options);
     local.normals_ms = ms_since(t0);
     local.pixels_processed = frame.depth_mm.total();
-  } else {
-    depth_m = depth_m_from_mm(frame.depth_mm);
-    normals = cv::Mat3f(depth_m.size(), cv::Vec3f(0, 0, 0));
-    cv::Mat1f filtered;
-    cv::Mat3f n_roi;
-    auto t0 = std::chrono::steady_clock::now();
-    if (o.bilateral) {
-      // Filter every window from the raw depth first, then write them back, so a window never
-      // reads another's already-filtered pixels.
-      std::vector<cv::Mat1f> results(windows.size());
-      for (std::size_t i = 0; i < windows.size(); ++i)
-        bilateral_filter_depth_roi(frame.depth_mm, windows[i], results[i], o.bilateral_options);
-      for (std::size_t i = 0; i < windows.size(); ++i) results[i].copyTo(depth_m(windows[i]));
-    }
-    local.filter_ms = ms_since(t0);
-    t0 = std::chrono::steady_clock::now();
-    for (const auto& r : windows) {
-      compute_normals_roi(depth_m, frame.intrinsics, r, n_roi, o.normal_options);
-      n_roi.copyTo(normals(r));
-      local.pixels_processed += static_cast<std::size_t>(r.area());
-    }
-    local.normals_ms = ms_since(t0);
+    s->intrinsics = frame.intrinsics;
+    s->capture_ns = frame.capture_ns;
+    s->frame_id = frame.frame_id;
+    if (stats) *stats = local;
+    return s;
   }
+  // Region of interest: outside the windows the snapshot holds no data (a fingertip that far
+  // from the surface cannot touch it before the next frame).
+  auto s = std::make_shared<WindowedSurface>(frame.depth_mm.size());
+  s->intrinsics = frame.intrinsics;
+  s->capture_ns = frame.capture_ns;
+  s->frame_id = frame.frame_id;
+  auto t0 = std::chrono::steady_clock::now();
+  cv::Mat1f filtered;
+  for (const auto& r : windows) {
+    if (o.bilateral) {
+      bilateral_filter_depth_roi(frame.depth_mm, r, filtered, o.bilateral_options);
+      filtered.copyTo(s->depth_m(r));
+    } else {
+      depth_m_from_mm(frame.depth_mm(r)).copyTo(s->depth_m(r));
+    }
+  }
+  local.filter_ms = ms_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  cv::Mat3f n_roi;
+  for (const auto& r : windows) {
+    // Normals need a one-pixel-plus-stencil margin of depth around the window; the window edges
+    // see the margin as holes and fall back to one-sided differences.
+    compute_normals_roi(s->depth_m, frame.intrinsics, r, n_roi, o.normal_options);
+    n_roi.copyTo(s->normals(r));
+    local.pixels_processed += static_cast<std::size_t>(r.area());
+  }
+  local.normals_ms = ms_since(t0);
   if (stats) *stats = local;
-  return std::make_shared<Surface>(make_surface(std::move(depth_m), frame.intrinsics,
-                                                frame.capture_ns, frame.frame_id,
-                                                std::move(normals)));
+  return s;
 }
 
 }  // namespace telex::local
