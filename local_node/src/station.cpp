@@ -8,9 +8,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <fstream>
 #include <mutex>
+#include <opencv2/highgui.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 #include <thread>
@@ -54,7 +56,16 @@ double centre_depth_m(const Surface& s) {
 std::string view_dir_of(const std::string& spec) {
   if (spec == "none" || spec.empty()) return {};
   if (spec.rfind("png:", 0) == 0 && spec.size() > 4) return spec.substr(4);
-  if (spec == "window") return {};
+  if (spec == "window") {
+    // highgui exits the process when it cannot open a display: refuse up front instead.
+    const char* x = std::getenv("DISPLAY");
+    const char* w = std::getenv("WAYLAND_DISPLAY");
+    if ((x == nullptr || *x == '\0') && (w == nullptr || *w == '\0'))
+      throw std::invalid_argument(
+          "--view window needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); use "
+          "--view png:DIR to write the view to a file instead");
+    return {};
+  }
   throw std::invalid_argument("--view '" + spec + "': expected none, window or png:DIR");
 }
 
@@ -94,7 +105,8 @@ StationSummary Station::run() {
   if (!cfg_.log_tracking_csv.empty()) {
     tracking_csv.open(cfg_.log_tracking_csv);
     if (!tracking_csv)
-      throw std::runtime_error("cannot write --log-tracking file " + cfg_.log_tracking_csv.string());
+      throw std::runtime_error("cannot write --log-tracking file " +
+                               cfg_.log_tracking_csv.string());
     tracking_csv << "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n";
   }
   const std::string view_dir = view_dir_of(cfg_.view_spec);
@@ -236,7 +248,8 @@ StationSummary Station::run() {
     std::array<FingerForce, kFingerCount> shown{};
     TickSample sample{};
     std::int64_t prev = 0;
-    const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
+    const std::int64_t tracking_stale_ns =
+        static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
     while (!haptic_stop.load(std::memory_order_relaxed)) {
       const std::int64_t now = timer.wait_next();
       if (tracker->poll(now, hand)) {
@@ -262,8 +275,7 @@ StationSummary Station::run() {
       sample.surface_frame = newest ? newest->frame_id : 0;
       sample.surface_capture_ns = newest ? newest->capture_ns : 0;
       sample.forces = out;
-      for (int i = 0; i < kFingerCount; ++i)
-      {
+      for (int i = 0; i < kFingerCount; ++i) {
         sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
         sample.p_camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].p_camera;
       }
@@ -303,7 +315,8 @@ StationSummary Station::run() {
     while (samples.pop(s)) {
       ++tick_index;
       last = s;
-      if (periods.size() >= kMaxKept) periods.erase(periods.begin(), periods.begin() + kMaxKept / 2);
+      if (periods.size() >= kMaxKept)
+        periods.erase(periods.begin(), periods.begin() + kMaxKept / 2);
       if (latencies_ms.size() >= kMaxKept)
         latencies_ms.erase(latencies_ms.begin(), latencies_ms.begin() + kMaxKept / 2);
       if (tick_index > 1) {
@@ -322,10 +335,12 @@ StationSummary Station::run() {
         summary.peak_pressure_N = std::max(summary.peak_pressure_N, f.normal_force_N);
         summary.peak_shear_N = std::max(summary.peak_shear_N, std::abs(f.shear_along_axis_N));
       }
-      if (forces_csv.is_open() && (tick_index - 1) % static_cast<std::uint64_t>(cfg_.log_every) == 0) {
+      if (forces_csv.is_open() &&
+          (tick_index - 1) % static_cast<std::uint64_t>(cfg_.log_every) == 0) {
         const double t = static_cast<double>(s.t_ns - t_start) / 1e9;
         for (int i = 0; i < kFingerCount; ++i) {
-          if (!s.tracked[static_cast<std::size_t>(i)] && !s.forces[static_cast<std::size_t>(i)].contact)
+          if (!s.tracked[static_cast<std::size_t>(i)] &&
+              !s.forces[static_cast<std::size_t>(i)].contact)
             continue;
           const auto& f = s.forces[static_cast<std::size_t>(i)];
           const auto& p = s.p_camera[static_cast<std::size_t>(i)];
@@ -342,7 +357,8 @@ StationSummary Station::run() {
       }
       if (print_period && s.t_ns >= next_print) {
         next_print = s.t_ns + print_period;
-        std::string line = "t=" + std::to_string(static_cast<double>(s.t_ns - t_start) / 1e9).substr(0, 6) + "s";
+        std::string line =
+            "t=" + std::to_string(static_cast<double>(s.t_ns - t_start) / 1e9).substr(0, 6) + "s";
         for (int i = 0; i < kFingerCount; ++i) {
           const auto& f = s.forces[static_cast<std::size_t>(i)];
           if (!s.tracked[static_cast<std::size_t>(i)]) continue;
@@ -384,8 +400,39 @@ StationSummary Station::run() {
     return std::string(b);
   };
 
+  std::string last_status = "starting";
+  auto render_view = [&] {
+    ViewInputs vi;
+    std::shared_ptr<const Surface> vs;
+    {
+      std::lock_guard lock(view_mu);
+      vs = view_surface;
+      vi.depth_mm = view_depth;
+    }
+    vi.surface = vs.get();
+    hand_for_view.take(view_hand);
+    vi.hand = view_hand;
+    vi.forces = last.forces;
+    vi.status = last_status;
+    {
+      std::lock_guard lock(video_mu);
+      if (!latest_jpeg.empty()) {
+        cv::Mat raw(1, static_cast<int>(latest_jpeg.size()), CV_8U, latest_jpeg.data());
+        vi.camera_bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
+      }
+    }
+    return render_operator_view(vi);
+  };
+  std::int64_t next_window = 0;
+
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
+    if (view_window && monotonic_ns() >= next_window) {
+      // A window at 20 Hz; highgui runs its event loop in waitKey on this thread.
+      next_window = monotonic_ns() + 50'000'000;
+      cv::imshow("telex-local", render_view());
+      if (cv::waitKey(1) == 27) break;  // Esc closes the station
+    }
     drain();
     drain_tracking();
     const std::int64_t now = monotonic_ns();
@@ -408,32 +455,12 @@ StationSummary Station::run() {
         }
         std::fprintf(stderr, "telex-local: %s |%s\n", text.c_str(), forces.c_str());
       }
-      if (!view_dir.empty() || view_window) {
-        ViewInputs vi;
-        std::shared_ptr<const Surface> vs;
-        {
-          std::lock_guard lock(view_mu);
-          vs = view_surface;
-          vi.depth_mm = view_depth;
-        }
-        vi.surface = vs.get();
-        hand_for_view.take(view_hand);
-        vi.hand = view_hand;
-        vi.forces = last.forces;
-        vi.status = text;
-        {
-          std::lock_guard lock(video_mu);
-          if (!latest_jpeg.empty()) {
-            cv::Mat raw(1, static_cast<int>(latest_jpeg.size()), CV_8U, latest_jpeg.data());
-            vi.camera_bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
-          }
-        }
-        const cv::Mat3b img = render_operator_view(vi);
-        if (!view_dir.empty()) {
-          const auto path = std::filesystem::path(view_dir) / "view.png";
-          const auto tmp = std::filesystem::path(view_dir) / "view.tmp.png";
-          if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
-        }
+      last_status = text;
+      if (!view_dir.empty()) {
+        const cv::Mat3b img = render_view();
+        const auto path = std::filesystem::path(view_dir) / "view.png";
+        const auto tmp = std::filesystem::path(view_dir) / "view.tmp.png";
+        if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
       }
       window_periods.clear();
       window_latency.clear();

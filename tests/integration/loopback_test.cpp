@@ -224,3 +224,19 @@ TEST(Loopback, NatNetSimulatorDrivesTheFingertips) {
 
 }  // namespace
 }  // namespace telex::test
+
+namespace telex::test {
+namespace {
+
+TEST(LocalFlags, WindowViewWithoutDisplaySaysWhatToDo) {
+  const auto dir = scratch_dir("local_window_no_display");
+  unsetenv("DISPLAY");
+  unsetenv("WAYLAND_DISPLAY");
+  Process local({built_binary("telex-local").string(), "--view", "window"}, dir / "out",
+                dir / "err");
+  ASSERT_EQ(local.wait(10s).value_or(-1), 2);
+  EXPECT_NE(local.stderr_text().find("--view png:DIR"), std::string::npos) << local.stderr_text();
+}
+
+}  // namespace
+}  // namespace telex::test
