@@ -72,8 +72,8 @@ class RemoteServer::Impl {
       // A bad --listen value (port in use, address not ours) is a configuration error: exit 2.
       throw std::invalid_argument(
           fmt::format("cannot listen on {}:{}: {} (is another telex-remote running? pick another "
-                      "--listen port)", config_.host,
-                      config_.port, ec.message()));
+                      "--listen port)",
+                      config_.host, config_.port, ec.message()));
     udp_.open(address.is_v4() ? udp::v4() : udp::v6(), ec);
     if (!ec) udp_.bind(udp::endpoint(address, 0), ec);
     if (!ec) udp_.set_option(asio::socket_base::send_buffer_size(4 << 20), ec);
@@ -161,6 +161,9 @@ class RemoteServer::Impl {
   void publish(const ProcessedFrame& frame) {
     const auto l = link();
     if (!l) return;
+    // A frame processed while nobody was connected has no tiles or manifest: a receiver that
+    // connected in between waits for the next one (its key frame).
+    if (frame.manifest.tile_count == 0) return;
     // A new session, or a frame of another shape or codec, announces the stream first (on TCP).
     proto::StreamConfig sc;
     sc.width = static_cast<std::uint16_t>(frame.grid.frame_width);

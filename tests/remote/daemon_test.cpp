@@ -57,7 +57,7 @@ TEST(RemoteDaemon, DummyDeviceFramesReachTheClientIntactOverUdp) {
   ASSERT_TRUE(client.config_.has_value());
   EXPECT_EQ(client.config_->width, 320);
   EXPECT_EQ(client.config_->height, 240);
-  EXPECT_EQ(client.decode_errors_, 0u);
+  EXPECT_EQ(client.decode_errors_, 0u) << client.last_error_;
   for (const auto& [id, f] : client.frames_) {
     const cv::Mat1w sent = log.view(id);
     ASSERT_FALSE(sent.empty());

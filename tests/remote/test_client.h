@@ -85,6 +85,7 @@ class TestClient {
   std::vector<proto::VideoFrame> video_;
   std::map<std::uint32_t, ReceivedFrame> frames_;
   std::uint64_t decode_errors_ = 0;
+  std::string last_error_;
   bool tcp_closed_ = false;
   const proto::ReassemblerCounters& reassembly() const { return reassembler_.counters(); }
 
@@ -104,6 +105,7 @@ class TestClient {
             while (auto r = parser_.next()) {
               if (!r->ok()) {
                 ++decode_errors_;
+                last_error_ = std::string("tcp: ") + r->detail;
                 continue;
               }
               const auto& env = *r->envelope;
@@ -131,6 +133,7 @@ class TestClient {
               handle(*r.envelope, bytes);
             } else {
               ++decode_errors_;
+              last_error_ = std::string("udp: ") + r.detail;
             }
           }
           read_udp();
@@ -174,9 +177,10 @@ class TestClient {
           } else if constexpr (std::is_same_v<T, proto::DepthTile>) {
             current_bytes_ += wire_bytes;
             if (!config_ || proto::decode_tile_into(m.payload, grid_, m.tile_index, m.codec,
-                                                    frame_) != proto::DecodeStatus::Ok)
+                                                    frame_) != proto::DecodeStatus::Ok) {
               ++decode_errors_;
-            else
+              last_error_ = "tile " + std::to_string(m.tile_index) + " did not decode";
+            } else
               ++current_tiles_;
           } else if constexpr (std::is_same_v<T, proto::FrameManifest>) {
             ReceivedFrame f;
