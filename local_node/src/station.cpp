@@ -41,16 +41,17 @@ struct TickSample {
   std::array<glm::dvec3, kFingerCount> p_camera{};
 };
 
-// Median depth (m) of the valid pixels in the central tenth of the image: where scripts aim.
-double centre_depth_m(const Surface& s) {
-  const int w = std::max(1, s.depth_m.cols / 10), h = std::max(1, s.depth_m.rows / 10);
-  const cv::Mat1f c = s.depth_m(cv::Rect((s.depth_m.cols - w) / 2, (s.depth_m.rows - h) / 2, w, h));
-  std::vector<float> v;
+// Median depth (m) of the valid pixels in the central tenth of the raw frame: where scripts aim.
+// The raw frame, not the snapshot: a region-of-interest snapshot holds nothing there yet.
+double centre_depth_m(const cv::Mat1w& depth_mm) {
+  const int w = std::max(1, depth_mm.cols / 10), h = std::max(1, depth_mm.rows / 10);
+  const cv::Mat1w c = depth_mm(cv::Rect((depth_mm.cols - w) / 2, (depth_mm.rows - h) / 2, w, h));
+  std::vector<std::uint16_t> v;
   for (auto z : c)
     if (z > 0) v.push_back(z);
   if (v.empty()) return 0.0;
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+  return v[v.size() / 2] * 1e-3;
 }
 
 std::string view_dir_of(const std::string& spec) {
@@ -168,7 +169,7 @@ StationSummary Station::run() {
       SurfaceBuildStats st;
       std::shared_ptr<const Surface> s = build_surface(*frame, cfg_.surface, windows, &st);
       build_ms.store(st.filter_ms + st.normals_ms);
-      if (surfaces_built.load() == 0) first_centre_depth.store(centre_depth_m(*s));
+      if (surfaces_built.load() == 0) first_centre_depth.store(centre_depth_m(frame->depth_mm));
       surfaces.publish(s);
       retired.push_back(s);
       if (retired.size() > 8) retired.pop_front();
