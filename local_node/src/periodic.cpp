@@ -55,7 +55,30 @@ double percentile(std::vector<double> values, double p) {
   return values[k] + (values[k + 1] - values[k]) * (pos - static_cast<double>(k));
 }
 
-PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns, std::int64_t nominal_ns) {
+void Histogram::add(double v) {
+  if (!std::isfinite(v)) return;
+  const double clamped = std::max(0.0, v);
+  const auto bin = std::min(counts_.size() - 1, static_cast<std::size_t>(clamped / width_));
+  ++counts_[bin];
+  ++n_;
+  sum_ += v;
+  max_ = n_ == 1 ? v : std::max(max_, v);
+}
+
+double Histogram::quantile(double p) const {
+  if (n_ == 0) return 0.0;
+  const auto rank =
+      static_cast<std::uint64_t>(std::ceil(std::clamp(p, 0.0, 1.0) * static_cast<double>(n_)));
+  std::uint64_t seen = 0;
+  for (std::size_t i = 0; i < counts_.size(); ++i) {
+    seen += counts_[i];
+    if (seen >= std::max<std::uint64_t>(rank, 1)) return (static_cast<double>(i) + 0.5) * width_;
+  }
+  return max_;
+}
+
+PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns,
+                                std::int64_t nominal_ns) {
   PeriodSummary s;
   s.count = periods_ns.size();
   if (periods_ns.empty()) return s;

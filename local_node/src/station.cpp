@@ -70,9 +70,6 @@ std::string view_dir_of(const std::string& spec) {
   throw std::invalid_argument("--view '" + spec + "': expected none, window or png:DIR");
 }
 
-// Long runs keep the most recent samples for the final statistics, so memory stays flat.
-constexpr std::size_t kMaxKept = 1u << 20;
-
 const char* kFingerNames[kFingerCount] = {"thumb", "index", "middle", "ring", "little"};
 
 }  // namespace
@@ -293,10 +290,8 @@ StationSummary Station::run() {
                scheduling.c_str());
 
   // ---- main thread: drain samples, log, print, view ----
-  std::vector<std::int64_t> periods;
-  std::vector<double> latencies_ms;
-  periods.reserve(1 << 16);
-  latencies_ms.reserve(1 << 16);
+  // Whole-run statistics in fixed memory, so a long run's resident size stays flat.
+  Histogram period_us(1.0, 20'000), jitter_us(1.0, 20'000), latency_ms(0.1, 20'000);
   std::vector<std::int64_t> window_periods;
   std::vector<double> window_latency;
   TickSample s{};
@@ -316,12 +311,9 @@ StationSummary Station::run() {
     while (samples.pop(s)) {
       ++tick_index;
       last = s;
-      if (periods.size() >= kMaxKept)
-        periods.erase(periods.begin(), periods.begin() + kMaxKept / 2);
-      if (latencies_ms.size() >= kMaxKept)
-        latencies_ms.erase(latencies_ms.begin(), latencies_ms.begin() + kMaxKept / 2);
       if (tick_index > 1) {
-        periods.push_back(s.period_ns);
+        period_us.add(static_cast<double>(s.period_ns) / 1e3);
+        jitter_us.add(std::abs(static_cast<double>(s.period_ns - period_ns)) / 1e3);
         window_periods.push_back(s.period_ns);
       }
       // Capture-to-force latency: measured at the first tick that renders a newly arrived surface.
@@ -329,7 +321,7 @@ StationSummary Station::run() {
         last_latency_frame = s.surface_frame;
         const std::int64_t offset = client.stats().clock_offset_ns.load();
         const double lat = static_cast<double>(s.t_ns - (s.surface_capture_ns - offset)) / 1e6;
-        latencies_ms.push_back(lat);
+        latency_ms.add(lat);
         window_latency.push_back(lat);
       }
       for (const auto& f : s.forces) {
@@ -475,15 +467,15 @@ StationSummary Station::run() {
   shutdown();
   if (forces_csv.is_open()) forces_csv.flush();
 
-  const auto ps = summarize_periods(periods, period_ns);
   summary.ticks = tick_index;
-  summary.haptic_rate_hz = ps.mean_rate_hz;
-  summary.period_p99_jitter_us = ps.p99_jitter_us;
-  summary.period_median_us = ps.median_period_us;
+  summary.haptic_rate_hz =
+      period_us.count() ? 1e6 * static_cast<double>(period_us.count()) / period_us.sum() : 0.0;
+  summary.period_p99_jitter_us = jitter_us.quantile(0.99);
+  summary.period_median_us = period_us.quantile(0.5);
   summary.missed_ticks = missed.load();
   summary.surfaces = surfaces_built.load();
-  summary.latency_median_ms = percentile(latencies_ms, 0.5);
-  summary.latency_p99_ms = percentile(latencies_ms, 0.99);
+  summary.latency_median_ms = latency_ms.quantile(0.5);
+  summary.latency_p99_ms = latency_ms.quantile(0.99);
   return summary;
 }
 

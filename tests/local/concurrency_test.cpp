@@ -91,3 +91,21 @@ TEST(Percentile, Interpolates) {
 
 }  // namespace
 }  // namespace telex::local
+
+namespace telex::local {
+namespace {
+
+TEST(Histogram, QuantilesToOneBinInFixedMemory) {
+  Histogram h(1.0, 100);
+  for (int i = 0; i < 1000; ++i) h.add(i % 50);  // uniform over 0..49
+  h.add(1e9);                                    // lands in the overflow bin
+  EXPECT_EQ(h.count(), 1001u);
+  EXPECT_NEAR(h.quantile(0.5), 25.0, 1.0);
+  EXPECT_NEAR(h.quantile(0.98), 49.5, 1.0);
+  EXPECT_DOUBLE_EQ(h.quantile(1.0), 99.5);  // the overflow bin
+  EXPECT_DOUBLE_EQ(h.max(), 1e9);
+  EXPECT_DOUBLE_EQ(Histogram(1.0, 10).quantile(0.5), 0.0);
+}
+
+}  // namespace
+}  // namespace telex::local

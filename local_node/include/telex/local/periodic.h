@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Fixed-rate loop timing (absolute deadlines, no drift) and period statistics for the haptic thread.
+// Fixed-rate loop timing (absolute deadlines, no drift) and period statistics for the haptic
+// thread.
 #pragma once
 
 #include <cstdint>
@@ -38,7 +39,28 @@ struct PeriodSummary {
 };
 
 // Summary of observed periods (ns) against the nominal period.
-PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns, std::int64_t nominal_ns);
+PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns,
+                                std::int64_t nominal_ns);
+
+// Fixed-memory histogram for long runs: counts in bins of `bin_width` from 0, the last bin
+// collecting everything above the range. Quantiles are exact to one bin.
+class Histogram {
+ public:
+  Histogram(double bin_width, std::size_t bins) : width_(bin_width), counts_(bins, 0) {}
+  void add(double v);
+  std::uint64_t count() const { return n_; }
+  double sum() const { return sum_; }
+  double max() const { return max_; }
+  // The p-quantile (0..1) as the centre of the bin that holds it (0 when empty).
+  double quantile(double p) const;
+
+ private:
+  double width_;
+  std::vector<std::uint64_t> counts_;
+  std::uint64_t n_ = 0;
+  double sum_ = 0;
+  double max_ = 0;
+};
 
 // The p-quantile (0..1) of a sample, linearly interpolated (copies, does not modify input).
 double percentile(std::vector<double> values, double p);
