@@ -89,12 +89,14 @@ kill -0 "$remote_pid" 2>/dev/null && remote_alive=yes
 
 {
   echo "soak: ${minutes} min, loss $loss, telex-local exit $local_rc, telex-remote alive at end: $remote_alive"
-  # Max RSS and least-squares slope after the warm-up, per daemon, in MiB and KiB/min.
-  awk -F, -v w="$warmup_s" '
+  # Max RSS and least-squares slope after the warm-up, per daemon, in MiB and KiB/min. The last
+  # 3 s are left out of the slope: telex-local is shutting down then and frees its buffers.
+  end_t=$(tail -n 1 "$outdir/rss.csv" | cut -d, -f1)
+  awk -F, -v w="$warmup_s" -v e="$((end_t - 3))" '
     NR == 1 { next }
     {
       for (c = 2; c <= 4; ++c) if ($c != "") { if ($c > mx[c]) mx[c] = $c }
-      if ($1 >= w) for (c = 2; c <= 4; ++c) if ($c != "") {
+      if ($1 >= w && $1 <= e) for (c = 2; c <= 4; ++c) if ($c != "") {
         n[c]++; sx[c] += $1; sy[c] += $c; sxx[c] += $1 * $1; sxy[c] += $1 * $c
         if (!(c in first)) first[c] = $c; last[c] = $c
       }
