@@ -20,8 +20,9 @@ struct SurfaceOptions {
   bool bilateral = true;
   BilateralOptions bilateral_options{};
   NormalOptions normal_options{};
-  // Region of interest: filter and build normals only near the fingertips. Elsewhere the surface
-  // keeps the raw depth and no normals (the model then fits a local plane if ever needed).
+  // Region of interest: filter and build normals only near the fingertips. Elsewhere the snapshot
+  // holds no depth (holes) and no normals: a fingertip there cannot touch anything before the
+  // next frame.
   bool roi = false;
   double roi_radius_m = 0.04;    // around each fingertip, at its depth
   double roi_lookahead_s = 0.1;  // plus the distance the fingertip may travel in this time
@@ -42,7 +43,9 @@ struct SurfaceBuildStats {
 };
 
 // A snapshot with its own calloc'd buffers (the kernel hands out zero pages lazily, so a fresh one
-// only pays for the pages written), which a SurfacePool recycles.
+// only pays for the pages written), which a SurfacePool recycles. depth_m and normals view those
+// buffers without an OpenCV reference count: a copied Mat header is valid only while the snapshot
+// itself is held (clone() to keep pixels longer).
 struct PooledSurface : Surface {
   explicit PooledSurface(cv::Size size);
   cv::Size size() const { return depth_m.size(); }
