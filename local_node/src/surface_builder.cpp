@@ -3,10 +3,13 @@
 #include "telex/local/surface_builder.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <new>
+#include <stdexcept>
+#include <string>
 
 namespace telex::local {
 namespace {
@@ -55,76 +58,145 @@ std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& 
   return out;
 }
 
-namespace {
+void PooledSurface::Free::operator()(void* p) const { std::free(p); }
 
-// A snapshot whose pixel buffers come from calloc: the kernel hands out zero pages lazily, so a
-// region-of-interest snapshot only pays for the windows it writes, not for the whole frame.
-struct WindowedSurface : Surface {
-  struct Free {
-    void operator()(void* p) const { std::free(p); }
-  };
-  std::unique_ptr<void, Free> depth_buf, normal_buf;
+PooledSurface::PooledSurface(cv::Size size) {
+  const auto n = static_cast<std::size_t>(size.area());
+  depth_buf_.reset(std::calloc(n, sizeof(float)));
+  normal_buf_.reset(std::calloc(n, 3 * sizeof(float)));
+  if (!depth_buf_ || !normal_buf_) throw std::bad_alloc();
+  depth_m = cv::Mat1f(size.height, size.width, static_cast<float*>(depth_buf_.get()));
+  normals = cv::Mat3f(size.height, size.width, static_cast<cv::Vec3f*>(normal_buf_.get()));
+}
 
-  WindowedSurface(cv::Size size) {
-    const auto n = static_cast<std::size_t>(size.area());
-    depth_buf.reset(std::calloc(n, sizeof(float)));
-    normal_buf.reset(std::calloc(n, 3 * sizeof(float)));
-    if (!depth_buf || !normal_buf) throw std::bad_alloc();
-    depth_m = cv::Mat1f(size.height, size.width, static_cast<float*>(depth_buf.get()));
-    normals = cv::Mat3f(size.height, size.width, static_cast<cv::Vec3f*>(normal_buf.get()));
+void PooledSurface::recycle(bool zero) {
+  const cv::Size size = this->size();
+  if (depth_m.data != depth_buf_.get() || normals.data != normal_buf_.get()) {
+    depth_m = cv::Mat1f(size.height, size.width, static_cast<float*>(depth_buf_.get()));
+    normals = cv::Mat3f(size.height, size.width, static_cast<cv::Vec3f*>(normal_buf_.get()));
   }
-};
+  if (!zero) {
+    // The caller writes every pixel; until it has, assume all of them may hold data.
+    written.clear();
+    written_all = true;
+    return;
+  }
+  if (written_all) {
+    depth_m.setTo(0.0f);
+    normals.setTo(cv::Vec3f(0.0f, 0.0f, 0.0f));
+  } else {
+    for (const auto& r : written) {
+      depth_m(r).setTo(0.0f);
+      normals(r).setTo(cv::Vec3f(0.0f, 0.0f, 0.0f));
+    }
+  }
+  written.clear();
+  written_all = false;
+}
 
-}  // namespace
+SurfacePool::SurfacePool(std::size_t capacity) : capacity_(capacity) {
+  if (capacity_ < 1) throw std::invalid_argument("SurfacePool: capacity must be at least 1");
+  entries_.reserve(capacity_);
+}
+
+SurfacePool::~SurfacePool() = default;
+
+std::shared_ptr<PooledSurface> SurfacePool::acquire(cv::Size size, bool zeroed) {
+  if (size.width <= 0 || size.height <= 0)
+    throw std::invalid_argument("SurfacePool: empty snapshot size");
+  std::shared_ptr<PooledSurface> found;
+  for (std::size_t i = 0; i < entries_.size();) {
+    // Only the pool can make new references to an entry it alone holds, and only this thread
+    // uses the pool: a use count of 1 cannot rise behind our back.
+    if (entries_[i].use_count() != 1) {
+      ++i;
+      continue;
+    }
+    if (entries_[i]->size() != size) {  // the stream changed resolution: drop the old size
+      entries_.erase(entries_.begin() + static_cast<std::ptrdiff_t>(i));
+      continue;
+    }
+    found = entries_[i];
+    break;
+  }
+  if (found) {
+    // use_count() is a relaxed load; the other owners released with acq_rel decrements. The fence
+    // orders their last reads of the pixels before our writes.
+    std::atomic_thread_fence(std::memory_order_acquire);
+    ++recycled_;
+  } else {
+    found = std::make_shared<PooledSurface>(size);
+    ++allocations_;
+    if (entries_.size() < capacity_) entries_.push_back(found);
+  }
+  found->recycle(zeroed);
+  found->intrinsics = {};
+  found->capture_ns = 0;
+  found->frame_id = 0;
+  return found;
+}
 
 std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const SurfaceOptions& o,
-                                       std::span<const cv::Rect> windows,
-                                       SurfaceBuildStats* stats) {
+                                       std::span<const cv::Rect> windows, SurfaceBuildStats* stats,
+                                       SurfacePool* pool) {
   SurfaceBuildStats local;
-  // The kernels' outputs are valid by construction (finite metres or 0, unit or zero normals) and
-  // freshly allocated per frame, so the snapshot takes them as they are: no copy, no re-check.
+  const cv::Size size = frame.depth_mm.size();
+  if (o.roi)
+    for (const auto& r : windows)
+      if (r.empty() || (r & cv::Rect(cv::Point(0, 0), size)) != r)
+        throw std::invalid_argument("build_surface: window " + std::to_string(r.width) + "x" +
+                                    std::to_string(r.height) + " at (" + std::to_string(r.x) +
+                                    ", " + std::to_string(r.y) + ") is empty or outside the frame");
+  auto t0 = std::chrono::steady_clock::now();
+  // A full-frame build writes every pixel; a region-of-interest one needs zeros outside its
+  // windows (a fingertip that far from the surface cannot touch it before the next frame). Without
+  // a pool, a region-of-interest snapshot gets fresh calloc'd buffers and a full-frame one lets the
+  // kernels allocate.
+  std::shared_ptr<PooledSurface> pooled;
+  std::shared_ptr<Surface> s;
+  if (pool)
+    s = pooled = pool->acquire(size, o.roi);
+  else if (o.roi)
+    s = pooled = std::make_shared<PooledSurface>(size);
+  else
+    s = std::make_shared<Surface>();
+  s->intrinsics = frame.intrinsics;
+  s->capture_ns = frame.capture_ns;
+  s->frame_id = frame.frame_id;
+  local.snapshot_ms = ms_since(t0);
+  // The kernels write straight into the snapshot's buffers (their outputs are valid by
+  // construction: finite metres or 0, unit or zero normals): no copy, no re-check.
   if (!o.roi) {
-    auto s = std::make_shared<Surface>();
-    auto t0 = std::chrono::steady_clock::now();
+    if (pooled) pooled->written_all = true;
+    t0 = std::chrono::steady_clock::now();
     if (o.bilateral)
       bilateral_filter_depth(frame.depth_mm, s->depth_m, o.bilateral_options);
     else
-      s->depth_m = depth_m_from_mm(frame.depth_mm);
+      frame.depth_mm.convertTo(s->depth_m, CV_32F, 1e-3);  // as depth_m_from_mm, in place
     local.filter_ms = ms_since(t0);
     t0 = std::chrono::steady_clock::now();
     compute_normals(s->depth_m, frame.intrinsics, s->normals, o.normal_options);
     local.normals_ms = ms_since(t0);
     local.pixels_processed = frame.depth_mm.total();
-    s->intrinsics = frame.intrinsics;
-    s->capture_ns = frame.capture_ns;
-    s->frame_id = frame.frame_id;
     if (stats) *stats = local;
     return s;
   }
-  // Region of interest: outside the windows the snapshot holds no data (a fingertip that far
-  // from the surface cannot touch it before the next frame).
-  auto s = std::make_shared<WindowedSurface>(frame.depth_mm.size());
-  s->intrinsics = frame.intrinsics;
-  s->capture_ns = frame.capture_ns;
-  s->frame_id = frame.frame_id;
-  auto t0 = std::chrono::steady_clock::now();
-  cv::Mat1f filtered;
+  pooled->written.assign(windows.begin(), windows.end());
+  t0 = std::chrono::steady_clock::now();
   for (const auto& r : windows) {
-    if (o.bilateral) {
-      bilateral_filter_depth_roi(frame.depth_mm, r, filtered, o.bilateral_options);
-      filtered.copyTo(s->depth_m(r));
-    } else {
-      depth_m_from_mm(frame.depth_mm(r)).copyTo(s->depth_m(r));
-    }
+    cv::Mat1f dst = s->depth_m(r);  // the kernel writes through this view (same size: no realloc)
+    if (o.bilateral)
+      bilateral_filter_depth_roi(frame.depth_mm, r, dst, o.bilateral_options);
+    else
+      frame.depth_mm(r).convertTo(dst, CV_32F, 1e-3);
   }
   local.filter_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
-  cv::Mat3f n_roi;
   for (const auto& r : windows) {
     // Normals need a one-pixel-plus-stencil margin of depth around the window; the window edges
     // see the margin as holes and fall back to one-sided differences.
-    compute_normals_roi(s->depth_m, frame.intrinsics, r, n_roi, o.normal_options);
-    n_roi.copyTo(s->normals(r));
+    cv::Mat3f dst = s->normals(r);
+    compute_normals_roi(s->depth_m, frame.intrinsics, r, dst, o.normal_options);
     local.pixels_processed += static_cast<std::size_t>(r.area());
   }
   local.normals_ms = ms_since(t0);

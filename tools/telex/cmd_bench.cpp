@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <glm/geometric.hpp>
@@ -394,7 +395,10 @@ struct ChainState {
   cv::Mat1w temporal_out, filled, received;
 };
 
-Sample run_chain(const Config& c, const Frame& f, ChainState& st) {
+// `pool` recycles the surface snapshots as the station's surface thread does (one per
+// configuration, so only its first frame allocates): a frame pays for clearing its windows, not
+// for allocating and zeroing two full-frame buffers.
+Sample run_chain(const Config& c, const Frame& f, ChainState& st, local::SurfacePool& pool) {
   Sample s;
   s.fill(kNaN);
   // Remote side: temporal fill, spatial fill, tiles through the codec.
@@ -443,7 +447,7 @@ Sample run_chain(const Config& c, const Frame& f, ChainState& st) {
     std::vector<cv::Rect> windows;
     if (c.roi) windows = local::fingertip_windows(f.script.hand, frame.depth_mm, f.intr, so);
     local::SurfaceBuildStats stats;
-    surface = local::build_surface(frame, so, windows, &stats);
+    surface = local::build_surface(frame, so, windows, &stats, &pool);
     s[kSurfaceMs] = cpu_ms() - t0;
     s[kPixels] = static_cast<double>(stats.pixels_processed);
     // build_surface's own stage times are wall clock, which the shared machine inflates: run the
@@ -754,7 +758,9 @@ std::string describe(const Config& c) {
 
 struct RoiTiming {
   double full_ms = kNaN, roi_ms = kNaN, none_ms = kNaN;
+  double roi_snapshot_ms = kNaN;  // of roi_ms: taking the snapshot from the pool, clearing it
   int window_px = 0;
+  std::size_t recycled = 0;
 };
 
 struct RoiRow {
@@ -819,7 +825,7 @@ void write_markdown(const fs::path& file, const std::vector<Row>& rows,
     }
   }
   os << "\n### Region of interest against full frame (one fingertip near the surface)\n\n"
-        "| full | ROI | build_surface ms full | build_surface ms ROI | ratio | bilateral+normals "
+        "| full | ROI | surface ms full | surface ms ROI | ratio | bilateral+normals "
         "ms "
         "full | bilateral+normals ms ROI | kernel ratio | pixels full | pixels ROI | force err % "
         "full | force err % ROI |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -829,10 +835,15 @@ void write_markdown(const fs::path& file, const std::vector<Row>& rows,
        << " | " << fmt(r.roi_kernel_ms, 3) << " | " << fmt(r.kernel_ratio(), 1) << "x | "
        << fmt(r.full_pixels, 0) << " | " << fmt(r.roi_pixels, 0) << " | "
        << fmt(100.0 * r.full_force, 2) << " | " << fmt(100.0 * r.roi_force, 2) << " |\n";
-  os << "\nInterleaved on one 640x480 desk frame (median of repeats): build_surface full frame "
+  os << "\nSurface ms = everything the station's surface thread does per frame for the snapshot: "
+        "fingertip windows, snapshot buffers from the pool (recycled; an ROI snapshot clears the "
+        "windows its last use wrote), bilateral filter, normals.\n";
+  os << "\nInterleaved on one 640x480 desk frame (median of repeats after the pools are filled; "
+        "8 retired snapshots kept, as in the station): full frame "
      << fmt(rt.full_ms, 3) << " ms, ROI with one fingertip 1 cm above the surface (" << rt.window_px
-     << " px window) " << fmt(rt.roi_ms, 3) << " ms (ratio " << fmt(rt.full_ms / rt.roi_ms, 1)
-     << "x), ROI with the fingertip far away (no window) " << fmt(rt.none_ms, 3) << " ms.\n";
+     << " px window) " << fmt(rt.roi_ms, 3) << " ms, of which snapshot "
+     << fmt(rt.roi_snapshot_ms, 4) << " ms (ratio " << fmt(rt.full_ms / rt.roi_ms, 1)
+     << "x), ROI with the fingertip far away (no window) " << fmt(rt.none_ms, 4) << " ms.\n";
   os << "\n### Static against moving scene (640x480, 80x60 tiles, zip level 0, only changed tiles "
         "sent)\n\n| scene | stabiliser | kB/s | tiles sent % | RMSE vs truth mm | "
         "stabiliser ms |\n|---|---|---|---|---|---|\n";
@@ -986,9 +997,10 @@ int run(const Options& o) {
       const Config& c = grid[ci];
       if (c.width != w || c.height != h) continue;
       if (!o.json) std::cerr << "  " << c.name << " (" << describe(c) << ")\n";
+      local::SurfacePool pool;
       for (const auto& [name, seq] : sequences) {
         ChainState state(c);
-        for (const auto& f : seq) samples[ci][name].push_back(run_chain(c, f, state));
+        for (const auto& f : seq) samples[ci][name].push_back(run_chain(c, f, state, pool));
       }
     }
   }
@@ -1010,9 +1022,11 @@ int run(const Options& o) {
           throw std::logic_error("config " + r.config->name + " on " + r.dataset + ": " +
                                  kMetricNames[m] + " is not finite");
 
-  // build_surface on one desk frame, interleaved so that machine load hits all three alike: the
-  // full frame, the windows of one fingertip 1 cm above the surface, and a fingertip far away
-  // (no windows at all).
+  // The station's per-frame surface work on one desk frame (fingertip windows, snapshot from the
+  // pool, bilateral, normals), interleaved so that machine load hits all three alike: the full
+  // frame, the windows of one fingertip 1 cm above the surface, and a fingertip far away (no
+  // windows at all). Each keeps the station's ring of 8 retired snapshots, so the pool recycles
+  // snapshots 8 frames old, as in the station.
   RoiTiming roi_timing;
   {
     const Intrinsics k = kinect_v1_intrinsics();
@@ -1024,26 +1038,43 @@ int run(const Options& o) {
     local::SurfaceOptions full, roi;
     roi.roi = true;
     const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true};
-    std::vector<double> full_ms, roi_ms, none_ms;
-    for (int i = 0; i < (o.quick ? 5 : 41); ++i) {
+    std::vector<double> full_ms, roi_ms, none_ms, roi_snapshot_ms;
+    local::SurfacePool full_pool, near_pool, none_pool;
+    std::deque<std::shared_ptr<const Surface>> full_ring, near_ring, none_ring;
+    auto retire = [](std::deque<std::shared_ptr<const Surface>>& ring,
+                     std::shared_ptr<const Surface> s) {
+      ring.push_back(std::move(s));
+      if (ring.size() > 8) ring.pop_front();
+    };
+    for (int i = 0; i < (o.quick ? 15 : 61); ++i) {
       double t0 = cpu_ms();
-      const auto a = local::build_surface(af, full, {});
+      auto a = local::build_surface(af, full, {}, nullptr, &full_pool);
       full_ms.push_back(cpu_ms() - t0);
+      local::SurfaceBuildStats near_stats;
       t0 = cpu_ms();
       const auto near = local::fingertip_windows(f.script.hand, f.depth_mm, k, roi);
-      const auto b = local::build_surface(af, roi, near);
+      auto b = local::build_surface(af, roi, near, &near_stats, &near_pool);
       roi_ms.push_back(cpu_ms() - t0);
+      roi_snapshot_ms.push_back(near_stats.snapshot_ms);
       t0 = cpu_ms();
       const auto none = local::fingertip_windows(far_hand, f.depth_mm, k, roi);
-      const auto c = local::build_surface(af, roi, none);
+      auto c = local::build_surface(af, roi, none, nullptr, &none_pool);
       none_ms.push_back(cpu_ms() - t0);
       if (near.size() != 1 || !none.empty() || !a || !b || !c)
         throw std::logic_error("expected one window for the near fingertip, none for the far one");
       roi_timing.window_px = near[0].area();
+      retire(full_ring, std::move(a));
+      retire(near_ring, std::move(b));
+      retire(none_ring, std::move(c));
     }
+    // The first 8 frames fill the pools (fresh allocations); the rest recycle.
+    for (auto* v : {&full_ms, &roi_ms, &none_ms, &roi_snapshot_ms})
+      v->erase(v->begin(), v->begin() + 9);
     roi_timing.full_ms = median(full_ms);
     roi_timing.roi_ms = median(roi_ms);
     roi_timing.none_ms = median(none_ms);
+    roi_timing.roi_snapshot_ms = median(roi_snapshot_ms);
+    roi_timing.recycled = near_pool.recycled();
   }
 
   const std::vector<StreamRow> stream = run_stream(
@@ -1088,7 +1119,9 @@ int run(const Options& o) {
                           {"roi_force_err", r.roi_force}});
     j["roi_interleaved"] = {{"full_ms", roi_timing.full_ms},
                             {"roi_ms", roi_timing.roi_ms},
+                            {"roi_snapshot_ms", roi_timing.roi_snapshot_ms},
                             {"no_window_ms", roi_timing.none_ms},
+                            {"roi_recycled", roi_timing.recycled},
                             {"window_px", roi_timing.window_px}};
     for (const auto& r : stream)
       j["stream"].push_back({{"scene", r.scene},
@@ -1113,8 +1146,9 @@ int run(const Options& o) {
                 << fmt(100 * r.full_force, 2) << "% vs " << fmt(100 * r.roi_force, 2) << "%\n";
     std::cout << "ROI interleaved on one desk frame: full " << fmt(roi_timing.full_ms)
               << " ms, ROI " << fmt(roi_timing.roi_ms) << " ms ("
-              << fmt(roi_timing.full_ms / roi_timing.roi_ms, 1) << "x), no window "
-              << fmt(roi_timing.none_ms) << " ms\n";
+              << fmt(roi_timing.full_ms / roi_timing.roi_ms, 1) << "x; snapshot "
+              << fmt(roi_timing.roi_snapshot_ms, 4) << " ms), no window "
+              << fmt(roi_timing.none_ms, 4) << " ms\n";
     for (const auto& r : stream)
       std::cout << "stream " << r.scene << " " << stab_name(r.stab) << ": "
                 << fmt(r.bytes_per_s / 1000, 1) << " kB/s, " << fmt(100 * r.tiles_changed, 1)
