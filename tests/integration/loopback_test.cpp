@@ -5,9 +5,9 @@
 #include <signal.h>
 
 #include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <map>
 #include <sstream>
 
 #include "process.h"
@@ -71,19 +71,13 @@ struct Remote {
 
 std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::path& dir,
                                     std::vector<std::string> extra) {
-  std::vector<std::string> a{built_binary("telex-local").string(),
-                             "--connect",
-                             "127.0.0.1:" + std::to_string(port),
-                             "--haptics",
-                             "sim",
-                             "--log-forces",
-                             (dir / "forces.csv").string(),
-                             "--json-summary",
+  std::vector<std::string> a{built_binary("telex-local").string(), "--connect",
+                             "127.0.0.1:" + std::to_string(port), "--haptics", "sim",
+                             "--log-forces", (dir / "forces.csv").string(), "--json-summary",
                              "--no-realtime",
                              // These tests check the force model end to end, not the stale-surface
                              // fade (RemoteRestart does): tolerate a loaded machine's slow frames.
-                             "--stale-limit",
-                             "1.0"};
+                             "--stale-limit", "1.0"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -106,7 +100,10 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
   ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
   const auto rows = read_forces(dir / "forces.csv");
-  ASSERT_GT(rows.size(), 5000u);
+  // The log covers the whole run (a loaded machine may run the unprivileged loop below 1 kHz, so
+  // the row count is not the measure).
+  ASSERT_GT(rows.size(), 1000u);
+  ASSERT_GT(rows.back().t - rows.front().t, 6.5);
   double peak = 0;
   std::size_t first_contact = rows.size(), last_contact = 0;
   for (std::size_t i = 0; i < rows.size(); ++i) {
