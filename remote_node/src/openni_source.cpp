@@ -139,6 +139,7 @@ class OpenNiDepthSource final : public DepthSource {
           fmt::format("OpenNI2 device '{}' has no depth stream: {}", uri_, err));
     }
     choose_depth_mode(stream_);
+    if (mode_ == Mode::Live) enable_hardware_registration();
     if (mode_ == Mode::Playback) {
       eof_ = std::make_unique<EofListener>(device_.getDeviceInfo().getUri());
       openni::OpenNI::addDeviceStateChangedListener(eof_.get());
@@ -253,6 +254,21 @@ class OpenNiDepthSource final : public DepthSource {
   }
 
  private:
+  // PrimeSense-class sensors (PS1080: Kinect v1, Carmine, Xtion) register depth to their colour
+  // camera in hardware; the pipeline's registration stage is then left at none. Devices without
+  // it (OpenNI2's Dummy) deliver depth as it is.
+  void enable_hardware_registration() {
+    if (!device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+      spdlog::info("openni: '{}' has no hardware depth-to-colour registration",
+                   uri_.empty() ? "ANY" : uri_);
+      return;
+    }
+    if (device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
+        openni::STATUS_OK)
+      spdlog::warn("openni: '{}' refused hardware depth-to-colour registration: {}",
+                   uri_.empty() ? "ANY" : uri_, openni::OpenNI::getExtendedError());
+  }
+
   // The file driver plays no frame of a recording that lacks a cropping record (see
   // repair_oni_for_playback): such a file is played from a repaired copy in the temp directory.
   std::string playable_copy() {
