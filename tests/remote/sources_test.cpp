@@ -211,8 +211,9 @@ TEST(OniPlayback, FastDeliversEveryRecordedFrameExactly) {
 void playback_realtime_delivers_recorded_frames() {
   TempDir dir;
   const auto path = dir.path / "dummy.oni";
-  const OniCapture capture = record_oni_frames("Dummy", path, kRecordFrames);
-  ASSERT_EQ(capture.frames(), kRecordFrames);
+  // 20 frames, about 0.66 s of playback: room for a few frames to arrive on a loaded machine.
+  const OniCapture capture = record_oni_frames("Dummy", path, 20);
+  ASSERT_EQ(capture.frames(), 20);
   // realtime: paced by the file's timestamps; a reader that falls behind misses frames (newest
   // wins), so only what arrives is compared, and the end must still be reported.
   const Played played = play("oni:" + path.string() + ",realtime", 1000);
