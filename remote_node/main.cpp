@@ -109,6 +109,23 @@ int main(int argc, char** argv) {
          "--stabilise", cfg.pipeline.stabilise_k_sigma,
          "Hold a pixel's last sent depth while within K sensor-noise sigmas (0 = off, bit-exact)")
       ->check(CLI::Range(0.0, 100.0));
+  std::string register_mode = "none", register_baseline = "0.025,0,0", register_rotation = "0,0,0",
+              register_eye;
+  app.add_option("--register", register_mode,
+                 "Register depth into the right-eye camera before fill: none | shift | full. "
+                 "none (default): OpenNI sources deliver hardware-registered depth already")
+      ->check(CLI::IsMember({"none", "shift", "full"}));
+  app.add_option("--register-baseline", register_baseline,
+                 "Eye camera centre X,Y,Z in the depth camera's frame, metres (x right, y down, "
+                 "z forward)");
+  app.add_option("--register-rotation", register_rotation,
+                 "Eye camera rotation RX,RY,RZ in degrees (about x, then y, then z) relative to "
+                 "the depth camera; shift mode ignores it");
+  app.add_option("--register-eye", register_eye,
+                 "Eye camera intrinsics FX,FY,CX,CY,W,H in pixels (empty = the depth source's)");
+  app.add_option("--register-nominal", cfg.pipeline.registration.nominal_depth_m,
+                 "Depth in metres at which shift registration is exact")
+      ->check(CLI::Range(0.05, 100.0));
   app.add_flag("--no-fill", no_fill, "Send holes as they are (no spatial or temporal fill)");
   app.add_flag("--no-temporal", no_temporal, "Spatial fill only");
   app.add_option("--fill-window", cfg.pipeline.hole_fill.window_px,
@@ -170,6 +187,9 @@ int main(int argc, char** argv) {
       throw std::invalid_argument(fmt::format("--size '{}' is not WxH within 16..4096", size));
     if (!parse_size(video_size, cfg.video_width, cfg.video_height))
       throw std::invalid_argument(fmt::format("--video-size '{}' is not WxH", video_size));
+    cfg.pipeline.registration =
+        telex::remote::parse_registration(register_mode, register_baseline, register_rotation,
+                                          register_eye, cfg.pipeline.registration.nominal_depth_m);
     cfg.pipeline.fill = !no_fill;
     cfg.pipeline.temporal_fill = !no_temporal;
     if (cfg.pipeline.hole_fill.window_px % 2 == 0)

@@ -40,7 +40,9 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   const std::uint64_t n = now.frames_processed - before.frames_processed;
   const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
   return fmt::format(
-      "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms fill {:.2f} stab {:.2f} tile "
+      "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
+      "{:.2f} "
+      "tile "
       "{:.2f} enc {:.2f} total {:.2f} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | "
@@ -49,6 +51,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
       now.frames_queue_dropped - before.frames_queue_dropped,
+      mean(now.stage_ms_sum.register_ms, before.stage_ms_sum.register_ms),
       mean(now.stage_ms_sum.fill_ms, before.stage_ms_sum.fill_ms),
       mean(now.stage_ms_sum.stabilise_ms, before.stage_ms_sum.stabilise_ms),
       mean(now.stage_ms_sum.tile_ms, before.stage_ms_sum.tile_ms),
@@ -184,6 +187,7 @@ void RemoteDaemon::process_loop() {
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
     stats_.tiles_skipped += p.tiles_skipped;
+    stats_.stage_ms_sum.register_ms += p.times.register_ms;
     stats_.stage_ms_sum.fill_ms += p.times.fill_ms;
     stats_.stage_ms_sum.stabilise_ms += p.times.stabilise_ms;
     stats_.stage_ms_sum.tile_ms += p.times.tile_ms;

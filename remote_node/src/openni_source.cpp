@@ -3,12 +3,16 @@
 // playback.
 #include <OpenNI.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <mutex>
 #include <stdexcept>
+#include <system_error>
+#include <thread>
 
 #include "source_impl.h"
 #include "telex/remote/openni_record.h"
@@ -27,6 +31,17 @@ void ensure_openni() {
   }();
   if (!error.empty())
     throw std::runtime_error(fmt::format("OpenNI2 failed to initialise: {}", error));
+}
+
+// OpenNI2's Dummy driver (OzStream in DummyDevice.cpp) stops a stream by clearing a flag that its
+// frame thread reads once per frame (after a 33 ms sleep); it never joins that thread, and
+// VideoStream::destroy deletes the stream at once. A thread still in its sleep then wakes up in a
+// deleted object and raises a frame into it: the SIGSEGV inside libDummyDevice.so that killed
+// processes which opened the device more than once. Waiting two frame periods between stop and
+// destroy lets the thread see the flag and return first.
+void let_driver_thread_exit(double fps) {
+  const double period_ms = 1000.0 / (fps > 1.0 ? fps : 30.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(2.0 * period_ms) + 10));
 }
 
 std::string list_devices() {
@@ -90,7 +105,10 @@ class OpenNiDepthSource final : public DepthSource {
   enum class Mode { Live, Playback };
   OpenNiDepthSource(Mode mode, std::string uri, bool loop, bool realtime)
       : mode_(mode), uri_(std::move(uri)), loop_(loop), realtime_(realtime) {}
-  ~OpenNiDepthSource() override { stop(); }
+  ~OpenNiDepthSource() override {
+    stop();
+    remove_repaired_copy();
+  }
 
   void start() override {
     if (started_) return;
@@ -98,7 +116,9 @@ class OpenNiDepthSource final : public DepthSource {
       throw std::runtime_error(
           fmt::format("oni recording '{}' does not exist or is not a file", uri_));
     ensure_openni();
-    const char* uri = uri_.empty() ? openni::ANY_DEVICE : uri_.c_str();
+    std::string open_uri = uri_;
+    if (mode_ == Mode::Playback) open_uri = playable_copy();
+    const char* uri = open_uri.empty() ? openni::ANY_DEVICE : open_uri.c_str();
     if (device_.open(uri) != openni::STATUS_OK) {
       const std::string err = openni::OpenNI::getExtendedError();
       const std::string devices = list_devices();
@@ -119,15 +139,19 @@ class OpenNiDepthSource final : public DepthSource {
           fmt::format("OpenNI2 device '{}' has no depth stream: {}", uri_, err));
     }
     choose_depth_mode(stream_);
+    if (mode_ == Mode::Live) enable_hardware_registration();
     if (mode_ == Mode::Playback) {
       eof_ = std::make_unique<EofListener>(device_.getDeviceInfo().getUri());
       openni::OpenNI::addDeviceStateChangedListener(eof_.get());
       auto* playback = device_.getPlaybackControl();
       if (playback != nullptr) {
         playback->setRepeatEnabled(loop_);
-        // OpenNI.h: 0 plays as fast as possible, -1 is manual stepping; the newest-wins slot
-        // downstream absorbs any surplus.
-        playback->setSpeed(realtime_ ? 1.0f : 0.0f);
+        // realtime: the file driver paces frames by their timestamps (a slow reader misses
+        // some, like a live device). fast: -1 is the driver's manual stepping, one frame per
+        // wait/read, so every frame arrives, in order, as fast as it is read. Speed 0 ("as fast
+        // as possible") would push the whole file through the stream's one-frame slot at once
+        // and a reader would see only the last frame.
+        playback->setSpeed(realtime_ ? 1.0f : -1.0f);
         frames_in_file_ = playback->getNumberOfFrames(stream_);
       }
     }
@@ -147,10 +171,12 @@ class OpenNiDepthSource final : public DepthSource {
   void stop() override {
     if (!started_) return;
     stream_.stop();
+    if (mode_ == Mode::Live) let_driver_thread_exit(fps_);
     stream_.destroy();
     device_.close();
     if (eof_) openni::OpenNI::removeDeviceStateChangedListener(eof_.get());
     eof_.reset();
+    remove_repaired_copy();
     started_ = false;
   }
 
@@ -228,6 +254,50 @@ class OpenNiDepthSource final : public DepthSource {
   }
 
  private:
+  // PrimeSense-class sensors (PS1080: Kinect v1, Carmine, Xtion) register depth to their colour
+  // camera in hardware; the pipeline's registration stage is then left at none. Devices without
+  // it (OpenNI2's Dummy) deliver depth as it is.
+  void enable_hardware_registration() {
+    if (!device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+      spdlog::info("openni: '{}' has no hardware depth-to-colour registration",
+                   uri_.empty() ? "ANY" : uri_);
+      return;
+    }
+    if (device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
+        openni::STATUS_OK)
+      spdlog::warn("openni: '{}' refused hardware depth-to-colour registration: {}",
+                   uri_.empty() ? "ANY" : uri_, openni::OpenNI::getExtendedError());
+  }
+
+  // The file driver plays no frame of a recording that lacks a cropping record (see
+  // repair_oni_for_playback): such a file is played from a repaired copy in the temp directory.
+  std::string playable_copy() {
+    int missing = 0;
+    try {
+      missing = oni_nodes_missing_cropping(uri_);
+    } catch (const std::exception& e) {
+      // Not a layout the repair understands (older format): let the driver judge the file.
+      spdlog::debug("oni: not checked for the cropping record: {}", e.what());
+      return uri_;
+    }
+    if (missing == 0) return uri_;
+    static std::atomic<int> counter{0};
+    repaired_ = std::filesystem::temp_directory_path() /
+                fmt::format("telex_oni_{}_{}.oni", ::getpid(), counter++);
+    repair_oni_for_playback(uri_, repaired_);
+    spdlog::info(
+        "oni: '{}' has {} image stream(s) without the cropping record OpenNI2's file driver "
+        "needs to deliver frames; playing a repaired copy '{}'",
+        uri_, missing, repaired_.string());
+    return repaired_.string();
+  }
+  void remove_repaired_copy() {
+    if (repaired_.empty()) return;
+    std::error_code ec;
+    std::filesystem::remove(repaired_, ec);
+    repaired_.clear();
+  }
+
   Mode mode_;
   std::string uri_;
   bool loop_ = false;
@@ -240,6 +310,7 @@ class OpenNiDepthSource final : public DepthSource {
   double fps_ = 30.0;
   int frames_in_file_ = 0;
   std::uint64_t frames_read_ = 0;
+  std::filesystem::path repaired_;
 };
 
 }  // namespace
@@ -263,8 +334,8 @@ std::unique_ptr<DepthSource> make_oni_source(const SourceSpec& spec, const Sourc
 
 }  // namespace detail
 
-int record_oni(const std::string& uri, const std::filesystem::path& path, int frames,
-               std::chrono::milliseconds timeout) {
+OniCapture record_oni_frames(const std::string& uri, const std::filesystem::path& path, int frames,
+                             std::chrono::milliseconds timeout, bool repair) {
   ensure_openni();
   openni::Device device;
   if (device.open(uri.empty() ? openni::ANY_DEVICE : uri.c_str()) != openni::STATUS_OK)
@@ -273,30 +344,46 @@ int record_oni(const std::string& uri, const std::filesystem::path& path, int fr
   openni::VideoStream stream;
   if (stream.create(device, openni::SENSOR_DEPTH) != openni::STATUS_OK)
     throw std::runtime_error(fmt::format("record_oni: device '{}' has no depth stream", uri));
+  choose_depth_mode(stream);
   openni::Recorder recorder;
+  // Lossless: depth goes through the 16z codec either way; the flag only allows JPEG for colour.
   if (recorder.create(path.c_str()) != openni::STATUS_OK ||
       recorder.attach(stream, false) != openni::STATUS_OK)
     throw std::runtime_error(fmt::format("record_oni: cannot record to '{}': {}", path.string(),
                                          openni::OpenNI::getExtendedError()));
+  OniCapture capture;
   stream.start();
   recorder.start();
-  int recorded = 0;
-  while (recorded < frames) {
+  while (capture.frames() < frames) {
     openni::VideoStream* streams[] = {&stream};
     int ready = -1;
     if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, static_cast<int>(timeout.count())) !=
         openni::STATUS_OK)
       break;
     openni::VideoFrameRef ref;
-    if (stream.readFrame(&ref) != openni::STATUS_OK) break;
-    ++recorded;
+    if (stream.readFrame(&ref) != openni::STATUS_OK || !ref.isValid()) break;
+    const cv::Mat1w view(
+        ref.getHeight(), ref.getWidth(),
+        const_cast<std::uint16_t*>(static_cast<const std::uint16_t*>(ref.getData())),
+        static_cast<std::size_t>(ref.getStrideInBytes()));
+    capture.depth_mm.push_back(view.clone());
+    capture.device_timestamp_us.push_back(ref.getTimestamp());
   }
+  // stop() only stops taking frames; destroy() drains the Recorder's queue, writes the seek table
+  // and the end record and closes the file.
   recorder.stop();
   recorder.destroy();
   stream.stop();
+  let_driver_thread_exit(stream.getVideoMode().getFps());
   stream.destroy();
   device.close();
-  return recorded;
+  if (repair) repair_oni_for_playback(path, path);
+  return capture;
+}
+
+int record_oni(const std::string& uri, const std::filesystem::path& path, int frames,
+               std::chrono::milliseconds timeout) {
+  return record_oni_frames(uri, path, frames, timeout).frames();
 }
 
 }  // namespace telex::remote

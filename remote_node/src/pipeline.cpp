@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: MIT
-// The remote node's per-frame processing: fill, stabilise, select changed tiles, encode.
+// The remote node's per-frame processing: register, fill, stabilise, select changed tiles, encode.
 #include "telex/remote/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <numbers>
 #include <stdexcept>
+#include <string>
 
 #include "telex/common/synthetic.h"
 
@@ -79,6 +82,90 @@ void Stabiliser::apply(const cv::Mat1w& in_mm, cv::Mat1w& out_mm) {
   }
 }
 
+RegisterMode parse_register_mode(std::string_view text) {
+  if (text == "none") return RegisterMode::None;
+  if (text == "shift") return RegisterMode::Shift;
+  if (text == "full") return RegisterMode::Full;
+  throw std::invalid_argument("registration mode '" + std::string(text) +
+                              "' is not one of none, shift, full");
+}
+
+std::string_view register_mode_name(RegisterMode mode) {
+  switch (mode) {
+    case RegisterMode::Shift:
+      return "shift";
+    case RegisterMode::Full:
+      return "full";
+    case RegisterMode::None:
+      break;
+  }
+  return "none";
+}
+
+namespace {
+
+std::vector<double> parse_numbers(std::string_view text, std::size_t count, const char* flag,
+                                  const char* form) {
+  std::vector<double> out;
+  std::string item;
+  const std::string all(text);
+  std::size_t start = 0;
+  while (start <= all.size()) {
+    const std::size_t comma = std::min(all.find(',', start), all.size());
+    item = all.substr(start, comma - start);
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (item.empty() || used != item.size() || !std::isfinite(v))
+      throw std::invalid_argument(std::string(flag) + " '" + all + "' is not " + form);
+    out.push_back(v);
+    start = comma + 1;
+  }
+  if (out.size() != count)
+    throw std::invalid_argument(std::string(flag) + " '" + all + "' is not " + form);
+  return out;
+}
+
+}  // namespace
+
+RegistrationConfig parse_registration(std::string_view mode, std::string_view eye_centre_m,
+                                      std::string_view rotation_deg, std::string_view eye,
+                                      double nominal_depth_m) {
+  RegistrationConfig c;
+  c.mode = parse_register_mode(mode);
+  const auto centre = parse_numbers(eye_centre_m, 3, "--register-baseline", "X,Y,Z in metres");
+  const auto rot = parse_numbers(rotation_deg, 3, "--register-rotation", "RX,RY,RZ in degrees");
+  const double k = std::numbers::pi / 180.0;
+  const glm::dmat3 rx(1, 0, 0, 0, std::cos(rot[0] * k), std::sin(rot[0] * k), 0,
+                      -std::sin(rot[0] * k), std::cos(rot[0] * k));
+  const glm::dmat3 ry(std::cos(rot[1] * k), 0, -std::sin(rot[1] * k), 0, 1, 0, std::sin(rot[1] * k),
+                      0, std::cos(rot[1] * k));
+  const glm::dmat3 rz(std::cos(rot[2] * k), std::sin(rot[2] * k), 0, -std::sin(rot[2] * k),
+                      std::cos(rot[2] * k), 0, 0, 0, 1);
+  // The eye's axes, seen from the depth camera, are the depth camera's turned by R; a depth-frame
+  // point p is at R^T (p - C) in the eye's frame.
+  const glm::dmat3 r = rz * ry * rx;
+  const glm::dvec3 c_m(centre[0], centre[1], centre[2]);
+  c.eye_from_depth.rotation = glm::transpose(r);
+  c.eye_from_depth.translation_m = -(glm::transpose(r) * c_m);
+  if (!eye.empty()) {
+    const auto e = parse_numbers(eye, 6, "--register-eye", "FX,FY,CX,CY,W,H in pixels");
+    if (!(e[0] > 0 && e[1] > 0 && e[4] >= 1 && e[5] >= 1 && e[4] <= 8192 && e[5] <= 8192 &&
+          e[4] == std::floor(e[4]) && e[5] == std::floor(e[5])))
+      throw std::invalid_argument("--register-eye '" + std::string(eye) +
+                                  "': FX, FY must be > 0 and W, H whole numbers 1..8192");
+    c.eye = Intrinsics{e[0], e[1], e[2], e[3], static_cast<int>(e[4]), static_cast<int>(e[5])};
+  }
+  if (!(nominal_depth_m > 0) || !std::isfinite(nominal_depth_m))
+    throw std::invalid_argument("--register-nominal must be > 0 m");
+  c.nominal_depth_m = nominal_depth_m;
+  return c;
+}
+
 std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
                                 const std::vector<proto::RoiRect>& rois) {
   std::vector<bool> mask(static_cast<std::size_t>(grid.count()), false);
@@ -102,6 +189,35 @@ FramePipeline::FramePipeline(PipelineConfig config)
     throw std::invalid_argument("background rate divider must be >= 1");
   if (config_.zip_level < 0 || config_.zip_level > 9)
     throw std::invalid_argument("zip level must be 0..9");
+  const RegistrationConfig& reg = config_.registration;
+  if (reg.mode != RegisterMode::None) {
+    if (reg.eye.width != 0 &&
+        !(reg.eye.width > 0 && reg.eye.height > 0 && reg.eye.fx > 0 && reg.eye.fy > 0))
+      throw std::invalid_argument("registration eye intrinsics need fx, fy, width, height > 0");
+    if (!(reg.nominal_depth_m > 0) || !std::isfinite(reg.nominal_depth_m))
+      throw std::invalid_argument("registration nominal depth must be > 0 m");
+    const glm::dvec3& t = reg.eye_from_depth.translation_m;
+    if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z))
+      throw std::invalid_argument("registration baseline must be finite");
+  }
+}
+
+const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
+  const RegistrationConfig& reg = config_.registration;
+  if (reg.mode == RegisterMode::None) return in;
+  const Intrinsics eye = reg.eye.width == 0 ? in.intrinsics : reg.eye;
+  if (reg.mode == RegisterMode::Full) {
+    registered_ = reproject_depth(in, eye, reg.eye_from_depth, /*fill_cracks=*/true);
+  } else {
+    // Shift+scale models a translated camera: the rotation is ignored.
+    if (shift_scale_for_ != in.intrinsics) {
+      shift_scale_ = shift_scale_from_calibration(
+          in.intrinsics, eye, reg.eye_from_depth.translation_m, reg.nominal_depth_m);
+      shift_scale_for_ = in.intrinsics;
+    }
+    registered_ = register_shift_scale(in, shift_scale_, eye);
+  }
+  return registered_;
 }
 
 ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameRequest& request) {
@@ -109,13 +225,16 @@ ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameReques
   ProcessedFrame out;
   out.frame_id = static_cast<std::uint32_t>(frame.frame_id);
   out.capture_ns = frame.capture_ns;
-  out.intrinsics = frame.image.intrinsics;
   out.codec = request.codec.value_or(config_.codec);
-  const cv::Mat1w& in = frame.image.depth_mm;
+  auto t0 = std::chrono::steady_clock::now();
+  const DepthImage& registered = register_frame(frame.image);
+  out.times.register_ms = ms_since(t0);
+  out.intrinsics = registered.intrinsics;
+  const cv::Mat1w& in = registered.depth_mm;
   out.holes_in = count_holes(in);
 
   // Fill: windowed mode for small holes, then the per-pixel history for what the window missed.
-  auto t0 = std::chrono::steady_clock::now();
+  t0 = std::chrono::steady_clock::now();
   const cv::Mat1w* current = &in;
   if (config_.fill) {
     fill_holes_mode_into(in, filled_, config_.hole_fill);

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Remote pipeline stage costs per 640x480 frame: fill, stabilise, tile selection, encode, whole
-// frame.
+// Remote pipeline stage costs per 640x480 frame: register, fill, stabilise, tile selection,
+// encode, whole frame.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -53,6 +53,25 @@ remote::DepthFrame frame_of(const cv::Mat1w& d, std::uint64_t id) {
   f.capture_ns = static_cast<std::int64_t>(id) * 33'333'333;
   return f;
 }
+
+// The registration stage alone, into a 580 px focal right eye 2.5 cm to the right (the default
+// extrinsics), as FramePipeline::register_frame runs it. Arg: 0 none, 1 shift, 2 full.
+void BM_Register(benchmark::State& state) {
+  const auto mode = static_cast<remote::RegisterMode>(state.range(0));
+  remote::PipelineConfig c;
+  c.registration = remote::parse_registration(remote::register_mode_name(mode), "0.025,0,0",
+                                              "0,0,0", "580,580,322,236,640,480", 1.0);
+  remote::FramePipeline p(c);
+  DepthImage in;
+  in.depth_mm = frames().a;
+  in.intrinsics = kinect_v1_intrinsics();
+  for (auto _ : state) {
+    const DepthImage& out = p.register_frame(in);
+    benchmark::DoNotOptimize(out.depth_mm.data);
+  }
+  state.SetLabel(std::string(remote::register_mode_name(mode)) + ", " + frames().name);
+}
+BENCHMARK(BM_Register)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 void BM_FillMode(benchmark::State& state) {
   cv::Mat1w out;
@@ -112,8 +131,11 @@ BENCHMARK(BM_EncodeAllTiles)
     ->Unit(benchmark::kMillisecond);
 
 // Whole frames through the pipeline; stage times are the pipeline's own timers, averaged.
-void run_pipeline(benchmark::State& state, bool key_every_frame, double k) {
+void run_pipeline(benchmark::State& state, bool key_every_frame, double k,
+                  remote::RegisterMode reg = remote::RegisterMode::None) {
   remote::PipelineConfig c;
+  c.registration = remote::parse_registration(remote::register_mode_name(reg), "0.025,0,0", "0,0,0",
+                                              "580,580,322,236,640,480", 1.0);
   c.key_frame_every = key_every_frame ? 1 : 100000;
   c.stabilise_k_sigma = k;
   remote::FramePipeline p(c);
@@ -123,6 +145,7 @@ void run_pipeline(benchmark::State& state, bool key_every_frame, double k) {
   for (auto _ : state) {
     ++id;
     auto out = p.process(frame_of(id % 2 ? frames().a : frames().b, id), {});
+    sum.register_ms += out.times.register_ms;
     sum.fill_ms += out.times.fill_ms;
     sum.stabilise_ms += out.times.stabilise_ms;
     sum.tile_ms += out.times.tile_ms;
@@ -131,6 +154,7 @@ void run_pipeline(benchmark::State& state, bool key_every_frame, double k) {
     for (const auto& t : out.tiles) bytes += t.bytes.size();
   }
   const double n = static_cast<double>(state.iterations());
+  state.counters["reg_ms"] = sum.register_ms / n;
   state.counters["fill_ms"] = sum.fill_ms / n;
   state.counters["stab_ms"] = sum.stabilise_ms / n;
   state.counters["tile_ms"] = sum.tile_ms / n;
@@ -146,6 +170,14 @@ void BM_PipelineDeltaNoStabiliser(benchmark::State& state) { run_pipeline(state,
 BENCHMARK(BM_PipelineDeltaNoStabiliser)->Unit(benchmark::kMillisecond);
 void BM_PipelineDeltaStabilised5(benchmark::State& state) { run_pipeline(state, false, 5.0); }
 BENCHMARK(BM_PipelineDeltaStabilised5)->Unit(benchmark::kMillisecond);
+void BM_PipelineKeyFramesRegisterShift(benchmark::State& state) {
+  run_pipeline(state, true, 0.0, remote::RegisterMode::Shift);
+}
+BENCHMARK(BM_PipelineKeyFramesRegisterShift)->Unit(benchmark::kMillisecond);
+void BM_PipelineKeyFramesRegisterFull(benchmark::State& state) {
+  run_pipeline(state, true, 0.0, remote::RegisterMode::Full);
+}
+BENCHMARK(BM_PipelineKeyFramesRegisterFull)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

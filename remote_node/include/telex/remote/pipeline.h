@@ -1,15 +1,17 @@
 // SPDX-License-Identifier: MIT
-// Remote processing pipeline: fill, stabilise, tile, skip unchanged tiles, encode; each stage
-// timed.
+// Remote processing pipeline: register, fill, stabilise, tile, skip unchanged tiles, encode; each
+// stage timed.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "telex/common/hole_fill.h"
+#include "telex/common/registration.h"
 #include "telex/common/temporal_fill.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/messages.h"
@@ -43,7 +45,38 @@ class Stabiliser {
   cv::Mat1b outside_;  // consecutive frames outside the band
 };
 
+// Registration of the depth frame into the operator's right-eye camera, the first stage (before
+// fill, so fill and the haptic surface work in the eye's pixels). none: the frame passes as it is;
+// the OpenNI sources (live and .oni) deliver depth that the sensor has already registered
+// (PS1080 hardware registration), so none is the default. shift: shift+scale exact at
+// nominal_depth_m (cheap, wrong by fx*b*|1/Z - 1/Z0| px away from it); full: per-pixel
+// reprojection with a z-buffer and crack fill (telex/common/registration.h).
+enum class RegisterMode { None, Shift, Full };
+// "none" | "shift" | "full"; throws std::invalid_argument naming the valid values.
+RegisterMode parse_register_mode(std::string_view text);
+std::string_view register_mode_name(RegisterMode mode);
+
+struct RegistrationConfig {
+  RegisterMode mode = RegisterMode::None;
+  // Intrinsics of the eye camera; width == 0 means the depth source's own intrinsics (same
+  // optics, moved by the extrinsics).
+  Intrinsics eye{0.0, 0.0, 0.0, 0.0, 0, 0};
+  // Extrinsics: p_eye = rotation * p_depth + translation, metres. The default is an eye whose
+  // centre sits 2.5 cm to the right of the depth camera (the Kinect v1 depth-to-RGB baseline).
+  RigidTransform eye_from_depth{glm::dmat3(1.0), glm::dvec3(-0.025, 0.0, 0.0)};
+  double nominal_depth_m = 1.0;  // shift: the depth at which shift+scale is exact
+};
+
+// Builds a RegistrationConfig from the command line's text: mode, eye centre "X,Y,Z" (metres, in
+// the depth camera's frame), rotation "RX,RY,RZ" (degrees, applied about x, then y, then z),
+// eye intrinsics "FX,FY,CX,CY,W,H" ("" = the source's). Throws std::invalid_argument naming the
+// flag and the expected form.
+RegistrationConfig parse_registration(std::string_view mode, std::string_view eye_centre_m,
+                                      std::string_view rotation_deg, std::string_view eye,
+                                      double nominal_depth_m);
+
 struct PipelineConfig {
+  RegistrationConfig registration;
   bool fill = true;  // windowed-mode spatial fill, then temporal fill of what is left
   HoleFillOptions hole_fill;
   bool temporal_fill = true;
@@ -68,7 +101,7 @@ struct FrameRequest {
 };
 
 struct StageTimes {
-  double fill_ms = 0, stabilise_ms = 0, tile_ms = 0, encode_ms = 0, total_ms = 0;
+  double register_ms = 0, fill_ms = 0, stabilise_ms = 0, tile_ms = 0, encode_ms = 0, total_ms = 0;
 };
 
 struct ProcessedFrame {
@@ -96,9 +129,15 @@ class FramePipeline {
   explicit FramePipeline(PipelineConfig config);
   ProcessedFrame process(const DepthFrame& frame, const FrameRequest& request);
   const PipelineConfig& config() const { return config_; }
+  // The registration stage alone: `in` itself when the mode is none, else the frame in the eye
+  // camera (valid until the next call).
+  const DepthImage& register_frame(const DepthImage& in);
 
  private:
   PipelineConfig config_;
+  DepthImage registered_;
+  ShiftScale shift_scale_;
+  std::optional<Intrinsics> shift_scale_for_;  // source intrinsics shift_scale_ was derived for
   TemporalFill temporal_;
   Stabiliser stabiliser_;
   cv::Mat1w filled_, temporal_out_, stabilised_, sent_view_;
