@@ -192,7 +192,11 @@ int main(int argc, char** argv) {
                        {"latency_p99_ms", s.latency_p99_ms},
                        {"peak_pressure_N", s.peak_pressure_N},
                        {"peak_shear_N", s.peak_shear_N},
-                       {"scheduling", s.scheduling}};
+                       {"scheduling", s.scheduling},
+                       {"auth_failed", s.auth_failed},
+                       {"unexpected_tag", s.unexpected_tag},
+                       {"replayed", s.replayed},
+                       {"dropped_malformed", s.dropped_malformed}};
       std::cout << j.dump() << std::endl;
     }
     return 0;

@@ -489,6 +489,10 @@ StationSummary Station::run() {
   summary.surfaces = surfaces_built.load();
   summary.latency_median_ms = latency_ms.quantile(0.5);
   summary.latency_p99_ms = latency_ms.quantile(0.99);
+  summary.auth_failed = client.stats().auth_failed.load();
+  summary.unexpected_tag = client.stats().unexpected_tag.load();
+  summary.replayed = client.stats().replayed.load();
+  summary.dropped_malformed = client.stats().dropped_malformed.load();
   return summary;
 }
 
