@@ -148,7 +148,7 @@ TEST_P(SameKey, ForcesAreThoseOfAnUnkeyedRunAndNothingIsDropped) {
   EXPECT_EQ(j["auth_failed"].get<int>(), 0);
   EXPECT_EQ(j["unexpected_tag"].get<int>(), 0);
   EXPECT_EQ(j["replayed"].get<int>(), 0);
-  EXPECT_NE(remote.proc.stderr_text().find("authenticated with --psk"), std::string::npos);
+  EXPECT_NE(remote.proc.stdout_text().find("authenticated with --psk"), std::string::npos);
   EXPECT_TRUE(remote.proc.running());
 }
 
