@@ -204,29 +204,6 @@ TEST(StationRestart, RemoteAcceptsTheStationAgainAfterSigkill) {
   remote.wait(5s);
 }
 
-// Connects to 127.0.0.1:port over TCP, writes `bytes`, closes. Failures are ignored: the daemon
-// is allowed to reset a hostile peer.
-void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0)
-    (void)!send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-  close(fd);
-}
-
-void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  close(fd);
-}
-
 // A bounded menu of hostile inputs: random, truncated, oversize length, wrong magic, wrong
 // version, a well-formed message of a foreign session.
 std::vector<std::uint8_t> junk(int kind, std::mt19937& rng, bool stream) {

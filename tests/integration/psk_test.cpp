@@ -241,27 +241,6 @@ TEST(PskKeyFile, ErrorsExitTwoWithAMessageNamingTheFix) {
   }
 }
 
-void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0)
-    (void)!send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-  close(fd);
-}
-
-void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  close(fd);
-}
-
 // A keyed session runs through telex-sim-impair, which duplicates (replays) and corrupts some of
 // the real datagrams, while an attacker sends at both daemons: a Hello recorded earlier under the
 // real key (a replay), Hellos under another key, and datagrams at the station's UDP port that are
