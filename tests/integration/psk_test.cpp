@@ -241,6 +241,59 @@ TEST(PskKeyFile, ErrorsExitTwoWithAMessageNamingTheFix) {
   }
 }
 
+// A Hello recorded under the real key, replayed to an idle remote on a connection the attacker
+// keeps open: the remote accepts it (it cannot tell a replay from a reconnect) but under a fresh
+// server nonce, so nothing the attacker sends afterwards verifies; the session ends at the client
+// timeout and the real station then gets its session.
+TEST(PskAttack, ReplayedHelloToAnIdleRemoteHoldsTheSlotOnlyUntilTheTimeout) {
+  TELEX_REQUIRE_DAEMONS();
+  const auto dir = scratch_dir("psk_replayed_hello");
+  const std::string real = key_bytes(1);
+  const auto key = write_key(dir, "key", real, kOwnerRw);
+  const proto::AuthKey psk(std::vector<std::uint8_t>(real.begin(), real.end()));
+  Remote remote(dir, {"--psk", key.string(), "--client-timeout-ms", "500"});
+  proto::Header h;
+  h.capture_ns = 0x1234;  // the recorded Hello's nonce
+  proto::Hello hello;
+  hello.codecs = {proto::Codec::Zip};
+  const auto replayed_hello = proto::encode_stream_sealed(h, hello, &psk);
+  // Recorded in the same earlier session: heartbeats under the pre-shared key (or, equally
+  // useless, under that session's key).
+  proto::Header hb_h;
+  hb_h.session_id = 1;
+  hb_h.seq = 1;
+  const auto replayed_heartbeat =
+      proto::encode_stream_sealed(hb_h, proto::Heartbeat{1, 0, 0, 0}, &psk);
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(remote.port);
+  ASSERT_TRUE(
+      eventually(10s, [&] { return connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0; }));
+  // The recorded stream as it was: Hello, then the heartbeats, in one write.
+  std::vector<std::uint8_t> stream = replayed_hello;
+  for (int i = 0; i < 5; ++i)
+    stream.insert(stream.end(), replayed_heartbeat.begin(), replayed_heartbeat.end());
+  ASSERT_EQ(send(fd, stream.data(), stream.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(stream.size()));
+  // Accepted, but nothing after Hello verified: the session timed out, not kept alive.
+  ASSERT_TRUE(eventually(10s, [&] {
+    return last_counter(remote.proc.stderr_text(), "accepted") == 1 &&
+           last_counter(remote.proc.stderr_text(), "timeouts") == 1 &&
+           last_counter(remote.proc.stderr_text(), "auth-failed") >= 5;
+  })) << remote.proc.stderr_text();
+  close(fd);
+  Process local(local_args(remote.port, dir,
+                           {"--psk", key.string(), "--hand", "script:press", "--duration", "2",
+                            "--first-surface-timeout", "15"}),
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(40s);
+  ASSERT_TRUE(rc.has_value());
+  ASSERT_EQ(*rc, 0) << local.stderr_text();
+  EXPECT_GT(summary_of(local)["surfaces"].get<int>(), 0);
+}
+
 // A keyed session runs through telex-sim-impair, which duplicates (replays) and corrupts some of
 // the real datagrams, while an attacker sends at both daemons: a Hello recorded earlier under the
 // real key (a replay), Hellos under another key, and datagrams at the station's UDP port that are
