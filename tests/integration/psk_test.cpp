@@ -161,6 +161,9 @@ struct Mismatch {
   const char* remote_counter;  // rises in telex-remote's stats line
 };
 
+// Names the case in test listings instead of dumping the struct's bytes (pointers included).
+void PrintTo(const Mismatch& m, std::ostream* os) { *os << m.name; }
+
 class KeyMismatch : public ::testing::TestWithParam<Mismatch> {};
 
 TEST_P(KeyMismatch, NoSessionAMessageNamingTheFixAndCounters) {
