@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   std::string connect = "127.0.0.1:7300";
   std::string transport = "udp";
   std::string glove;
+  std::string psk_file;
   bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
   app.add_option("--connect", connect, "remote node HOST:PORT")->capture_default_str();
   app.add_option("--transport", transport, "depth transport: udp or tcp")
@@ -120,6 +121,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--json-summary", json_summary, "print a JSON summary on stdout at exit");
   app.add_flag("--quiet", quiet, "no status line");
+  app.add_option("--psk", psk_file,
+                 "pre-shared key FILE (16..1024 raw bytes, mode 0600): every message carries an "
+                 "HMAC-SHA256 tag and replays are dropped; the remote needs the same key");
   try {
     app.parse(argc, argv);
     auto [host, port] = host_port(connect, "--connect");
@@ -128,6 +132,15 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
+  }
+  if (!psk_file.empty()) {
+    try {
+      telex::proto::check_key_file_permissions(psk_file);
+      cfg.client.psk = telex::proto::load_key_file(psk_file);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "telex-local: error: --psk: %s\n", e.what());
+      return 2;
+    }
   }
   cfg.client.use_udp = transport == "udp";
   cfg.tracker.glove_spec = glove;
@@ -179,7 +192,11 @@ int main(int argc, char** argv) {
                        {"latency_p99_ms", s.latency_p99_ms},
                        {"peak_pressure_N", s.peak_pressure_N},
                        {"peak_shear_N", s.peak_shear_N},
-                       {"scheduling", s.scheduling}};
+                       {"scheduling", s.scheduling},
+                       {"auth_failed", s.auth_failed},
+                       {"unexpected_tag", s.unexpected_tag},
+                       {"replayed", s.replayed},
+                       {"dropped_malformed", s.dropped_malformed}};
       std::cout << j.dump() << std::endl;
     }
     return 0;

@@ -81,6 +81,7 @@ int main(int argc, char** argv) {
   std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
               size = "640x480", video_size = "0x0";
   int client_timeout_ms = 3000;
+  std::string psk_file;
   bool no_fill = false, no_temporal = false, no_stats = false;
   app.add_option("--source", cfg.depth_source,
                  "Depth source: openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
@@ -152,6 +153,9 @@ int main(int argc, char** argv) {
   app.add_option("--duration", cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-stats", no_stats, "No stats line every second");
+  app.add_option("--psk", psk_file,
+                 "Pre-shared key FILE (16..1024 raw bytes, mode 0600): every message carries an "
+                 "HMAC-SHA256 tag and replays are dropped; the station needs the same key");
 
   try {
     app.parse(argc, argv);
@@ -196,6 +200,10 @@ int main(int argc, char** argv) {
       throw std::invalid_argument(
           fmt::format("--fill-window {} must be odd", cfg.pipeline.hole_fill.window_px));
     cfg.stats_line = !no_stats;
+    if (!psk_file.empty()) {
+      telex::proto::check_key_file_permissions(psk_file);
+      cfg.server.psk = telex::proto::load_key_file(psk_file);
+    }
     telex::remote::validate(cfg);
   } catch (const std::exception& e) {
     std::cerr << "telex-remote: " << e.what() << "\n";
@@ -218,8 +226,9 @@ int main(int argc, char** argv) {
     std::cerr << "telex-remote: " << e.what() << "\n";
     return 1;
   }
-  spdlog::info("telex-remote: {} -> listening on {}:{} ({})", daemon->depth_source().describe(),
-               cfg.server.host, daemon->port(),
-               cfg.server.force_tcp ? "tcp" : "udp if the client offers it");
+  spdlog::info(
+      "telex-remote: {} -> listening on {}:{} ({}{})", daemon->depth_source().describe(),
+      cfg.server.host, daemon->port(), cfg.server.force_tcp ? "tcp" : "udp if the client offers it",
+      cfg.server.psk ? ", messages authenticated with --psk" : ", no --psk: unauthenticated");
   return daemon->run();
 }

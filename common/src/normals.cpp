@@ -54,6 +54,22 @@ inline float bad_flag(float c, float right, float below, float ratio) {
   return 0.0f;
 }
 
+// One row's inputs to wide_normals_avx2 (a stub without x86): wide-stencil normals of 8 pixels at
+// a time into planar rows; `wide` marks the pixels it covered (the rest need the scalar
+// fallback). Operation order matches the scalar code exactly.
+struct WideRow {
+  const float* z;
+  const float* win_bad;
+  const float* col_z;
+  const float* d_rows;
+  int k;
+  float inv, fx, fy, u0, v_c;
+  const float* z_up;
+  const float* z_down;
+  float ratio;
+  cv::Vec3f* out;
+};
+
 #ifdef TELEX_HAVE_X86
 __attribute__((target("avx2"))) int clean_avx2(const float* in, float* out, int n) {
   const __m256 zero = _mm256_setzero_ps(), big = _mm256_set1_ps(1e6f);
@@ -137,21 +153,6 @@ __attribute__((target("avx2"))) int diff_rows_avx2(const float* a, const float* 
   }
   return x;
 }
-
-// Wide-stencil normals of 8 pixels at a time into planar rows; `wide` marks the pixels it
-// covered (the rest need the scalar fallback). Operation order matches the scalar code exactly.
-struct WideRow {
-  const float* z;
-  const float* win_bad;
-  const float* col_z;
-  const float* d_rows;
-  int k;
-  float inv, fx, fy, u0, v_c;
-  const float* z_up;
-  const float* z_down;
-  float ratio;
-  cv::Vec3f* out;
-};
 
 // Lanes where neighbour `o` exists and is on the same surface as `c`.
 __attribute__((target("avx2"))) inline __m256 usable8(__m256 c, __m256 o, __m256 ratio) {
@@ -249,18 +250,6 @@ bool cpu_has_avx2() {
   return has;
 }
 #else
-struct WideRow {
-  const float* z;
-  const float* win_bad;
-  const float* col_z;
-  const float* d_rows;
-  int k;
-  float inv, fx, fy, u0, v_c;
-  const float* z_up;
-  const float* z_down;
-  float ratio;
-  cv::Vec3f* out;
-};
 int wide_normals_avx2(const WideRow&, int, int) { return 0; }
 int clean_avx2(const float*, float*, int) { return 0; }
 int flags_avx2(const float*, const float*, float*, int, float) { return 0; }
@@ -446,24 +435,6 @@ void compute_normals_roi(const cv::Mat1f& depth_m, const Intrinsics& intrinsics,
                          const cv::Rect& roi, cv::Mat3f& normals_out,
                          const NormalOptions& options) {
   run(depth_m, intrinsics, roi, normals_out, options);
-}
-
-cv::Mat3b normals_to_rgb(const cv::Mat3f& normals) {
-  cv::Mat3b out(normals.size());
-  for (int y = 0; y < normals.rows; ++y) {
-    const cv::Vec3f* n = normals[y];
-    cv::Vec3b* o = out[y];
-    for (int x = 0; x < normals.cols; ++x) {
-      const cv::Vec3f v = n[x];
-      if (v[0] == 0.0f && v[1] == 0.0f && v[2] == 0.0f) {
-        o[x] = cv::Vec3b(0, 0, 0);
-        continue;
-      }
-      for (int c = 0; c < 3; ++c)
-        o[x][c] = cv::saturate_cast<std::uint8_t>((v[c] + 1.0f) * 0.5f * 255.0f);
-    }
-  }
-  return out;
 }
 
 }  // namespace telex

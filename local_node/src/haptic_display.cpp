@@ -54,33 +54,36 @@ class SimDisplay final : public HapticDisplay {
       stop_ = true;
       thread_.join();
       drain();
-      if (std::fclose(file_) != 0) ++errors_;
+      if (std::fclose(file_) != 0) ++counters_.errors;
     }
     spdlog::info(
         "{}: {} writes, {} recorded, {} dropped, max pressure {:.3f} N, max shear {:.3f} N", name(),
-        writes_.load(), sent_.load(), dropped_.load(), max_p_.load(), max_s_.load());
+        counters_.writes.load(), counters_.sent.load(), counters_.dropped.load(),
+        counters_.max_pressure_N.load(), counters_.max_shear_N.load());
   }
 
   void write(std::int64_t now_ns, std::span<const FingerForce> forces) override {
-    ++writes_;
+    ++counters_.writes;
     SimRecord rec;
     rec.t_ns = now_ns;
     for (int i = 0; i < 5; ++i) rec.by_finger[i].finger = i;
     for (const FingerForce& f : forces) {
       if (f.finger < 0 || f.finger > 4) continue;
       rec.by_finger[f.finger] = f;
-      if (std::isfinite(f.pressure_N) && f.pressure_N > max_p_.load(std::memory_order_relaxed))
-        max_p_.store(f.pressure_N, std::memory_order_relaxed);
-      if (std::isfinite(f.shear_N) && std::abs(f.shear_N) > max_s_.load(std::memory_order_relaxed))
-        max_s_.store(std::abs(f.shear_N), std::memory_order_relaxed);
+      if (std::isfinite(f.pressure_N) &&
+          f.pressure_N > counters_.max_pressure_N.load(std::memory_order_relaxed))
+        counters_.max_pressure_N.store(f.pressure_N, std::memory_order_relaxed);
+      if (std::isfinite(f.shear_N) &&
+          std::abs(f.shear_N) > counters_.max_shear_N.load(std::memory_order_relaxed))
+        counters_.max_shear_N.store(std::abs(f.shear_N), std::memory_order_relaxed);
     }
     if (ring_.empty()) {
-      ++sent_;
+      ++counters_.sent;
       return;
     }
     const std::size_t head = head_.load(std::memory_order_relaxed);
     if (head - tail_.load(std::memory_order_acquire) >= ring_.size()) {
-      ++dropped_;
+      ++counters_.dropped;
       return;
     }
     ring_[head % ring_.size()] = rec;
@@ -88,16 +91,7 @@ class SimDisplay final : public HapticDisplay {
   }
 
   std::string name() const override { return path_.empty() ? "sim" : "sim:" + path_; }
-  DisplayStats stats() const override {
-    DisplayStats s;
-    s.writes = writes_;
-    s.sent = sent_;
-    s.dropped = dropped_;
-    s.errors = errors_;
-    s.max_pressure_N = max_p_;
-    s.max_shear_N = max_s_;
-    return s;
-  }
+  DisplayStats stats() const override { return counters_.snapshot(); }
 
  private:
   void drain_loop() {
@@ -114,8 +108,8 @@ class SimDisplay final : public HapticDisplay {
       std::fprintf(file_, "%lld", static_cast<long long>(r.t_ns));
       for (const FingerForce& f : r.by_finger)
         std::fprintf(file_, ",%.6f,%.6f,%d", f.pressure_N, f.shear_N, f.contact ? 1 : 0);
-      if (std::fputc('\n', file_) == EOF) ++errors_;
-      ++sent_;
+      if (std::fputc('\n', file_) == EOF) ++counters_.errors;
+      ++counters_.sent;
       tail_.store(tail + 1, std::memory_order_release);
     }
     std::fflush(file_);
@@ -127,8 +121,7 @@ class SimDisplay final : public HapticDisplay {
   std::FILE* file_ = nullptr;
   std::atomic<bool> stop_{false};
   std::thread thread_;
-  std::atomic<std::uint64_t> writes_{0}, sent_{0}, dropped_{0}, errors_{0};
-  std::atomic<double> max_p_{0.0}, max_s_{0.0};
+  DisplayCounters counters_;
 };
 
 }  // namespace

@@ -132,6 +132,9 @@ StationSummary Station::run() {
     std::fprintf(stderr, "telex-local: remote %s: %s\n", std::string(to_string(s)).c_str(),
                  why.c_str());
   };
+  events.on_warning = [](const std::string& what) {
+    std::fprintf(stderr, "telex-local: %s\n", what.c_str());
+  };
   ClientConfig client_cfg = cfg_.client;
   client_cfg.want_video = client_cfg.want_video || view_window || !view_dir.empty();
   SurfaceClient client(client_cfg, std::move(events));
@@ -206,6 +209,16 @@ StationSummary Station::run() {
   while (surfaces_built.load() == 0 && !stop_.load()) {
     if (monotonic_ns() > wait_deadline) {
       shutdown();
+      const auto& cs = client.stats();
+      const std::uint64_t auth_drops = cs.auth_failed.load() + cs.unexpected_tag.load();
+      if (auth_drops > 0)
+        throw std::runtime_error(
+            "no depth surface from the remote at " + cfg_.client.host + ":" +
+            std::to_string(cfg_.client.port) + ": authentication failed (" +
+            std::to_string(cs.auth_failed.load()) + " message(s) with a missing or wrong tag, " +
+            std::to_string(cs.unexpected_tag.load()) +
+            " tagged while this station has no key; see the lines above): start both daemons "
+            "with the same --psk FILE, or neither");
       throw std::runtime_error(
           "no depth surface from the remote at " + cfg_.client.host + ":" +
           std::to_string(cfg_.client.port) + " within " +
@@ -479,6 +492,10 @@ StationSummary Station::run() {
   summary.surfaces = surfaces_built.load();
   summary.latency_median_ms = latency_ms.quantile(0.5);
   summary.latency_p99_ms = latency_ms.quantile(0.99);
+  summary.auth_failed = client.stats().auth_failed.load();
+  summary.unexpected_tag = client.stats().unexpected_tag.load();
+  summary.replayed = client.stats().replayed.load();
+  summary.dropped_malformed = client.stats().dropped_malformed.load();
   return summary;
 }
 

@@ -20,20 +20,34 @@ using asio::ip::udp;
 
 std::string_view to_string(ClientState s) {
   switch (s) {
-    case ClientState::Connecting: return "connecting";
-    case ClientState::Handshaking: return "handshaking";
-    case ClientState::Streaming: return "streaming";
-    case ClientState::Backoff: return "backoff";
-    case ClientState::Stopped: return "stopped";
+    case ClientState::Connecting:
+      return "connecting";
+    case ClientState::Handshaking:
+      return "handshaking";
+    case ClientState::Streaming:
+      return "streaming";
+    case ClientState::Backoff:
+      return "backoff";
+    case ClientState::Stopped:
+      return "stopped";
   }
   return "?";
 }
 
 struct SurfaceClient::Impl {
   Impl(ClientConfig c, ClientEvents e, ClientStats& s)
-      : cfg(std::move(c)), ev(std::move(e)), stats(s), work(asio::make_work_guard(io)),
-        tcp_sock(io), udp_sock(io), resolver(io), heartbeat_timer(io), retry_timer(io),
-        parser(cfg.limits), dgram(cfg.limits), backoff_ns(cfg.backoff_min_ns) {}
+      : cfg(std::move(c)),
+        ev(std::move(e)),
+        stats(s),
+        work(asio::make_work_guard(io)),
+        tcp_sock(io),
+        udp_sock(io),
+        resolver(io),
+        heartbeat_timer(io),
+        retry_timer(io),
+        parser(cfg.limits),
+        dgram(cfg.limits),
+        backoff_ns(cfg.backoff_min_ns) {}
 
   ClientConfig cfg;
   ClientEvents ev;
@@ -56,6 +70,14 @@ struct SurfaceClient::Impl {
   std::deque<std::vector<std::uint8_t>> out_queue;
   bool writing = false;
 
+  // Authentication: the pre-shared key until Accept, then the session key (null without --psk).
+  const proto::AuthKey* psk() const { return cfg.psk ? &*cfg.psk : nullptr; }
+  std::optional<proto::AuthKey> session_key;
+  std::uint64_t hello_nonce = 0;
+  std::uint64_t conn_auth_failed = 0, conn_unexpected_tag = 0;  // on this connection
+  std::string conn_auth_detail;
+  std::int64_t last_warning_ns = 0;
+
   std::uint64_t generation = 0;  // bumps on every (re)connect so stale handlers bail out
   std::uint32_t session_id = 0;
   std::uint32_t seq = 0;
@@ -69,12 +91,16 @@ struct SurfaceClient::Impl {
     if (ev.on_state) ev.on_state(s, why);
   }
 
+  const proto::AuthKey* tx_key() const { return session_key ? &*session_key : psk(); }
+
   void send(const proto::Message& m) {
     proto::Header h;
     h.session_id = session_id;
     h.seq = seq++;
     h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
-    out_queue.push_back(proto::encode_stream(h, m));
+    // With a key, Hello's capture_ns is the client nonce of the session key (it has no capture).
+    if (cfg.psk && std::holds_alternative<proto::Hello>(m)) h.capture_ns = hello_nonce;
+    out_queue.push_back(proto::encode_stream_sealed(h, m, tx_key()));
     if (out_queue.size() > 64) out_queue.pop_front();  // a stuck link must not grow memory
     if (!writing) write_next();
   }
@@ -120,8 +146,14 @@ struct SurfaceClient::Impl {
     boost::system::error_code ec;
     tcp_sock.set_option(tcp::no_delay(true), ec);
     parser = proto::StreamParser(cfg.limits);
+    dgram = proto::DatagramParser(cfg.limits);
+    parser.set_key(cfg.psk);
     reassembler = proto::Reassembler();
     session_id = 0;
+    session_key.reset();
+    conn_auth_failed = conn_unexpected_tag = 0;
+    conn_auth_detail.clear();
+    if (cfg.psk) hello_nonce = proto::random_u64();
     std::uint16_t udp_port = 0;
     if (cfg.use_udp) {
       // Receive UDP on the interface the TCP session uses, so loopback stays loopback.
@@ -130,8 +162,8 @@ struct SurfaceClient::Impl {
       if (!ec)
         udp_sock.bind(udp::endpoint(tcp_sock.local_endpoint().address(), cfg.udp_bind_port), ec);
       if (ec) return disconnect("cannot open UDP socket: " + ec.message());
-      udp_port = cfg.udp_announce_port != 0 ? cfg.udp_announce_port
-                                            : udp_sock.local_endpoint().port();
+      udp_port =
+          cfg.udp_announce_port != 0 ? cfg.udp_announce_port : udp_sock.local_endpoint().port();
       udp_receive();
     }
     set_state(ClientState::Handshaking, "connected to " + ep.address().to_string());
@@ -149,40 +181,42 @@ struct SurfaceClient::Impl {
 
   void tcp_read() {
     const auto gen = generation;
-    tcp_sock.async_read_some(asio::buffer(tcp_buf), [this, gen](boost::system::error_code ec,
-                                                                std::size_t n) {
-      if (gen != generation) return;
-      if (ec) return disconnect(ec == asio::error::eof ? "remote closed the connection"
-                                                       : "read failed: " + ec.message());
-      stats.bytes_in.fetch_add(n);
-      std::span<const std::uint8_t> rest(tcp_buf.data(), n);
-      while (true) {
-        const std::size_t took = parser.feed(rest);
-        rest = rest.subspan(took);
-        while (auto r = parser.next()) {
-          if (!r->ok()) {
-            stats.dropped_malformed.fetch_add(1);
-            continue;
+    tcp_sock.async_read_some(
+        asio::buffer(tcp_buf), [this, gen](boost::system::error_code ec, std::size_t n) {
+          if (gen != generation) return;
+          if (ec)
+            return disconnect(ec == asio::error::eof ? "remote closed the connection"
+                                                     : "read failed: " + ec.message());
+          stats.bytes_in.fetch_add(n);
+          std::span<const std::uint8_t> rest(tcp_buf.data(), n);
+          while (true) {
+            const std::size_t took = parser.feed(rest);
+            rest = rest.subspan(took);
+            while (auto r = parser.next()) {
+              if (!r->ok()) {
+                count_drop(*r, "TCP");
+                continue;
+              }
+              handle(*r->envelope);
+              if (gen != generation) return;  // handling disconnected us
+            }
+            if (parser.failed()) return disconnect("malformed stream from remote");
+            if (rest.empty() || took == 0) break;
           }
-          handle(*r->envelope);
-          if (gen != generation) return;  // handling disconnected us
-        }
-        if (parser.failed()) return disconnect("malformed stream from remote");
-        if (rest.empty() || took == 0) break;
-      }
-      tcp_read();
-    });
+          tcp_read();
+        });
   }
 
   void udp_receive() {
     const auto gen = generation;
-    udp_sock.async_receive_from(
-        asio::buffer(udp_buf), udp_from, [this, gen](boost::system::error_code ec, std::size_t n) {
-          if (gen != generation || !udp_sock.is_open()) return;
-          if (!ec) on_datagram(std::span<const std::uint8_t>(udp_buf.data(), n));
-          if (ec == asio::error::operation_aborted) return;
-          udp_receive();
-        });
+    udp_sock.async_receive_from(asio::buffer(udp_buf), udp_from,
+                                [this, gen](boost::system::error_code ec, std::size_t n) {
+                                  if (gen != generation || !udp_sock.is_open()) return;
+                                  if (!ec)
+                                    on_datagram(std::span<const std::uint8_t>(udp_buf.data(), n));
+                                  if (ec == asio::error::operation_aborted) return;
+                                  udp_receive();
+                                });
   }
 
   void on_datagram(std::span<const std::uint8_t> d) {
@@ -192,18 +226,82 @@ struct SurfaceClient::Impl {
       stats.dropped_foreign.fetch_add(1);
       return;
     }
+    if (cfg.psk) {
+      // Datagrams exist only inside a session and carry tags under its key; the reassembler sees
+      // only authentic fragments, so forged ones cannot evict or supersede real frames.
+      if (!session_key) {
+        stats.dropped_foreign.fetch_add(1);
+        return;
+      }
+      const auto body = proto::verify_and_strip(d, *session_key);
+      if (!body) {
+        proto::Result bad;
+        bad.error = proto::ErrorReason::AuthFailed;
+        bad.detail = "datagram tag does not verify";
+        count_drop(bad, "UDP");
+        return;
+      }
+      d = *body;
+    }
     const auto now = static_cast<std::uint64_t>(monotonic_ns());
     const auto before = reassembler.counters().malformed;
     if (auto whole = reassembler.push(d, now)) {
       auto r = dgram.parse(*whole);
       if (!r.ok()) {
-        stats.dropped_malformed.fetch_add(1);
+        count_drop(r, "UDP");
         return;
       }
       handle(*r.envelope);
     } else if (reassembler.counters().malformed != before) {
       stats.dropped_malformed.fetch_add(1);
     }
+  }
+
+  // Counts a rejected message by reason; warns at most once a second.
+  void count_drop(const proto::Result& r, const char* transport) {
+    switch (r.error) {
+      case proto::ErrorReason::AuthFailed:
+        stats.auth_failed.fetch_add(1);
+        ++conn_auth_failed;
+        conn_auth_detail = r.detail;
+        break;
+      case proto::ErrorReason::UnexpectedTag:
+        stats.unexpected_tag.fetch_add(1);
+        ++conn_unexpected_tag;
+        break;
+      case proto::ErrorReason::Replayed:
+        stats.replayed.fetch_add(1);
+        break;
+      default:
+        stats.dropped_malformed.fetch_add(1);
+        break;
+    }
+    const auto now = monotonic_ns();
+    if (ev.on_warning && now - last_warning_ns > 1'000'000'000) {
+      last_warning_ns = now;
+      ev.on_warning("dropped a " + std::string(transport) + " message from the remote: " +
+                    std::string(proto::error_reason_name(r.error)) + " (" + r.detail +
+                    "); totals: auth_failed " + std::to_string(stats.auth_failed.load()) +
+                    " unexpected_tag " + std::to_string(stats.unexpected_tag.load()) +
+                    " replayed " + std::to_string(stats.replayed.load()) + " malformed " +
+                    std::to_string(stats.dropped_malformed.load()));
+    }
+  }
+
+  // What authentication failures on this connection say about the keys, for the state reason.
+  std::string auth_hint() const {
+    if (conn_unexpected_tag > 0)
+      return "; the remote's messages carry authentication tags but this station has no --psk "
+             "key: start telex-local with the remote's --psk FILE";
+    if (conn_auth_failed > 0 && session_id == 0) {
+      if (conn_auth_detail == "message has no tag")
+        return "; the remote's messages carry no authentication tag: start telex-remote with the "
+               "same --psk FILE as telex-local";
+      return "; " + std::to_string(conn_auth_failed) +
+             " message(s) from the remote failed authentication: the two daemons' --psk keys "
+             "differ";
+    }
+    return "";
   }
 
   void handle(const proto::Envelope& env) {
@@ -219,7 +317,17 @@ struct SurfaceClient::Impl {
         [&](const auto& m) {
           using T = std::decay_t<decltype(m)>;
           if constexpr (std::is_same_v<T, proto::Accept>) {
+            if (session_id != 0) {  // one Accept per connection; a second is not the remote's
+              stats.dropped_foreign.fetch_add(1);
+              return;
+            }
             session_id = m.session_id;
+            if (cfg.psk) {
+              session_key =
+                  proto::derive_session_key(*cfg.psk, hello_nonce, h.capture_ns, m.session_id);
+              parser.set_key(session_key);
+              dgram.set_key(session_key);
+            }
             backoff_ns = cfg.backoff_min_ns;
             set_state(ClientState::Streaming,
                       "session " + std::to_string(m.session_id) + ", " +
@@ -268,8 +376,11 @@ struct SurfaceClient::Impl {
     heartbeat_timer.async_wait([this, gen](boost::system::error_code ec) {
       if (ec || gen != generation) return;
       if (monotonic_ns() - last_rx_ns > cfg.timeout_ns)
-        return disconnect("remote silent for " + std::to_string(cfg.timeout_ns / 1'000'000) + " ms");
-      send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
+        return disconnect("remote silent for " + std::to_string(cfg.timeout_ns / 1'000'000) +
+                          " ms");
+      // Probes start with the session: before Accept there is no session key to tag them with.
+      if (session_id != 0)
+        send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
       arm_heartbeat();
     });
   }
@@ -286,7 +397,8 @@ struct SurfaceClient::Impl {
     writing = false;
   }
 
-  void disconnect(const std::string& why) {
+  void disconnect(const std::string& why_in) {
+    const std::string why = why_in + auth_hint();
     ++generation;
     stats.disconnects.fetch_add(1);
     close_sockets();
@@ -295,8 +407,8 @@ struct SurfaceClient::Impl {
 
   void retry(const std::string& why) {
     if (stopping) return;
-    set_state(ClientState::Backoff, why + "; retrying in " + std::to_string(backoff_ns / 1'000'000) +
-                                        " ms");
+    set_state(ClientState::Backoff,
+              why + "; retrying in " + std::to_string(backoff_ns / 1'000'000) + " ms");
     retry_timer.expires_after(std::chrono::nanoseconds(backoff_ns));
     backoff_ns = std::min(backoff_ns * 2, cfg.backoff_max_ns);
     const auto gen = ++generation;
@@ -329,7 +441,7 @@ void SurfaceClient::stop() {
       proto::Header h;
       h.session_id = impl_->session_id;
       h.seq = impl_->seq++;
-      auto bytes = proto::encode_stream(h, proto::Bye{0});
+      auto bytes = proto::encode_stream_sealed(h, proto::Bye{0}, impl_->tx_key());
       asio::write(impl_->tcp_sock, asio::buffer(bytes), ec);
     }
     ++impl_->generation;

@@ -83,35 +83,27 @@ class UdpSink final : public HapticDisplay {
     socket_.non_blocking(true);
   }
   void write(std::int64_t, std::span<const FingerForce> forces) override {
-    ++writes_;
+    ++counters_.writes;
     const auto ch = udp_sink_channels(forces);
     for (int f = 0; f < 5; ++f) {
-      if (ch[2 * f] > max_p_) max_p_ = ch[2 * f];
-      if (std::abs(ch[2 * f + 1]) > max_s_) max_s_ = std::abs(ch[2 * f + 1]);
+      if (ch[2 * f] > counters_.max_pressure_N) counters_.max_pressure_N = ch[2 * f];
+      if (std::abs(ch[2 * f + 1]) > counters_.max_shear_N)
+        counters_.max_shear_N = std::abs(ch[2 * f + 1]);
     }
     const std::size_t n = format_udp_sink(ch, buf_);
     boost::system::error_code ec;
     socket_.send_to(asio::buffer(buf_.data(), n), target_, 0, ec);
     if (!ec) {
-      ++sent_;
+      ++counters_.sent;
     } else if (ec == asio::error::would_block) {
-      ++dropped_;
+      ++counters_.dropped;
     } else {
-      ++dropped_;
-      ++errors_;
+      ++counters_.dropped;
+      ++counters_.errors;
     }
   }
   std::string name() const override { return name_; }
-  DisplayStats stats() const override {
-    DisplayStats s;
-    s.writes = writes_;
-    s.sent = sent_;
-    s.dropped = dropped_;
-    s.errors = errors_;
-    s.max_pressure_N = max_p_;
-    s.max_shear_N = max_s_;
-    return s;
-  }
+  DisplayStats stats() const override { return counters_.snapshot(); }
 
  private:
   asio::io_context io_;
@@ -119,8 +111,7 @@ class UdpSink final : public HapticDisplay {
   udp::endpoint target_;
   std::string name_;
   std::array<char, kUdpSinkMaxBytes> buf_{};
-  std::atomic<std::uint64_t> writes_{0}, sent_{0}, dropped_{0}, errors_{0};
-  std::atomic<double> max_p_{0.0}, max_s_{0.0};
+  DisplayCounters counters_;
 };
 
 }  // namespace

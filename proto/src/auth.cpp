@@ -5,12 +5,19 @@
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
+#include <openssl/rand.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
 #include <string>
+
+#include "byte_io.h"
 
 namespace telex::proto {
 
@@ -127,6 +134,69 @@ ReplayWindow::Verdict ReplayWindow::check_and_update(std::uint64_t seq) {
   if (test(seq)) return Verdict::Replayed;
   set(seq);
   return Verdict::Accepted;
+}
+
+std::vector<std::uint8_t> encode_sealed(const Header& header, const Message& message,
+                                        const AuthKey* key) {
+  if (key == nullptr) return encode(header, message);
+  Header h = header;
+  h.flags |= kFlagAuth;
+  std::vector<std::uint8_t> out = encode(h, message);
+  append_tag(out, *key);
+  return out;
+}
+
+std::vector<std::uint8_t> encode_stream_sealed(const Header& header, const Message& message,
+                                               const AuthKey* key) {
+  if (key == nullptr) return encode_stream(header, message);
+  const std::vector<std::uint8_t> msg = encode_sealed(header, message, key);
+  std::vector<std::uint8_t> out;
+  out.reserve(4 + msg.size());
+  detail::Writer w(out);
+  w.u32(static_cast<std::uint32_t>(msg.size()));
+  w.bytes(msg);
+  return out;
+}
+
+AuthKey derive_session_key(const AuthKey& psk, std::uint64_t client_nonce,
+                           std::uint64_t server_nonce, std::uint32_t session_id) {
+  static constexpr std::string_view kLabel = "telex-session-v1";
+  std::vector<std::uint8_t> input(kLabel.begin(), kLabel.end());
+  detail::Writer w(input);
+  w.u64(client_nonce);
+  w.u64(server_nonce);
+  w.u32(session_id);
+  std::array<std::uint8_t, EVP_MAX_MD_SIZE> full{};
+  unsigned int full_len = 0;
+  const auto k = psk.bytes();
+  if (HMAC(EVP_sha256(), k.data(), static_cast<int>(k.size()), input.data(), input.size(),
+           full.data(), &full_len) == nullptr ||
+      full_len != 32)
+    throw std::logic_error("HMAC-SHA256 unavailable in this OpenSSL build");
+  AuthKey out(std::span<const std::uint8_t>(full.data(), full_len));
+  OPENSSL_cleanse(full.data(), full.size());
+  return out;
+}
+
+void check_key_file_permissions(const std::filesystem::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    throw std::runtime_error("cannot read pre-shared key file '" + path.string() +
+                             "': " + std::strerror(errno));
+  if ((st.st_mode & 077) != 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+    throw std::invalid_argument("pre-shared key file '" + path.string() + "' has mode " + mode +
+                                ": group and others must have no access (chmod 600 '" +
+                                path.string() + "')");
+  }
+}
+
+std::uint64_t random_u64() {
+  std::uint64_t v = 0;
+  if (RAND_bytes(reinterpret_cast<unsigned char*>(&v), sizeof v) != 1)
+    throw std::runtime_error("the system random source failed (OpenSSL RAND_bytes)");
+  return v;
 }
 
 std::uint64_t extend_seq(std::uint32_t wire_seq, std::uint64_t highest) {

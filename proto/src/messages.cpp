@@ -383,8 +383,9 @@ std::string_view msg_type_name(MsgType type) {
 
 std::string_view error_reason_name(ErrorReason reason) {
   static constexpr std::string_view kNames[kErrorReasonCount] = {
-      "Truncated",   "BadMagic",        "BadVersion",        "BadLength", "BadChecksum",
-      "UnknownType", "BadTileGeometry", "DecompressionBomb", "BadPayload"};
+      "Truncated",   "BadMagic",    "BadVersion",      "BadLength",
+      "BadChecksum", "UnknownType", "BadTileGeometry", "DecompressionBomb",
+      "BadPayload",  "AuthFailed",  "UnexpectedTag",   "Replayed"};
   const auto i = static_cast<std::size_t>(reason);
   return i < kErrorReasonCount ? kNames[i] : std::string_view("unknown");
 }

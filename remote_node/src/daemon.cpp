@@ -46,7 +46,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.2f} enc {:.2f} total {:.2f} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | "
-      "errors {} malformed {}",
+      "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -60,7 +60,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
-      now.clients_rejected, now.client_timeouts, now.source_errors, now.malformed_in);
+      now.clients_rejected, now.client_timeouts, now.source_errors, now.malformed_in,
+      now.auth_failed, now.unexpected_tag, now.replayed, now.udp_ignored);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -122,6 +123,10 @@ DaemonStats RemoteDaemon::stats() const {
     s.frames_queue_dropped = c.frames_dropped;
     s.bytes_sent = c.bytes_sent;
     s.malformed_in = c.malformed_in;
+    s.auth_failed = c.auth_failed;
+    s.unexpected_tag = c.unexpected_tag;
+    s.replayed = c.replayed;
+    s.udp_ignored = c.udp_ignored;
     s.clients_accepted = c.clients_accepted;
     s.clients_rejected = c.clients_rejected;
     s.client_timeouts = c.client_timeouts;

@@ -3,6 +3,7 @@
 #include "telex/remote/server.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <boost/asio.hpp>
 #include <deque>
@@ -18,6 +19,7 @@ namespace asio = boost::asio;
 using tcp = asio::ip::tcp;
 using udp = asio::ip::udp;
 using Buffer = std::shared_ptr<const std::vector<std::uint8_t>>;
+using KeyPtr = std::shared_ptr<const proto::AuthKey>;
 
 std::string_view client_state_name(ClientState state) {
   return state == ClientState::Connected ? "connected" : "waiting";
@@ -88,6 +90,7 @@ class RemoteServer::Impl {
     if (thread_.joinable()) return;
     do_accept();
     arm_timer();
+    udp_receive();
     thread_ = std::thread([this] { io_.run(); });
   }
 
@@ -122,6 +125,7 @@ class RemoteServer::Impl {
     std::uint32_t session_id = 0;
     std::uint32_t generation = 0;
     bool udp = false;
+    KeyPtr key;  // the session key with --psk, else null
   };
 
   std::optional<Link> link() const {
@@ -148,11 +152,14 @@ class RemoteServer::Impl {
     f.frame_id = frame_id;
     for (const auto& [h, m] : msgs) {
       if (l.udp) {
-        const auto bytes = proto::encode(h, m);
-        for (auto& d : proto::fragment_message(bytes, message_id_++, frame_id))
+        const auto bytes = proto::encode_sealed(h, m, l.key.get());
+        for (auto& d : proto::fragment_message(bytes, message_id_++, frame_id)) {
+          // Every datagram carries its own tag, so a forged fragment never reaches the reassembler.
+          if (l.key) proto::append_tag(d, *l.key);
           f.items.push_back(make_buffer(std::move(d)));
+        }
       } else {
-        f.items.push_back(make_buffer(proto::encode_stream(h, m)));
+        f.items.push_back(make_buffer(proto::encode_stream_sealed(h, m, l.key.get())));
       }
     }
     return f;
@@ -181,8 +188,8 @@ class RemoteServer::Impl {
     if (l->generation != announced_generation_ || !(sc == announced_)) {
       announced_generation_ = l->generation;
       announced_ = sc;
-      auto buf = make_buffer(
-          proto::encode_stream(header(l->session_id, frame.frame_id, frame.capture_ns, false), sc));
+      auto buf = make_buffer(proto::encode_stream_sealed(
+          header(l->session_id, frame.frame_id, frame.capture_ns, false), sc, l->key.get()));
       asio::post(io_, [this, buf, gen = l->generation] {
         if (active_ && active_generation_ == gen) send_control(buf);
       });
@@ -241,6 +248,7 @@ class RemoteServer::Impl {
   struct Active {
     tcp::socket socket;
     proto::StreamParser parser;
+    KeyPtr session_key;  // after Hello with --psk
     std::array<std::uint8_t, 16384> rx{};
     bool hello_done = false;
     std::chrono::steady_clock::time_point last_rx;
@@ -277,7 +285,9 @@ class RemoteServer::Impl {
     proto::Reject r;
     r.reason = reason;
     r.text = std::move(text);
-    auto buf = make_buffer(proto::encode_stream(header(0, 0, steady_now_ns(), false), r));
+    // Under the pre-shared key: the station can tell a refusal from a forgery.
+    auto buf =
+        make_buffer(proto::encode_stream_sealed(header(0, 0, steady_now_ns(), false), r, psk()));
     asio::async_write(*sock, asio::buffer(*buf),
                       [sock, buf](boost::system::error_code, std::size_t) {
                         boost::system::error_code ignore;
@@ -295,6 +305,7 @@ class RemoteServer::Impl {
         ec ? std::string("?") : fmt::format("{}:{}", remote.address().to_string(), remote.port());
     active_->socket.set_option(tcp::no_delay(true), ec);
     active_->last_rx = std::chrono::steady_clock::now();
+    if (config_.psk) active_->parser.set_key(*config_.psk);
     do_read(active_, active_generation_);
   }
 
@@ -317,7 +328,6 @@ class RemoteServer::Impl {
             end_session("connection closed");
             return;
           }
-          a->last_rx = std::chrono::steady_clock::now();
           std::size_t off = 0;
           while (off < n) {
             const std::size_t took =
@@ -325,9 +335,12 @@ class RemoteServer::Impl {
             off += took;
             while (auto r = a->parser.next()) {
               if (!r->ok()) {
-                ++counters_.malformed_in;
+                on_bad_message(a, *r);
+                if (active_ != a) return;
                 continue;
               }
+              // Only a message that decoded (and, with --psk, verified) keeps the session alive.
+              a->last_rx = std::chrono::steady_clock::now();
               handle(a, *r->envelope);
               if (active_ != a) return;
             }
@@ -350,7 +363,7 @@ class RemoteServer::Impl {
         reject_active(proto::RejectReason::BadRequest, "the first message must be Hello");
         return;
       }
-      on_hello(a, *hello);
+      on_hello(a, *hello, env.header.capture_ns);
       return;
     }
     std::visit(
@@ -362,8 +375,8 @@ class RemoteServer::Impl {
             proto::Heartbeat reply = m;
             reply.t2_ns = static_cast<std::uint64_t>(steady_now_ns());
             reply.t3_ns = static_cast<std::uint64_t>(steady_now_ns());
-            send_control(make_buffer(
-                proto::encode_stream(header(session_id_, 0, steady_now_ns(), false), reply)));
+            send_control(make_buffer(proto::encode_stream_sealed(
+                header(session_id_, 0, steady_now_ns(), false), reply, a->session_key.get())));
           } else if constexpr (std::is_same_v<T, proto::RoiRequest>) {
             std::lock_guard lock(mu_);
             request_.rois = m.rects;
@@ -382,6 +395,55 @@ class RemoteServer::Impl {
         env.message);
   }
 
+  const proto::AuthKey* psk() const { return config_.psk ? &*config_.psk : nullptr; }
+
+  // Counts a rejected message by reason and logs at most once a second. Before Hello an
+  // authentication failure refuses the connection with a reason the station can report.
+  void on_bad_message(const std::shared_ptr<Active>& a, const proto::Result& r) {
+    switch (r.error) {
+      case proto::ErrorReason::AuthFailed:
+        ++counters_.auth_failed;
+        break;
+      case proto::ErrorReason::UnexpectedTag:
+        ++counters_.unexpected_tag;
+        break;
+      case proto::ErrorReason::Replayed:
+        ++counters_.replayed;
+        break;
+      default:
+        ++counters_.malformed_in;
+        break;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_drop_log_ > std::chrono::seconds(1)) {
+      last_drop_log_ = now;
+      spdlog::warn(
+          "dropped a message from {}: {} ({}); totals: auth_failed {} unexpected_tag {} replayed "
+          "{} malformed {}",
+          a->peer, proto::error_reason_name(r.error), r.detail, counters_.auth_failed.load(),
+          counters_.unexpected_tag.load(), counters_.replayed.load(),
+          counters_.malformed_in.load());
+    }
+    if (a->hello_done) return;
+    if (r.error == proto::ErrorReason::AuthFailed)
+      reject_active(proto::RejectReason::AuthFailed,
+                    "authentication failed: the station's Hello does not verify under this "
+                    "telex-remote's --psk key (a different key, or the station has none)");
+    else if (r.error == proto::ErrorReason::UnexpectedTag)
+      reject_active(proto::RejectReason::AuthFailed,
+                    "this telex-remote has no --psk key but the station's messages carry "
+                    "authentication tags: start both daemons with the same --psk, or neither");
+  }
+
+  void udp_receive() {
+    udp_.async_receive_from(asio::buffer(udp_rx_), udp_from_,
+                            [this](boost::system::error_code ec, std::size_t) {
+                              if (ec == asio::error::operation_aborted || !udp_.is_open()) return;
+                              if (!ec) ++counters_.udp_ignored;
+                              udp_receive();
+                            });
+  }
+
   void reject_active(proto::RejectReason reason, std::string text) {
     auto a = active_;
     active_.reset();
@@ -392,7 +454,8 @@ class RemoteServer::Impl {
     reject(std::move(a->socket), reason, std::move(text));
   }
 
-  void on_hello(const std::shared_ptr<Active>& a, const proto::Hello& hello) {
+  void on_hello(const std::shared_ptr<Active>& a, const proto::Hello& hello,
+                std::uint64_t hello_nonce) {
     if (hello.version != proto::kProtocolVersion) {
       reject_active(proto::RejectReason::VersionMismatch,
                     fmt::format("server speaks protocol version {}, client {}",
@@ -410,18 +473,26 @@ class RemoteServer::Impl {
       a->udp_peer = udp::endpoint(a->socket.remote_endpoint(ec).address(), hello.udp_port);
     a->hello_done = true;
     session_id_ = next_session_id_++;
+    proto::Header accept_header = header(session_id_, 0, steady_now_ns(), false);
+    if (config_.psk) {
+      // Both nonces go into the session key: a Hello or a stream recorded in another session
+      // verifies under none of this session's keys (docs/PROTOCOL.md section 7).
+      accept_header.capture_ns = proto::random_u64();
+      a->session_key = std::make_shared<const proto::AuthKey>(proto::derive_session_key(
+          *config_.psk, hello_nonce, accept_header.capture_ns, session_id_));
+    }
     proto::Accept acc;
     acc.session_id = session_id_;
     acc.codec = codec;
     acc.transport = a->over_udp ? proto::Transport::Udp : proto::Transport::Tcp;
     acc.udp_port = a->over_udp ? udp_.local_endpoint().port() : 0;
-    send_control(
-        make_buffer(proto::encode_stream(header(session_id_, 0, steady_now_ns(), false), acc)));
+    send_control(make_buffer(proto::encode_stream_sealed(accept_header, acc, psk())));
+    if (a->session_key) a->parser.set_key(*a->session_key);
     ++counters_.clients_accepted;
     std::lock_guard lock(mu_);
     connected_ = true;
     video_wanted_ = config_.video_available && (hello.capabilities & proto::kCapVideo);
-    link_ = Link{session_id_, active_generation_, a->over_udp};
+    link_ = Link{session_id_, active_generation_, a->over_udp, a->session_key};
     request_ = FrameRequest{};
     request_.force_key_frame = true;  // a new receiver holds nothing
     request_.codec = codec;
@@ -539,6 +610,9 @@ class RemoteServer::Impl {
   std::uint32_t active_generation_ = 0;
   std::uint32_t session_id_ = 0;
   std::uint32_t next_session_id_ = 1;
+  std::chrono::steady_clock::time_point last_drop_log_{};
+  std::array<std::uint8_t, 2048> udp_rx_{};
+  udp::endpoint udp_from_;
 
   // processing thread only
   std::uint32_t announced_generation_ = 0;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "telex/common/bilateral.h"
+#include "telex/common/colorize.h"
 #include "telex/common/haptic_surface.h"
 #include "telex/common/synthetic.h"
 
@@ -216,15 +217,15 @@ TEST(Normals, SimdEqualsScalar) {
   }
 }
 
-TEST(Normals, RgbVisualisation) {
+TEST(Normals, ColourVisualisation) {
   cv::Mat3f n(1, 3);
   n(0, 0) = cv::Vec3f(0, 0, -1);
   n(0, 1) = cv::Vec3f(0, 0, 0);
   n(0, 2) = cv::Vec3f(1, 0, 0);
-  const cv::Mat3b rgb = normals_to_rgb(n);
-  EXPECT_EQ(rgb(0, 0), cv::Vec3b(128, 128, 0));  // (0+1)/2*255 = 127.5 rounds to 128
-  EXPECT_EQ(rgb(0, 1), cv::Vec3b(0, 0, 0));
-  EXPECT_EQ(rgb(0, 2), cv::Vec3b(255, 128, 128));
+  const cv::Mat3b bgr = colorize_normals(n);     // B = z, G = y, R = x
+  EXPECT_EQ(bgr(0, 0), cv::Vec3b(0, 128, 128));  // (0+1)/2*255 = 127.5 rounds to 128
+  EXPECT_EQ(bgr(0, 1), cv::Vec3b(0, 0, 0));
+  EXPECT_EQ(bgr(0, 2), cv::Vec3b(128, 128, 255));
 }
 
 TEST(Normals, RejectsBadInput) {

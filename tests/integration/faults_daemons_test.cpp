@@ -144,11 +144,10 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
 
   const auto rows = index_rows(dir / "forces.csv");
   ASSERT_GT(rows.size(), 1000u);
-  // The outage: the longest run of stale-surface rows after fresh ones (a loaded machine may
-  // also let a surface age past the limit for a moment before the kill), and the last fresh row
-  // before it.
+  // The outage: the longest run of stale-surface rows after fresh ones (a loaded machine's slow
+  // frames make short ones before it with --stale-limit 0.2), and the last fresh row before it.
   std::size_t first_stale = rows.size();
-  double longest = -1.0;
+  double longest = -1;
   for (std::size_t i = 1; i < rows.size(); ++i) {
     if (rows[i].status != "stale-surface" || rows[i - 1].status == "stale-surface" ||
         rows[i - 1].status == "no-surface")
@@ -161,6 +160,8 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
     }
   }
   ASSERT_LT(first_stale, rows.size()) << "forces never went stale after the remote was killed";
+  // The remote was down for at least the 1 s the test waited before restarting it.
+  EXPECT_GT(longest, 0.5) << "no stale run as long as the outage";
   const double t_fresh = rows[first_stale - 1].t;
   double peak_before = 0;
   for (std::size_t i = 0; i < first_stale; ++i)
@@ -210,29 +211,6 @@ TEST(StationRestart, RemoteAcceptsTheStationAgainAfterSigkill) {
   EXPECT_TRUE(remote.running());
   remote.signal(SIGINT);
   remote.wait(5s);
-}
-
-// Connects to 127.0.0.1:port over TCP, writes `bytes`, closes. Failures are ignored: the daemon
-// is allowed to reset a hostile peer.
-void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0)
-    (void)!send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-  close(fd);
-}
-
-void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  close(fd);
 }
 
 // A bounded menu of hostile inputs: random, truncated, oversize length, wrong magic, wrong

@@ -102,6 +102,31 @@ std::uint16_t free_port() {
   throw std::runtime_error("no free port found");
 }
 
+namespace {
+sockaddr_in loopback(std::uint16_t port) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(port);
+  return a;
+}
+}  // namespace
+
+void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  const sockaddr_in a = loopback(port);
+  if (connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0)
+    (void)!send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
+  close(fd);
+}
+
+void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  const sockaddr_in a = loopback(port);
+  sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&a), sizeof a);
+  close(fd);
+}
+
 std::string read_text(const std::filesystem::path& p) {
   std::ifstream f(p);
   std::stringstream ss;

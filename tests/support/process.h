@@ -43,6 +43,10 @@ std::filesystem::path scratch_dir(const std::string& name);
 // A port nobody listens on right now (bound once with port 0, then released).
 std::uint16_t free_port();
 std::string read_text(const std::filesystem::path& p);
+// Hostile-peer helpers: connect to 127.0.0.1:port over TCP, write `bytes`, close (failures are
+// ignored: a daemon may reset a hostile peer); or send one UDP datagram there.
+void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
+void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
 // Polls `pred` every 20 ms until it holds or the timeout passes.
 bool eventually(std::chrono::milliseconds timeout, const std::function<bool()>& pred);
 

@@ -102,9 +102,7 @@ int run_process(const ProcessArgs& a) {
     const auto normals_png = dir / (stem + "_normals.png");
     const auto colour_png = dir / (stem + "_depth_colour.png");
     save_depth_png(filled_png, filled.depth_mm);
-    cv::Mat3b bgr;
-    cv::cvtColor(normals_to_rgb(normals), bgr, cv::COLOR_RGB2BGR);
-    write_png(normals_png, bgr);
+    write_png(normals_png, colorize_normals(normals));
     write_png(colour_png, colorize_depth(filled.depth_mm));
     j["outputs"] = {{"filled_depth_mm", filled_png.string()},
                     {"normals_rgb", normals_png.string()},

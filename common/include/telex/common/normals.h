@@ -38,7 +38,6 @@ void compute_normals_roi(const cv::Mat1f& depth_m, const Intrinsics& intrinsics,
                          const cv::Rect& roi, cv::Mat3f& normals_out,
                          const NormalOptions& options = {});
 
-// RGB visualisation (channel 0 = R = x): (n + 1) / 2 * 255; invalid normals are black.
-cv::Mat3b normals_to_rgb(const cv::Mat3f& normals);
+// A colour view of normals: colorize_normals() in colorize.h.
 
 }  // namespace telex

@@ -2,6 +2,7 @@
 // Haptic display interface: per-fingertip pressure and shear to a device, a network sink or a log.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -23,6 +24,23 @@ struct DisplayStats {
   std::uint64_t errors = 0;   // device or socket errors
   double max_pressure_N = 0.0;
   double max_shear_N = 0.0;
+};
+
+// The counters behind DisplayStats, shared by the displays: updated on the haptic thread and read
+// from any other without a lock.
+struct DisplayCounters {
+  std::atomic<std::uint64_t> writes{0}, sent{0}, dropped{0}, errors{0};
+  std::atomic<double> max_pressure_N{0.0}, max_shear_N{0.0};
+  DisplayStats snapshot() const {
+    DisplayStats s;
+    s.writes = writes;
+    s.sent = sent;
+    s.dropped = dropped;
+    s.errors = errors;
+    s.max_pressure_N = max_pressure_N;
+    s.max_shear_N = max_shear_N;
+    return s;
+  }
 };
 
 struct DisplayConfig {

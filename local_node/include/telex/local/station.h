@@ -51,6 +51,8 @@ struct StationSummary {
   double peak_pressure_N = 0;
   double peak_shear_N = 0;
   std::string scheduling;
+  // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
+  std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
 };
 
 class Station {

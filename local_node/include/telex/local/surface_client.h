@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 
+#include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
 
 namespace telex::local {
@@ -16,8 +17,8 @@ namespace telex::local {
 struct ClientConfig {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7300;
-  bool use_udp = true;         // ask for depth over UDP (the remote may still choose TCP)
-  bool want_video = false;     // ask for the right-eye video
+  bool use_udp = true;      // ask for depth over UDP (the remote may still choose TCP)
+  bool want_video = false;  // ask for the right-eye video
   std::int64_t heartbeat_ns = 250'000'000;
   std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
   std::int64_t backoff_min_ns = 100'000'000;
@@ -27,6 +28,9 @@ struct ClientConfig {
   // tell the remote to send to udp_announce_port (0 = the bound port), where the proxy listens.
   std::uint16_t udp_bind_port = 0;
   std::uint16_t udp_announce_port = 0;
+  // --psk: tag every message under this key (per session, a key derived from it) and accept only
+  // messages whose tag verifies (docs/PROTOCOL.md section 7).
+  std::optional<proto::AuthKey> psk;
 };
 
 enum class ClientState : std::uint8_t { Connecting, Handshaking, Streaming, Backoff, Stopped };
@@ -42,6 +46,11 @@ struct ClientStats {
   std::atomic<std::uint64_t> datagrams{0};
   std::atomic<std::uint64_t> dropped_malformed{0};  // parser + reassembler rejections
   std::atomic<std::uint64_t> dropped_foreign{0};    // wrong session or source
+  // Authentication drops (TCP messages and UDP datagrams): missing or wrong tag, a tag when no key
+  // is configured, an authentic message replayed.
+  std::atomic<std::uint64_t> auth_failed{0};
+  std::atomic<std::uint64_t> unexpected_tag{0};
+  std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> heartbeats{0};
   std::atomic<std::int64_t> clock_offset_ns{0};  // remote clock minus local clock (NTP estimate)
   std::atomic<std::int64_t> rtt_ns{0};
@@ -55,6 +64,8 @@ struct ClientEvents {
   std::function<void(const proto::Header&, const proto::FrameManifest&)> on_manifest;
   std::function<void(const proto::Header&, const proto::VideoFrame&)> on_video;
   std::function<void(ClientState, const std::string&)> on_state;  // with a human-readable reason
+  // Dropped messages, at most one call a second (counts are in ClientStats).
+  std::function<void(const std::string&)> on_warning;
 };
 
 class SurfaceClient {

@@ -10,6 +10,8 @@
 #include <span>
 #include <vector>
 
+#include "telex/proto/messages.h"
+
 namespace telex::proto {
 
 // 128 bits of HMAC-SHA256: the truncation RFC 4868 deems fine for authentication (2^-128 forgery).
@@ -70,6 +72,29 @@ class ReplayWindow {
   std::uint64_t highest_ = 0;
   bool any_ = false;
 };
+
+// ---- the wire use (docs/PROTOCOL.md section 7) ----
+
+// Header + payload with kFlagAuth set and the tag over both appended; without a key (nullptr) the
+// plain encode(). The stream variant prefixes the u32 length of what follows (tag included).
+std::vector<std::uint8_t> encode_sealed(const Header& header, const Message& message,
+                                        const AuthKey* key);
+std::vector<std::uint8_t> encode_stream_sealed(const Header& header, const Message& message,
+                                               const AuthKey* key);
+
+// The key of one session: HMAC-SHA256(psk, "telex-session-v1" | client_nonce | server_nonce |
+// session_id), integers little-endian. Hello carries client_nonce (its header's capture_ns) and
+// Accept carries server_nonce (its header's capture_ns) and session_id: a message recorded in
+// another session does not verify in this one, whichever side replays it.
+AuthKey derive_session_key(const AuthKey& psk, std::uint64_t client_nonce,
+                           std::uint64_t server_nonce, std::uint32_t session_id);
+
+// Throws std::invalid_argument naming the path when group or others may read or write the key
+// file (its mode must be 0600 or 0400, as for ssh keys); std::runtime_error when it cannot stat.
+void check_key_file_permissions(const std::filesystem::path& path);
+
+// 64 bits from the operating system's random source (nonces, session ids).
+std::uint64_t random_u64();
 
 // Extends a 32-bit wire sequence number to 64 bits next to the highest one seen so far (serial
 // arithmetic, RFC 1982), so a long session survives the u32 wrap.

@@ -44,6 +44,8 @@ std::string_view msg_type_name(MsgType type);
 // Header flag bits.
 inline constexpr std::uint16_t kFlagKeyFrame =
     1u << 0;  // the frame this message belongs to is a key frame
+// A 16-byte authentication tag follows the payload (auth.h; sent only with a pre-shared key).
+inline constexpr std::uint16_t kFlagAuth = 1u << 1;
 
 struct Header {
   std::uint32_t magic = kMagic;
@@ -98,6 +100,7 @@ enum class RejectReason : std::uint16_t {
   NoCommonCodec = 2,
   Busy = 3,
   BadRequest = 4,
+  AuthFailed = 5,  // the Hello did not authenticate under the server's pre-shared key
 };
 
 struct Reject {
@@ -202,8 +205,11 @@ enum class ErrorReason : std::uint8_t {
   BadTileGeometry,    // tile rectangle empty, outside the frame or inconsistent with the grid
   DecompressionBomb,  // a tile claims more pixels than allowed
   BadPayload,         // payload shape wrong (counts, enum values, trailing bytes)
+  AuthFailed,         // a key is configured and the tag is missing or does not verify
+  UnexpectedTag,      // a tag arrived but no key is configured
+  Replayed,           // authentic, but its sequence number was seen or is older than the window
 };
-inline constexpr int kErrorReasonCount = 9;
+inline constexpr int kErrorReasonCount = 12;
 std::string_view error_reason_name(ErrorReason reason);
 
 // Validation bounds for decoding. frame_width/height (0 = unknown) come from StreamConfig and make

@@ -44,6 +44,7 @@ struct DaemonStats {
   std::uint64_t source_errors = 0;
   std::uint64_t video_frames = 0;
   std::uint64_t malformed_in = 0;
+  std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, udp_ignored = 0;
   std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
   StageTimes stage_ms_sum;  // summed over frames_processed
   ClientState client = ClientState::Waiting;

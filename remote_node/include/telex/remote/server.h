@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
 #include "telex/remote/pipeline.h"
 
@@ -26,6 +27,9 @@ struct ServerConfig {
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
   float fps = 30.0f;
+  // --psk: every message in both directions carries a tag under this key (per session: a key
+  // derived from it, docs/PROTOCOL.md section 7); nothing unauthenticated is acted on.
+  std::optional<proto::AuthKey> psk;
 };
 
 // Monotonic counters, readable from any thread.
@@ -39,6 +43,13 @@ struct ServerCounters {
   std::atomic<std::uint64_t> datagrams_sent{0};
   std::atomic<std::uint64_t> bytes_sent{0};  // depth + video payload bytes on the wire (UDP or TCP)
   std::atomic<std::uint64_t> malformed_in{0};  // messages from the client rejected by the parser
+  // Messages dropped by authentication (not in malformed_in): missing or wrong tag, a tag when no
+  // key is configured, an authentic message replayed. udp_ignored: datagrams to the server's UDP
+  // port, which accepts nothing (only forged or stray traffic arrives there).
+  std::atomic<std::uint64_t> auth_failed{0};
+  std::atomic<std::uint64_t> unexpected_tag{0};
+  std::atomic<std::uint64_t> replayed{0};
+  std::atomic<std::uint64_t> udp_ignored{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
 };
 

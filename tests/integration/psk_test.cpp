@@ -1,0 +1,395 @@
+// SPDX-License-Identifier: MIT
+// --psk on both daemons as processes: the same key gives the same forces; different or missing
+// keys give no session and a message naming the fix; bad key files exit 2; forged, corrupted and
+// replayed traffic at both daemons is dropped and counted while the keyed session keeps serving.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "process.h"
+#include "telex/proto/auth.h"
+#include "telex/proto/fragment.h"
+#include "telex/proto/messages.h"
+#include "test_support.h"
+
+namespace telex::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+#define TELEX_REQUIRE_DAEMONS()                                        \
+  do {                                                                 \
+    if (!std::filesystem::exists(built_binary("telex-remote")) ||      \
+        !std::filesystem::exists(built_binary("telex-local")))         \
+      GTEST_SKIP() << "telex-remote or telex-local is not built here"; \
+  } while (0)
+
+std::filesystem::path write_key(const std::filesystem::path& dir, const std::string& name,
+                                const std::string& bytes, std::filesystem::perms mode) {
+  const auto p = dir / name;
+  {
+    std::ofstream out(p, std::ios::binary);
+    out << bytes;
+  }
+  std::filesystem::permissions(p, mode);
+  return p;
+}
+
+constexpr auto kOwnerRw = std::filesystem::perms::owner_read | std::filesystem::perms::owner_write;
+
+std::string key_bytes(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::string k(32, '\0');
+  for (auto& c : k) c = static_cast<char>(rng());
+  return k;
+}
+
+nlohmann::json summary_of(const Process& p) {
+  const std::string out = p.stdout_text();
+  const auto brace = out.rfind('{');
+  if (brace == std::string::npos) return {};
+  return nlohmann::json::parse(out.substr(brace), nullptr, false);
+}
+
+struct Remote {
+  std::uint16_t port = free_port();
+  Process proc;
+  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
+      : proc(
+            [&] {
+              std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
+                                         "127.0.0.1:" + std::to_string(port), "--source",
+                                         "synthetic:plane"};
+              a.insert(a.end(), extra.begin(), extra.end());
+              return a;
+            }(),
+            dir / "remote.out", dir / "remote.err") {}
+  ~Remote() {
+    proc.signal(SIGINT);
+    proc.wait(5s);
+  }
+};
+
+std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::path& dir,
+                                    std::vector<std::string> extra) {
+  std::vector<std::string> a{built_binary("telex-local").string(),
+                             "--connect",
+                             "127.0.0.1:" + std::to_string(port),
+                             "--haptics",
+                             "sim",
+                             "--log-forces",
+                             (dir / "forces.csv").string(),
+                             "--json-summary",
+                             "--no-realtime",
+                             "--quiet",
+                             "--stale-limit",
+                             "1.0"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+// Peak index-finger pressure in a --log-forces CSV (column 2).
+double peak_index_pressure(const std::filesystem::path& csv) {
+  std::istringstream in(read_text(csv));
+  std::string line;
+  std::getline(in, line);
+  double peak = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    if (f.size() > 2 && f[1] == "index") peak = std::max(peak, std::stod(f[2]));
+  }
+  return peak;
+}
+
+// The last value of `name N` in the remote's once-a-second stats lines (-1 when absent).
+long last_counter(const std::string& stderr_text, const std::string& name) {
+  const std::regex re(name + " ([0-9]+)");
+  long v = -1;
+  for (auto it = std::sregex_iterator(stderr_text.begin(), stderr_text.end(), re);
+       it != std::sregex_iterator(); ++it)
+    v = std::stol((*it)[1]);
+  return v;
+}
+
+class SameKey : public ::testing::TestWithParam<std::string> {};
+
+// The press of Loopback.PressOnPlane..., with both daemons keyed: k 500 N/m x 10 mm = 5 N.
+TEST_P(SameKey, ForcesAreThoseOfAnUnkeyedRunAndNothingIsDropped) {
+  TELEX_REQUIRE_DAEMONS();
+  const std::string transport = GetParam();
+  const auto dir = scratch_dir("psk_same_" + transport);
+  const auto key = write_key(dir, "key", key_bytes(1), kOwnerRw);
+  Remote remote(dir, {"--psk", key.string(), "--transport", transport});
+  Process local(
+      local_args(remote.port, dir,
+                 {"--psk", key.string(), "--transport", transport, "--hand", "script:press",
+                  "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
+      dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(40s);
+  ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+  ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
+  EXPECT_NEAR(peak_index_pressure(dir / "forces.csv"), 5.0, 0.5);
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.is_object()) << local.stdout_text();
+  EXPECT_GT(j["surfaces"].get<int>(), 30);
+  EXPECT_EQ(j["auth_failed"].get<int>(), 0);
+  EXPECT_EQ(j["unexpected_tag"].get<int>(), 0);
+  EXPECT_EQ(j["replayed"].get<int>(), 0);
+  EXPECT_NE(remote.proc.stdout_text().find("authenticated with --psk"), std::string::npos);
+  EXPECT_TRUE(remote.proc.running());
+}
+
+INSTANTIATE_TEST_SUITE_P(Psk, SameKey, ::testing::Values("udp", "tcp"));
+
+struct Mismatch {
+  const char* name;
+  bool remote_key, local_key;  // whether each daemon gets a key (different ones when both do)
+  const char* local_says;      // in telex-local's stderr
+  const char* remote_counter;  // rises in telex-remote's stats line
+};
+
+// Names the case in test listings instead of dumping the struct's bytes (pointers included).
+void PrintTo(const Mismatch& m, std::ostream* os) { *os << m.name; }
+
+class KeyMismatch : public ::testing::TestWithParam<Mismatch> {};
+
+TEST_P(KeyMismatch, NoSessionAMessageNamingTheFixAndCounters) {
+  TELEX_REQUIRE_DAEMONS();
+  const auto& m = GetParam();
+  const auto dir = scratch_dir(std::string("psk_mismatch_") + m.name);
+  const auto k1 = write_key(dir, "k1", key_bytes(1), kOwnerRw);
+  const auto k2 = write_key(dir, "k2", key_bytes(2), kOwnerRw);
+  std::vector<std::string> remote_extra,
+      local_extra{"--hand", "script:press", "--first-surface-timeout", "4"};
+  if (m.remote_key) remote_extra = {"--psk", k1.string()};
+  if (m.local_key) local_extra.insert(local_extra.end(), {"--psk", k2.string()});
+  Remote remote(dir, remote_extra);
+  Process local(local_args(remote.port, dir, local_extra), dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(40s);
+  ASSERT_TRUE(rc.has_value()) << "telex-local hung";
+  EXPECT_NE(*rc, 0) << "a session without matching keys";
+  const std::string err = local.stderr_text();
+  EXPECT_NE(err.find(m.local_says), std::string::npos) << err;
+  EXPECT_NE(err.find("authentication failed"), std::string::npos) << err;
+  EXPECT_NE(err.find("--psk"), std::string::npos) << err;
+  // The remote counts what it dropped, refused every attempt and served nobody.
+  ASSERT_TRUE(eventually(5s, [&] {
+    return last_counter(remote.proc.stderr_text(), m.remote_counter) > 0;
+  })) << remote.proc.stderr_text();
+  EXPECT_EQ(last_counter(remote.proc.stderr_text(), "accepted"), 0);
+  EXPECT_GT(last_counter(remote.proc.stderr_text(), "rejected"), 0);
+  EXPECT_TRUE(remote.proc.running());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Psk, KeyMismatch,
+    ::testing::Values(Mismatch{"different", true, true, "keys differ", "auth-failed"},
+                      Mismatch{"station_unkeyed", true, false, "this station has no --psk key",
+                               "auth-failed"},
+                      Mismatch{"remote_unkeyed", false, true,
+                               "carry no authentication tag: start telex-remote with the same "
+                               "--psk",
+                               "unexpected-tag"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(PskKeyFile, ErrorsExitTwoWithAMessageNamingTheFix) {
+  TELEX_REQUIRE_DAEMONS();
+  const auto dir = scratch_dir("psk_key_files");
+  const auto open_mode = write_key(
+      dir, "open", key_bytes(3),
+      kOwnerRw | std::filesystem::perms::group_read | std::filesystem::perms::others_read);
+  const auto short_key = write_key(dir, "short", "0123456789", kOwnerRw);
+  const auto unreadable = write_key(dir, "unreadable", key_bytes(4), std::filesystem::perms::none);
+  const struct {
+    std::filesystem::path file;
+    const char* says;
+  } cases[] = {{dir / "absent", "No such file"},
+               {open_mode, "chmod 600"},
+               {short_key, "at least 16"},
+               {unreadable, "cannot read"}};
+  for (const char* daemon : {"telex-remote", "telex-local"}) {
+    for (const auto& c : cases) {
+      // Root reads a 0000 file anyway; that case only means something for other users.
+      if (c.file == unreadable && ::geteuid() == 0) continue;
+      Process p({built_binary(daemon).string(), "--psk", c.file.string()}, dir / "out",
+                dir / "err");
+      const auto rc = p.wait(10s);
+      ASSERT_TRUE(rc.has_value()) << daemon << " " << c.file;
+      EXPECT_EQ(*rc, 2) << daemon << " " << c.file << ": " << p.stderr_text();
+      EXPECT_NE(p.stderr_text().find(c.says), std::string::npos)
+          << daemon << " " << c.file << ": " << p.stderr_text();
+      EXPECT_NE(p.stderr_text().find(c.file.filename().string()), std::string::npos);
+    }
+    // --psk from a --config file is read the same way.
+    const auto cfg = dir / (std::string(daemon) + ".ini");
+    std::ofstream(cfg) << "psk = \"" << open_mode.string() << "\"\n";
+    Process p({built_binary(daemon).string(), "--config", cfg.string()}, dir / "out", dir / "err");
+    const auto rc = p.wait(10s);
+    ASSERT_TRUE(rc.has_value());
+    EXPECT_EQ(*rc, 2) << daemon << ": " << p.stderr_text();
+    EXPECT_NE(p.stderr_text().find("chmod 600"), std::string::npos) << p.stderr_text();
+  }
+}
+
+// A Hello recorded under the real key, replayed to an idle remote on a connection the attacker
+// keeps open: the remote accepts it (it cannot tell a replay from a reconnect) but under a fresh
+// server nonce, so nothing the attacker sends afterwards verifies; the session ends at the client
+// timeout and the real station then gets its session.
+TEST(PskAttack, ReplayedHelloToAnIdleRemoteHoldsTheSlotOnlyUntilTheTimeout) {
+  TELEX_REQUIRE_DAEMONS();
+  const auto dir = scratch_dir("psk_replayed_hello");
+  const std::string real = key_bytes(1);
+  const auto key = write_key(dir, "key", real, kOwnerRw);
+  const proto::AuthKey psk(std::vector<std::uint8_t>(real.begin(), real.end()));
+  Remote remote(dir, {"--psk", key.string(), "--client-timeout-ms", "500"});
+  proto::Header h;
+  h.capture_ns = 0x1234;  // the recorded Hello's nonce
+  proto::Hello hello;
+  hello.codecs = {proto::Codec::Zip};
+  const auto replayed_hello = proto::encode_stream_sealed(h, hello, &psk);
+  // Recorded in the same earlier session: heartbeats under the pre-shared key (or, equally
+  // useless, under that session's key).
+  proto::Header hb_h;
+  hb_h.session_id = 1;
+  hb_h.seq = 1;
+  const auto replayed_heartbeat =
+      proto::encode_stream_sealed(hb_h, proto::Heartbeat{1, 0, 0, 0}, &psk);
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(remote.port);
+  ASSERT_TRUE(
+      eventually(10s, [&] { return connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0; }));
+  // The recorded stream as it was: Hello, then the heartbeats, in one write.
+  std::vector<std::uint8_t> stream = replayed_hello;
+  for (int i = 0; i < 5; ++i)
+    stream.insert(stream.end(), replayed_heartbeat.begin(), replayed_heartbeat.end());
+  ASSERT_EQ(send(fd, stream.data(), stream.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(stream.size()));
+  // Accepted, but nothing after Hello verified: the session timed out, not kept alive.
+  ASSERT_TRUE(eventually(10s, [&] {
+    return last_counter(remote.proc.stderr_text(), "accepted") == 1 &&
+           last_counter(remote.proc.stderr_text(), "timeouts") == 1 &&
+           last_counter(remote.proc.stderr_text(), "auth-failed") >= 5;
+  })) << remote.proc.stderr_text();
+  close(fd);
+  Process local(local_args(remote.port, dir,
+                           {"--psk", key.string(), "--hand", "script:press", "--duration", "2",
+                            "--first-surface-timeout", "15"}),
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(40s);
+  ASSERT_TRUE(rc.has_value());
+  ASSERT_EQ(*rc, 0) << local.stderr_text();
+  EXPECT_GT(summary_of(local)["surfaces"].get<int>(), 0);
+}
+
+// A keyed session runs through telex-sim-impair, which duplicates (replays) and corrupts some of
+// the real datagrams, while an attacker sends at both daemons: a Hello recorded earlier under the
+// real key (a replay), Hellos under another key, and datagrams at the station's UDP port that are
+// random, tagged under another key, or tagged under the pre-shared key instead of the session's
+// key (recorded in another session). Everything forged is dropped and counted; the session keeps
+// producing the press force.
+TEST(PskAttack, ForgedCorruptedAndReplayedTrafficIsDroppedAndCounted) {
+  TELEX_REQUIRE_DAEMONS();
+  if (!std::filesystem::exists(built_binary("telex-sim-impair")))
+    GTEST_SKIP() << "telex-sim-impair is not built here";
+  const auto dir = scratch_dir("psk_attack");
+  const std::string real = key_bytes(1);
+  const auto key = write_key(dir, "key", real, kOwnerRw);
+  const proto::AuthKey psk(std::vector<std::uint8_t>(real.begin(), real.end()));
+  const proto::AuthKey wrong(std::vector<std::uint8_t>(32, 0x5A));
+  const auto udp_port = free_port(), proxy_port = free_port();
+  Remote remote(dir, {"--psk", key.string()});
+  Process proxy({built_binary("telex-sim-impair").string(), "--listen",
+                 "127.0.0.1:" + std::to_string(proxy_port), "--forward",
+                 "127.0.0.1:" + std::to_string(udp_port), "--duplicate", "0.2", "--corrupt", "0.02",
+                 "--seed", "11", "--json-summary"},
+                dir / "proxy.out", dir / "proxy.err");
+  Process local(
+      local_args(remote.port, dir,
+                 {"--psk", key.string(), "--udp-port", std::to_string(udp_port),
+                  "--udp-announce-port", std::to_string(proxy_port), "--hand", "script:press",
+                  "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
+      dir / "local.out", dir / "local.err");
+  // Start once the session is up, so the replayed Hello meets a busy remote.
+  ASSERT_TRUE(
+      eventually(20s, [&] { return last_counter(remote.proc.stderr_text(), "accepted") > 0; }))
+      << remote.proc.stderr_text() << local.stderr_text();
+  std::atomic<bool> stop{false};
+  std::atomic<int> sent{0};
+  std::thread attacker([&] {
+    std::mt19937 rng(99);
+    proto::Header h;
+    h.capture_ns = 0x1234;  // a recorded Hello's nonce
+    proto::Hello hello;
+    hello.capabilities = proto::kCapDepthUdp;
+    hello.codecs = {proto::Codec::Zip};
+    hello.udp_port = 9;
+    const auto replayed_hello = proto::encode_stream_sealed(h, hello, &psk);
+    const auto forged_hello = proto::encode_stream_sealed(h, hello, &wrong);
+    proto::FrameManifest fm{1u << 30, 64, true, {}};
+    proto::Header fh;
+    fh.session_id = 1;
+    fh.frame_id = 1u << 30;  // would supersede every real frame if it got in
+    // Bounded in count and time: the attack ends well before the station's run does, so no
+    // replayed Hello reaches an idle remote (it would get a session it cannot use; see
+    // docs/ARCHITECTURE.md).
+    const auto until = std::chrono::steady_clock::now() + 4s;
+    for (int i = 0; i < 400 && !stop && std::chrono::steady_clock::now() < until; ++i) {
+      tcp_blurt(remote.port, i % 2 ? replayed_hello : forged_hello);
+      fh.seq = static_cast<std::uint32_t>(i);
+      auto d = proto::fragment_message(proto::encode_sealed(fh, fm, &psk), 1000u + i, fh.frame_id)
+                   .front();
+      auto forged = d;
+      proto::append_tag(d, psk);  // the pre-shared key, not this session's key
+      proto::append_tag(forged, wrong);
+      std::vector<std::uint8_t> noise(1 + rng() % 1400);
+      for (auto& b : noise) b = static_cast<std::uint8_t>(rng());
+      for (const auto* dg : {&d, &forged, &noise}) udp_blurt(udp_port, *dg);
+      ++sent;
+      std::this_thread::sleep_for(10ms);
+    }
+  });
+  const auto rc = local.wait(45s);
+  stop = true;
+  attacker.join();
+  ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+  ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
+  EXPECT_GT(sent.load(), 100);
+  EXPECT_NEAR(peak_index_pressure(dir / "forces.csv"), 5.0, 0.5);
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.is_object()) << local.stdout_text();
+  EXPECT_GT(j["surfaces"].get<int>(), 30);
+  // Forged datagrams (two of three per round) and corrupted real ones fail their tags; the
+  // random third may also be rejected as too short to hold one, which counts the same way.
+  EXPECT_GE(j["auth_failed"].get<int>(), 2 * sent.load());
+  // Duplicated single-datagram messages (manifests) are caught by the replay window.
+  EXPECT_GT(j["replayed"].get<int>(), 0);
+  EXPECT_EQ(j["unexpected_tag"].get<int>(), 0);
+  // One session from start to end: every attacker connection was refused as busy.
+  ASSERT_TRUE(eventually(3s, [&] {
+    return last_counter(remote.proc.stderr_text(), "rejected") >= sent.load() - 5;
+  })) << remote.proc.stderr_text();
+  EXPECT_EQ(last_counter(remote.proc.stderr_text(), "accepted"), 1);
+  EXPECT_TRUE(remote.proc.running());
+  proxy.signal(SIGINT);
+  ASSERT_TRUE(proxy.wait(10s).has_value());
+  EXPECT_NE(proxy.stdout_text().find("duplicated"), std::string::npos) << proxy.stdout_text();
+}
+
+}  // namespace
+}  // namespace telex::test
