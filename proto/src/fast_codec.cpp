@@ -92,7 +92,7 @@ int rice_k_for(const cv::Mat1w& img, std::size_t n_valid) {
 template <bool Table>
 void encode_pixels(const cv::Mat1w& img, const std::uint16_t* index_of, int k, BitWriter& rw,
                    BitWriter& bw) {
-  auto symbol = [index_of](std::uint16_t v) -> std::int32_t {
+  auto symbol = [&](std::uint16_t v) -> std::int32_t {
     if constexpr (Table) {
       return index_of[v];
     } else {
