@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Internal: the prediction transform shared by the zip and fast depth codecs (docs/PROTOCOL.md).
+// Internal: value tables, hole-run checks and bit I/O shared by the zip and fast depth codecs, and
+// zip's MED prediction transform (docs/PROTOCOL.md section 6).
 #pragma once
 
 #include <algorithm>
