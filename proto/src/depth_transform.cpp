@@ -80,23 +80,48 @@ bool get_varint(std::span<const std::uint8_t> in, std::size_t& pos, std::uint32_
   return false;
 }
 
-// Gaps between neighbouring depth levels are small (the disparity step in mm), so they travel as
-// 4-bit nibbles, two per byte (first in the low half), with 15 escaping to a varint of the excess
-// after the nibbles: half the bytes of one varint per gap on a per-tile table.
+// Gaps between neighbouring depth levels are small (the disparity step in mm) but vary with depth,
+// so they travel as Rice codes with the parameter k (0..3) that the encoder finds cheapest for
+// this table, in an LSB-first bit stream of their own: a tile's table costs about 3 bits a value.
+namespace {
+
+constexpr int kGapEscape = 16;  // unary prefix length that announces a raw 16-bit gap
+
+std::size_t gap_bits(std::uint32_t g, int k) {
+  const std::uint32_t q = g >> k;
+  return q < kGapEscape ? q + 1 + static_cast<std::size_t>(k) : kGapEscape + 1 + 16;
+}
+
+}  // namespace
+
 void put_table(std::vector<std::uint8_t>& out, const std::vector<std::uint16_t>& table) {
   put_varint(out, static_cast<std::uint32_t>(table.size()));
   put_varint(out, table[0]);
   const std::size_t gaps = table.size() - 1;
+  if (gaps == 0) return;
+  std::size_t cost[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < gaps; ++i) {
+    const std::uint32_t g = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
+    for (int k = 0; k < 4; ++k) cost[k] += gap_bits(g, k);
+  }
+  const int k = static_cast<int>(std::min_element(cost, cost + 4) - cost);
   const std::size_t base = out.size();
-  out.resize(base + (gaps + 1) / 2, 0);
+  // 2 + 33 bits per gap at most, plus the writer's 8 bytes of slack.
+  out.resize(base + (2 + 33 * gaps + 7) / 8 + 8, 0);
+  BitWriter bw(out.data() + base);
+  bw.put(static_cast<std::uint64_t>(k), 2);
   for (std::size_t i = 0; i < gaps; ++i) {
-    const std::uint32_t d = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
-    out[base + i / 2] |= static_cast<std::uint8_t>(std::min(d, 15u) << (4 * (i % 2)));
+    const std::uint32_t g = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
+    const std::uint32_t q = g >> k;
+    if (q < kGapEscape) {
+      bw.put((std::uint64_t{1} << q) | (static_cast<std::uint64_t>(g & low_mask(k)) << (q + 1)),
+             static_cast<int>(q) + 1 + k);
+    } else {
+      bw.put((std::uint64_t{1} << kGapEscape) | (static_cast<std::uint64_t>(g) << (kGapEscape + 1)),
+             kGapEscape + 1 + 16);
+    }
   }
-  for (std::size_t i = 0; i < gaps; ++i) {
-    const std::uint32_t d = static_cast<std::uint32_t>(table[i + 1] - table[i] - 1);
-    if (d >= 15) put_varint(out, d - 15);
-  }
+  out.resize(base + bw.finish());
 }
 
 DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
@@ -104,27 +129,40 @@ DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
   std::uint32_t n = 0, v = 0;
   if (!get_varint(in, pos, n) || !get_varint(in, pos, v)) return DecodeStatus::Truncated;
   if (n == 0 || n > 65535 || v == 0 || v > 65535) return DecodeStatus::Corrupt;
-  const std::size_t gaps = n - 1;
-  const std::size_t nibble_bytes = (gaps + 1) / 2;
-  if (in.size() - pos < nibble_bytes) return DecodeStatus::Truncated;
-  const std::uint8_t* nib = in.data() + pos;
-  pos += nibble_bytes;
   table.clear();
   table.reserve(n);
   table.push_back(static_cast<std::uint16_t>(v));
-  for (std::size_t i = 0; i < gaps; ++i) {
-    std::uint32_t d = (nib[i / 2] >> (4 * (i % 2))) & 0x0F;
-    if (d == 15) {
-      std::uint32_t e = 0;
-      if (!get_varint(in, pos, e)) return DecodeStatus::Truncated;
-      if (e > 65535) return DecodeStatus::Corrupt;
-      d += e;
+  if (n == 1) return DecodeStatus::Ok;
+  BitReader br(in.subspan(pos));
+  const int k = static_cast<int>(br.peek() & 3);
+  br.skip(2);
+  for (std::uint32_t i = 1; i < n; ++i) {
+    const std::uint64_t bits = br.peek();
+    const int q = bits == 0 ? 64 : std::countr_zero(bits);
+    std::uint32_t g = 0;
+    if (q < kGapEscape) {
+      g = (static_cast<std::uint32_t>(q) << k) |
+          static_cast<std::uint32_t>((bits >> (q + 1)) & low_mask(k));
+      br.skip(q + 1 + k);
+    } else if (q == kGapEscape) {
+      g = static_cast<std::uint32_t>((bits >> (kGapEscape + 1)) & 0xFFFF);
+      br.skip(kGapEscape + 1 + 16);
+    } else {
+      // Past the end every bit reads as zero: a prefix running off the end is a short stream.
+      return br.consumed_bits() + kGapEscape + 1 > br.size_bits() ? DecodeStatus::Truncated
+                                                                  : DecodeStatus::Corrupt;
     }
-    const std::uint64_t next = static_cast<std::uint64_t>(table.back()) + d + 1;
+    if (br.overrun()) return DecodeStatus::Truncated;
+    const std::uint64_t next = static_cast<std::uint64_t>(table.back()) + g + 1;
     if (next > 65535) return DecodeStatus::Corrupt;
     table.push_back(static_cast<std::uint16_t>(next));
   }
-  if (gaps % 2 == 1 && (nib[gaps / 2] >> 4) != 0) return DecodeStatus::Corrupt;
+  const std::size_t used_bits = br.consumed_bits();
+  const std::size_t used = (used_bits + 7) / 8;
+  // The final byte's unused high bits are zero: one table, one encoding.
+  if (used_bits % 8 != 0 && (in[pos + used - 1] >> (used_bits % 8)) != 0)
+    return DecodeStatus::Corrupt;
+  pos += used;
   return DecodeStatus::Ok;
 }
 

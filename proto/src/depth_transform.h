@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Internal: the prediction transform shared by the zip and fast depth codecs (docs/PROTOCOL.md).
+// Internal: value tables, hole-run checks and bit I/O shared by the zip and fast depth codecs, and
+// zip's MED prediction transform (docs/PROTOCOL.md section 6).
 #pragma once
 
 #include <algorithm>
@@ -49,7 +50,8 @@ void put_varint(std::vector<std::uint8_t>& out, std::uint32_t v);
 // Reads one LEB128 varint of at most 5 bytes; false when short or overlong.
 bool get_varint(std::span<const std::uint8_t> in, std::size_t& pos, std::uint32_t& v);
 
-// Table: count, first value, then (delta - 1) for each following value, all varints.
+// Table: varint count, varint first value, then (when count > 1) an LSB-first bit stream: 2 bits
+// Rice parameter k, then each gap (value - previous - 1) as a Rice code, zero-padded to a byte.
 void put_table(std::vector<std::uint8_t>& out, const std::vector<std::uint16_t>& table);
 DecodeStatus get_table(std::span<const std::uint8_t> in, std::size_t& pos,
                        std::vector<std::uint16_t>& table);
@@ -214,6 +216,7 @@ class BitReader {
   void skip(int bits) { bitpos_ += static_cast<std::size_t>(bits); }
   bool overrun() const { return bitpos_ > in_.size() * 8; }
   std::size_t consumed_bits() const { return bitpos_; }
+  std::size_t size_bits() const { return in_.size() * 8; }
   // Valid only for a reader past its last field: the stream's bytes are all used, none unused.
   bool exactly_consumed() const { return (bitpos_ + 7) / 8 == in_.size(); }
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// "zip" depth codec: hole runs + value table + MED residual byte planes, then deflate (zlib).
+// "zip" depth codec: value table, then hole runs + MED residuals packed in bytes, deflated (zlib).
 #include <zlib.h>
 
 #include <algorithm>
@@ -143,7 +143,6 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
   std::vector<std::uint8_t>& body = s.body;
   body.clear();
   for (std::uint32_t r : s.runs) put_varint(body, r);
-  if (a.use_table) put_table(body, a.table);
   if (bits == 2) {
     body.insert(body.end(), s.packed2.begin(), s.packed2.begin() + (n * 2 + 7) / 8);
     body.insert(body.end(), s.over2.begin(), s.over2.end());
@@ -164,11 +163,14 @@ std::vector<std::uint8_t> encode_zip(const cv::Mat1w& img, int level) {
 
   thread_local Deflater deflater;
   z_stream& zs = deflater.get(level);
-  // Header: flags, varint body length; then raw deflate (RFC 1951). The message CRC32C already
-  // guards the bytes, so zlib's wrapper and Adler-32 would be 6 bytes per tile for nothing.
+  // Header: flags, varint body length, the value table (its own bit stream: deflate's byte-wise
+  // Huffman code, shared with the packed residuals, would spend more on it); then raw deflate
+  // (RFC 1951). The message CRC32C already guards the bytes, so zlib's wrapper and Adler-32
+  // would be 6 bytes per tile for nothing.
   std::vector<std::uint8_t> out;
   out.push_back(0);
   put_varint(out, static_cast<std::uint32_t>(body.size()));
+  if (a.use_table) put_table(out, a.table);
   const std::size_t header = out.size();
   out.resize(header + deflateBound(&zs, body.size()));
   const int bits_code = bits == 2 ? 1 : bits == 4 ? 2 : 3;
@@ -223,13 +225,17 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   std::size_t header = 1;
   std::uint32_t body_len = 0;
   if (!get_varint(bytes, header, body_len)) return DecodeStatus::Truncated;
+  ZipScratch& s = scratch();
+  if (use_table) {
+    const DecodeStatus t = get_table(bytes, header, s.table);
+    if (t != DecodeStatus::Ok) return t;
+  }
   const std::size_t total = static_cast<std::size_t>(w) * h;
-  // Largest body a w x h tile can need: a 5-byte varint per run, a full table, one byte of
-  // packed symbols and a 5-byte overflow varint per pixel.
-  const std::size_t bound = total * 5 + 5 + 65536 * 3 + 10 + total + total * 5;
+  // Largest body a w x h tile can need: a 5-byte varint per run (at most w*h + 1 runs), one byte
+  // of packed symbols and a 5-byte overflow varint per pixel.
+  const std::size_t bound = total * 5 + 5 + total + total * 5;
   if (body_len > bound) return DecodeStatus::DecompressionBomb;
 
-  ZipScratch& s = scratch();
   s.body.resize(body_len);
   thread_local Inflater inflater;
   z_stream* zs = inflater.get();
@@ -264,10 +270,6 @@ DecodeStatus decode_zip(std::span<const std::uint8_t> bytes, int w, int h, cv::M
   if (!runs_valid(s.runs, total)) return DecodeStatus::Corrupt;
   std::size_t n_valid = 0;
   for (std::size_t i = 0; i < s.runs.size(); i += 2) n_valid += s.runs[i];
-  if (use_table) {
-    const DecodeStatus t = get_table(body, pos, s.table);
-    if (t != DecodeStatus::Ok) return t;
-  }
   const std::size_t packed_len = (n_valid * bits + 7) / 8;
   if (body.size() - pos < packed_len) return DecodeStatus::Truncated;
   const std::uint8_t* packed = body.data() + pos;

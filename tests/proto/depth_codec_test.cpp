@@ -88,6 +88,44 @@ TEST(DepthCodec, RoundTripsEdgeCaseFrames) {
   }
 }
 
+// Value tables with gaps past the Rice escape (the 1000 -> 40000 jump), symbol steps that leave
+// the fast encoder's four-pixel path (>= 14) and that need its raw escape (>= 20), and a frame
+// without a table whose fast stream picks a Rice parameter above 0.
+TEST(DepthCodec, RoundTripsWideTableGapsLargeStepsAndRiceParameters) {
+  const int w = 83, h = 41;
+  std::vector<std::uint16_t> levels;
+  for (int i = 0; i < 32; ++i) levels.push_back(static_cast<std::uint16_t>(1000 + 37 * i));
+  for (int i = 0; i < 32; ++i) levels.push_back(static_cast<std::uint16_t>(40000 + 3 * i));
+  cv::Mat1w steps(h, w);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      steps(y, x) = (x % 11 == 5) ? 0 : levels[static_cast<std::size_t>((x * 7 + y * 13) % 64)];
+  const auto fast = encode_depth(steps, Codec::Fast);
+  ASSERT_EQ(fast[0], 0x01) << "table, Rice k = 0";
+  for (Codec c : kWireCodecs) expect_round_trip(steps, c);
+  for (int level : {0, 6}) expect_round_trip(steps, Codec::Zip, level);
+
+  cv::Mat1w ramp(h, w);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      ramp(y, x) = static_cast<std::uint16_t>(1 + 700 * x + 13 * y + (x * y) % 97);
+  const auto ramp_fast = encode_depth(ramp, Codec::Fast);
+  EXPECT_EQ(ramp_fast[0] & 0x01, 0) << "no table";
+  EXPECT_GT((ramp_fast[0] >> 1) & 0x0F, 0) << "Rice k above 0";
+  for (Codec c : kWireCodecs) expect_round_trip(ramp, c);
+
+  // No proper prefix of either stream decodes.
+  for (const cv::Mat1w* f : {&steps, &ramp}) {
+    for (Codec c : {Codec::Zip, Codec::Fast}) {
+      const auto bytes = encode_depth(*f, c);
+      cv::Mat1w out;
+      for (std::size_t cut = 0; cut < bytes.size(); ++cut)
+        ASSERT_NE(decode_depth({bytes.data(), cut}, w, h, c, out), DecodeStatus::Ok)
+            << codec_name(c) << " cut at " << cut;
+    }
+  }
+}
+
 TEST(DepthCodec, RoundTripsEveryZipLevel) {
   const cv::Mat1w f = structured_frame(160, 120, 4);
   for (int level = 0; level <= 9; ++level) expect_round_trip(f, Codec::Zip, level);

@@ -204,8 +204,9 @@ const telex::tool::RegisterCommand kRegister{
       app.add_option("--runs", *runs, "repetitions; times are medians")->check(CLI::Range(1, 1000));
       auto only = std::make_shared<std::vector<std::string>>();
       app.add_option("--only", *only, "measure only these codec names (default: all)");
-      app.add_option("--zip-level", *level, "deflate level of our zip codec")
-          ->check(CLI::Range(1, 9));
+      app.add_option("--zip-level", *level,
+                     "deflate level of our zip codec (0 = Huffman-only, the default)")
+          ->check(CLI::Range(0, 9));
       return [=]() {
         const cv::Mat1w frame = load_frame(*in, *units);
         std::vector<Candidate> cands = {
