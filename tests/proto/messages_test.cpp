@@ -29,7 +29,7 @@ TEST(Messages, HeaderLayoutIsLittleEndianFieldByField) {
                                  'L',
                                  'X',
                                  '1',                                      // magic
-                                 1,                                        // version
+                                 2,                                        // version
                                  static_cast<std::uint8_t>(MsgType::Bye),  // type
                                  0x01,
                                  0x00,  // flags
@@ -119,10 +119,13 @@ TEST(Messages, RejectsBadMagic) {
 }
 
 TEST(Messages, RejectsBadVersion) {
-  auto b = encode(test::sample_header(), Bye{});
-  b[4] = 2;
-  reseal(b);
-  EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadVersion);
+  for (const std::uint8_t v :
+       {std::uint8_t{kProtocolVersion - 1}, std::uint8_t{kProtocolVersion + 1}}) {
+    auto b = encode(test::sample_header(), Bye{});
+    b[4] = v;
+    reseal(b);
+    EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadVersion) << int{v};
+  }
 }
 
 TEST(Messages, RejectsBadLength) {

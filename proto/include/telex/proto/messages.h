@@ -19,7 +19,7 @@ namespace telex::proto {
 
 // "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
-inline constexpr std::uint8_t kProtocolVersion = 1;
+inline constexpr std::uint8_t kProtocolVersion = 2;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
