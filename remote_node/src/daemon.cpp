@@ -7,6 +7,7 @@
 
 #include <boost/asio.hpp>
 #include <iostream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -177,9 +178,26 @@ void RemoteDaemon::process_loop() {
     FrameRequest request = server_->take_request();
     // Fill and stabiliser keep their history; tiles are only cut and encoded for a receiver.
     request.select_tiles = server_->state() == ClientState::Connected;
-    ProcessedFrame p = pipeline_.process(*frame, request);
+    // ROI first: a receiver that takes frames in parts gets the ROI tiles before the rest of the
+    // frame is even filled; others get both parts as one message set.
+    ProcessedFrame p = request.frame_parts ? pipeline_.process_roi(*frame, request)
+                                           : pipeline_.process(*frame, request);
     if (observer_) observer_(p);
     server_->publish(p);
+    if (pipeline_.rest_pending()) {
+      ProcessedFrame rest = pipeline_.process_rest(*frame);
+      if (observer_) observer_(rest);
+      server_->publish(rest);
+      rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
+                        std::make_move_iterator(p.tiles.end()));
+      rest.tiles_skipped += p.tiles_skipped;
+      rest.times.fill_ms += p.times.fill_ms;
+      rest.times.stabilise_ms += p.times.stabilise_ms;
+      rest.times.tile_ms += p.times.tile_ms;
+      rest.times.encode_ms += p.times.encode_ms;
+      rest.times.total_ms += p.times.total_ms;
+      p = std::move(rest);
+    }
     std::lock_guard lock(stats_mu_);
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
