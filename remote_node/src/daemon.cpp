@@ -42,7 +42,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms fill {:.2f} stab {:.2f} tile "
-      "{:.2f} enc {:.2f} total {:.2f} | "
+      "{:.2f} enc {:.2f} total {:.2f} first-part {:.2f} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | "
       "errors {} malformed {}",
@@ -55,6 +55,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       mean(now.stage_ms_sum.tile_ms, before.stage_ms_sum.tile_ms),
       mean(now.stage_ms_sum.encode_ms, before.stage_ms_sum.encode_ms),
       mean(now.stage_ms_sum.total_ms, before.stage_ms_sum.total_ms),
+      mean(now.first_part_ms_sum, before.first_part_ms_sum),
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
@@ -184,6 +185,7 @@ void RemoteDaemon::process_loop() {
                                            : pipeline_.process(*frame, request);
     if (observer_) observer_(p);
     server_->publish(p);
+    const double first_part_ms = p.times.total_ms;
     if (pipeline_.rest_pending()) {
       ProcessedFrame rest = pipeline_.process_rest(*frame);
       if (observer_) observer_(rest);
@@ -207,6 +209,7 @@ void RemoteDaemon::process_loop() {
     stats_.stage_ms_sum.tile_ms += p.times.tile_ms;
     stats_.stage_ms_sum.encode_ms += p.times.encode_ms;
     stats_.stage_ms_sum.total_ms += p.times.total_ms;
+    stats_.first_part_ms_sum += first_part_ms;
   }
 }
 
