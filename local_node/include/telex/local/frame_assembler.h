@@ -33,13 +33,13 @@ enum class AssembledPart : std::uint8_t {
 };
 
 struct AssembledFrame {
-  AssembledPart part = AssembledPart::Whole;
   cv::Mat1w depth_mm;  // the whole frame, a private copy
   Intrinsics intrinsics;
   std::uint32_t frame_id = 0;
   std::int64_t capture_ns = 0;   // sender clock
   std::int64_t received_ns = 0;  // receiver clock, when the manifest arrived
   bool complete = true;          // every tile the manifest named arrived
+  AssembledPart part = AssembledPart::Whole;
   // Rest only: tiles whose pixels may differ from the RoiPart published for this frame (decoded
   // since, or expired). Empty: the ROI part's frame was already this frame.
   std::vector<cv::Rect> changed_since_roi_part;
