@@ -179,6 +179,8 @@ int main(int argc, char** argv) {
                        {"period_p99_jitter_us", s.period_p99_jitter_us},
                        {"missed_ticks", s.missed_ticks},
                        {"surfaces", s.surfaces},
+                       {"frames", s.frames},
+                       {"roi_parts", s.roi_parts},
                        {"latency_median_ms", s.latency_median_ms},
                        {"latency_p99_ms", s.latency_p99_ms},
                        {"peak_pressure_N", s.peak_pressure_N},

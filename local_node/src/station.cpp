@@ -504,6 +504,8 @@ StationSummary Station::run() {
   summary.period_median_us = period_us.quantile(0.5);
   summary.missed_ticks = missed.load();
   summary.surfaces = surfaces_built.load();
+  summary.frames = assembler.counters().frames;  // the network thread has stopped
+  summary.roi_parts = assembler.counters().roi_parts;
   summary.latency_median_ms = latency_ms.quantile(0.5);
   summary.latency_p99_ms = latency_ms.quantile(0.99);
   return summary;
