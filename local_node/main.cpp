@@ -100,6 +100,9 @@ int main(int argc, char** argv) {
   app.add_option("--rate", cfg.rate_hz, "haptic loop rate, Hz")->check(CLI::Range(10.0, 10000.0))->capture_default_str();
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO for the haptic thread");
   app.add_flag("--roi", cfg.surface.roi, "filter and build normals only near the fingertips");
+  bool no_frame_parts = false;
+  app.add_flag("--no-frame-parts", no_frame_parts,
+               "take each frame in one part (ROI tiles are otherwise sent and published first)");
   app.add_flag("--no-bilateral", no_bilateral, "skip the bilateral filter");
   app.add_option("--max-tile-age", cfg.max_tile_age_s, "a missing tile keeps its value this long, s")
       ->check(CLI::Range(0.0, 60.0))
@@ -143,6 +146,7 @@ int main(int argc, char** argv) {
     }
   }
   cfg.client.use_udp = transport == "udp";
+  cfg.client.frame_parts = !no_frame_parts;
   cfg.tracker.glove_spec = glove;
   cfg.realtime = !no_realtime;
   cfg.surface.bilateral = !no_bilateral;
@@ -188,6 +192,8 @@ int main(int argc, char** argv) {
                        {"period_p99_jitter_us", s.period_p99_jitter_us},
                        {"missed_ticks", s.missed_ticks},
                        {"surfaces", s.surfaces},
+                       {"frames", s.frames},
+                       {"roi_parts", s.roi_parts},
                        {"latency_median_ms", s.latency_median_ms},
                        {"latency_p99_ms", s.latency_p99_ms},
                        {"peak_pressure_N", s.peak_pressure_N},

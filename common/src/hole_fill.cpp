@@ -242,15 +242,20 @@ std::size_t count_zero(const cv::Mat1w& m) {
   return m.total() - static_cast<std::size_t>(cv::countNonZero(m));
 }
 
-HoleFillResult run(const cv::Mat1w& depth_mm, cv::Mat1w& out, const cv::Rect& roi,
-                   const HoleFillOptions& o) {
-  validate(depth_mm, o);
+void check_roi(const cv::Mat1w& depth_mm, const cv::Rect& roi) {
   const cv::Rect image(0, 0, depth_mm.cols, depth_mm.rows);
   if (roi.empty() || (roi & image) != roi)
     throw std::invalid_argument(
         "fill_holes_mode: ROI " + std::to_string(roi.width) + "x" + std::to_string(roi.height) +
         "+" + std::to_string(roi.x) + "+" + std::to_string(roi.y) + " is empty or outside the " +
         std::to_string(image.width) + "x" + std::to_string(image.height) + " image");
+}
+
+HoleFillResult run(const cv::Mat1w& depth_mm, cv::Mat1w& out, const cv::Rect& roi,
+                   const HoleFillOptions& o) {
+  validate(depth_mm, o);
+  const cv::Rect image(0, 0, depth_mm.cols, depth_mm.rows);
+  check_roi(depth_mm, roi);
   depth_mm.copyTo(out);
   HoleFillResult r;
   const int margin = (o.window_px / 2) * std::max(0, o.max_passes - 1);
@@ -292,6 +297,34 @@ HoleFillResult fill_holes_mode_roi(const cv::Mat1w& depth_mm, const cv::Rect& ro
   cv::Mat1w out;
   r = run(depth_mm, out, roi, options);
   r.depth_mm = out;
+  return r;
+}
+
+HoleFillResult fill_holes_mode_roi_into(const cv::Mat1w& depth_mm, const cv::Rect& roi,
+                                        cv::Mat1w& out_mm, const HoleFillOptions& options) {
+  validate(depth_mm, options);
+  check_roi(depth_mm, roi);
+  out_mm.create(depth_mm.size());
+  const cv::Rect image(0, 0, depth_mm.cols, depth_mm.rows);
+  const int radius = options.window_px / 2;
+  const int margin = radius * std::max(0, options.max_passes - 1);
+  const auto grow = [&](const cv::Rect& r, int m) {
+    return cv::Rect(r.x - m, r.y - m, r.width + 2 * m, r.height + 2 * m) & image;
+  };
+  // The margin is filled too (as in fill_holes_mode_roi) so the ROI sees the same earlier fills as
+  // a full frame; windows around the margin's holes read one radius further.
+  const cv::Rect region = grow(roi, margin);
+  const cv::Rect readable = grow(region, radius);
+  thread_local cv::Mat1w work;
+  work.create(depth_mm.size());
+  depth_mm(readable).copyTo(work(readable));
+  std::size_t holes_in_region = 0;
+  auto [filled, passes] = fill_region(work, region, roi, options, holes_in_region);
+  HoleFillResult r;
+  r.holes_in = count_zero(depth_mm(roi));
+  r.holes_out = r.holes_in - filled;
+  r.passes_run = passes;
+  work(roi).copyTo(out_mm(roi));
   return r;
 }
 

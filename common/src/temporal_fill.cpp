@@ -24,30 +24,51 @@ void TemporalFill::reset() {
   prev_time_ms_ = 0.0;
 }
 
-TemporalFillResult TemporalFill::apply(const cv::Mat1w& depth_mm, double time_ms,
-                                       cv::Mat1w& out_mm) {
-  TemporalFillResult r;
-  if (last_mm_.size() != depth_mm.size() || (frame_ > 0 && time_ms < prev_time_ms_)) {
-    r.history_reset = frame_ > 0;
-    last_mm_.create(depth_mm.size());
+bool TemporalFill::begin_frame(cv::Size size, double time_ms) {
+  bool reset_history = false;
+  if (last_mm_.size() != size || (frame_ > 0 && time_ms < prev_time_ms_)) {
+    reset_history = frame_ > 0;
+    last_mm_.create(size);
     last_mm_.setTo(0);
-    last_frame_.create(depth_mm.size());
-    last_time_ms_.create(depth_mm.size());
+    last_frame_.create(size);
+    last_time_ms_.create(size);
     frame_ = 0;
   }
   ++frame_;
   prev_time_ms_ = time_ms;
+  return reset_history;
+}
+
+TemporalFillResult TemporalFill::apply(const cv::Mat1w& depth_mm, double time_ms,
+                                       cv::Mat1w& out_mm) {
+  const bool reset_history = begin_frame(depth_mm.size(), time_ms);
   out_mm.create(depth_mm.size());
+  TemporalFillResult r = apply_rect(depth_mm, cv::Rect(0, 0, depth_mm.cols, depth_mm.rows), out_mm);
+  r.history_reset = reset_history;
+  return r;
+}
+
+TemporalFillResult TemporalFill::apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect,
+                                            cv::Mat1w& out_mm) {
+  if (frame_ == 0 || depth_mm.size() != last_mm_.size() || out_mm.size() != depth_mm.size())
+    throw std::invalid_argument(
+        "TemporalFill::apply_rect: call begin_frame with the frame size first, and pass an "
+        "output of that size");
+  if (rect.empty() || (rect & cv::Rect(0, 0, depth_mm.cols, depth_mm.rows)) != rect)
+    throw std::invalid_argument(
+        "TemporalFill::apply_rect: rectangle is empty or outside the frame");
+  TemporalFillResult r;
   const int frame = static_cast<int>(frame_);
+  const double time_ms = prev_time_ms_;
   const int max_age = options_.max_age_frames;
   const double max_age_ms = options_.max_age_ms;
-  for (int y = 0; y < depth_mm.rows; ++y) {
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
     const std::uint16_t* in = depth_mm[y];
     std::uint16_t* out = out_mm[y];
     std::uint16_t* last = last_mm_[y];
     int* last_frame = last_frame_[y];
     double* last_time = last_time_ms_[y];
-    for (int x = 0; x < depth_mm.cols; ++x) {
+    for (int x = rect.x; x < rect.x + rect.width; ++x) {
       const std::uint16_t v = in[x];
       if (v != 0) {
         last[x] = v;

@@ -72,6 +72,10 @@ std::string view_dir_of(const std::string& spec) {
 
 const char* kFingerNames[kFingerCount] = {"thumb", "index", "middle", "ring", "little"};
 
+cv::Rect grow_rect(const cv::Rect& r, int margin) {
+  return {r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin};
+}
+
 }  // namespace
 
 Station::Station(StationConfig config) : cfg_(std::move(config)) {
@@ -159,9 +163,31 @@ StationSummary Station::run() {
     HandState hand{};
     std::vector<cv::Rect> last_windows;
     std::uint64_t surface_seq = 0;
+    std::int64_t built_capture_ns = -1;
+    // How far outside a window the filter and the normals read.
+    const int reach_px =
+        cfg_.surface.bilateral_options.radius_px + cfg_.surface.normal_options.smooth_radius_px + 1;
     while (!surface_stop.load()) {
       auto frame = frames.take(milliseconds(50));
       if (!frame) continue;
+      // The rest of a frame whose ROI part is already built: rebuild only when it changed pixels
+      // the surface's windows (or the filter reading around them) use.
+      if (frame->part == AssembledPart::Rest && frame->capture_ns == built_capture_ns &&
+          cfg_.surface.roi) {
+        hand_for_surface.take(hand);
+        const auto windows =
+            fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
+        bool touches = windows != last_windows;
+        for (const auto& w : windows)
+          for (const auto& c : frame->changed_since_roi_part)
+            touches = touches || (grow_rect(w, reach_px) & c).area() > 0;
+        if (!touches) {
+          std::lock_guard lock(view_mu);
+          view_depth = frame->depth_mm;
+          continue;
+        }
+      }
+      built_capture_ns = frame->capture_ns;
       // Snapshot ids are the station's own sequence: a restarted remote numbers its frames from
       // the start again, and the haptic model ignores snapshots that go backwards.
       frame->frame_id = static_cast<std::uint32_t>(++surface_seq);
@@ -315,6 +341,7 @@ StationSummary Station::run() {
   HandState view_hand{};
   std::uint64_t tick_index = 0;
   std::uint64_t last_latency_frame = 0;
+  std::int64_t last_latency_capture = 0;
   std::int64_t next_status = monotonic_ns() + 1'000'000'000;
   const std::int64_t print_period =
       cfg_.print_forces_hz > 0 ? static_cast<std::int64_t>(1e9 / cfg_.print_forces_hz) : 0;
@@ -332,9 +359,12 @@ StationSummary Station::run() {
         jitter_us.add(std::abs(static_cast<double>(s.period_ns - period_ns)) / 1e3);
         window_periods.push_back(s.period_ns);
       }
-      // Capture-to-force latency: measured at the first tick that renders a newly arrived surface.
-      if (s.surface_capture_ns != 0 && s.surface_frame != last_latency_frame) {
+      // Capture-to-force latency: measured at the first tick that renders a newly arrived surface
+      // of a new capture (a frame's rest rebuilding its surface is not a new capture).
+      if (s.surface_capture_ns != 0 && s.surface_frame != last_latency_frame &&
+          s.surface_capture_ns != last_latency_capture) {
         last_latency_frame = s.surface_frame;
+        last_latency_capture = s.surface_capture_ns;
         const std::int64_t offset = client.stats().clock_offset_ns.load();
         const double lat = static_cast<double>(s.t_ns - (s.surface_capture_ns - offset)) / 1e6;
         latency_ms.add(lat);
@@ -490,6 +520,8 @@ StationSummary Station::run() {
   summary.period_median_us = period_us.quantile(0.5);
   summary.missed_ticks = missed.load();
   summary.surfaces = surfaces_built.load();
+  summary.frames = assembler.counters().frames;  // the network thread has stopped
+  summary.roi_parts = assembler.counters().roi_parts;
   summary.latency_median_ms = latency_ms.quantile(0.5);
   summary.latency_p99_ms = latency_ms.quantile(0.99);
   summary.auth_failed = client.stats().auth_failed.load();

@@ -170,6 +170,7 @@ struct SurfaceClient::Impl {
     last_rx_ns = monotonic_ns();
     proto::Hello hello;
     hello.capabilities = proto::kCapDepthTcp | proto::kCapRoi | proto::kCapStats |
+                         (cfg.frame_parts ? proto::kCapFrameParts : 0u) |
                          (cfg.use_udp ? proto::kCapDepthUdp : 0u) |
                          (cfg.want_video ? proto::kCapVideo : 0u);
     hello.codecs = {proto::Codec::Zip, proto::Codec::Fast, proto::Codec::Raw};

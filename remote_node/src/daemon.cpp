@@ -7,6 +7,7 @@
 
 #include <boost/asio.hpp>
 #include <iostream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -41,9 +42,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
-      "{:.2f} "
-      "tile "
-      "{:.2f} enc {:.2f} total {:.2f} | "
+      "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {}",
@@ -57,6 +56,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       mean(now.stage_ms_sum.tile_ms, before.stage_ms_sum.tile_ms),
       mean(now.stage_ms_sum.encode_ms, before.stage_ms_sum.encode_ms),
       mean(now.stage_ms_sum.total_ms, before.stage_ms_sum.total_ms),
+      mean(now.first_part_ms_sum, before.first_part_ms_sum),
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
@@ -185,9 +185,27 @@ void RemoteDaemon::process_loop() {
     FrameRequest request = server_->take_request();
     // Fill and stabiliser keep their history; tiles are only cut and encoded for a receiver.
     request.select_tiles = server_->state() == ClientState::Connected;
-    ProcessedFrame p = pipeline_.process(*frame, request);
+    // ROI first: a receiver that takes frames in parts gets the ROI tiles before the rest of the
+    // frame is even filled; others get both parts as one message set.
+    ProcessedFrame p = request.frame_parts ? pipeline_.process_roi(*frame, request)
+                                           : pipeline_.process(*frame, request);
     if (observer_) observer_(p);
     server_->publish(p);
+    const double first_part_ms = p.times.total_ms;
+    if (pipeline_.rest_pending()) {
+      ProcessedFrame rest = pipeline_.process_rest(*frame);
+      if (observer_) observer_(rest);
+      server_->publish(rest);
+      rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
+                        std::make_move_iterator(p.tiles.end()));
+      rest.tiles_skipped += p.tiles_skipped;
+      rest.times.fill_ms += p.times.fill_ms;
+      rest.times.stabilise_ms += p.times.stabilise_ms;
+      rest.times.tile_ms += p.times.tile_ms;
+      rest.times.encode_ms += p.times.encode_ms;
+      rest.times.total_ms += p.times.total_ms;
+      p = std::move(rest);
+    }
     std::lock_guard lock(stats_mu_);
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
@@ -198,6 +216,7 @@ void RemoteDaemon::process_loop() {
     stats_.stage_ms_sum.tile_ms += p.times.tile_ms;
     stats_.stage_ms_sum.encode_ms += p.times.encode_ms;
     stats_.stage_ms_sum.total_ms += p.times.total_ms;
+    stats_.first_part_ms_sum += first_part_ms;
   }
 }
 

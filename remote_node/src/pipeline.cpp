@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -52,19 +53,39 @@ void Stabiliser::apply(const cv::Mat1w& in_mm, cv::Mat1w& out_mm) {
     return;
   }
   if (last_mm_.size() != in_mm.size()) {
-    in_mm.copyTo(last_mm_);
-    outside_ = cv::Mat1b(in_mm.size(), std::uint8_t(0));
+    begin(in_mm.size());
     in_mm.copyTo(out_mm);
+    in_mm.copyTo(last_mm_);
     return;
   }
   out_mm.create(in_mm.size());
+  apply_rect(in_mm, cv::Rect(0, 0, in_mm.cols, in_mm.rows), out_mm);
+}
+
+void Stabiliser::begin(cv::Size size) {
+  if (k_ == 0.0 || last_mm_.size() == size) return;
+  // An empty history takes every pixel as it comes (a held 0 is always replaced), which is what
+  // the first frame of a full-frame apply() does.
+  last_mm_ = cv::Mat1w(size, std::uint16_t(0));
+  outside_ = cv::Mat1b(size, std::uint8_t(0));
+}
+
+void Stabiliser::apply_rect(const cv::Mat1w& in_mm, const cv::Rect& rect, cv::Mat1w& out_mm) {
+  if (out_mm.size() != in_mm.size())
+    throw std::invalid_argument("stabiliser: output must have the input's size");
+  if (k_ == 0.0) {
+    in_mm(rect).copyTo(out_mm(rect));
+    return;
+  }
+  if (last_mm_.size() != in_mm.size())
+    throw std::invalid_argument("stabiliser: begin() with the frame size before apply_rect()");
   const auto confirm = static_cast<std::uint8_t>(confirm_frames_);
-  for (int y = 0; y < in_mm.rows; ++y) {
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
     const std::uint16_t* in = in_mm.ptr<std::uint16_t>(y);
     std::uint16_t* last = last_mm_.ptr<std::uint16_t>(y);
     std::uint8_t* outside = outside_.ptr<std::uint8_t>(y);
     std::uint16_t* out = out_mm.ptr<std::uint16_t>(y);
-    for (int x = 0; x < in_mm.cols; ++x) {
+    for (int x = rect.x; x < rect.x + rect.width; ++x) {
       const std::uint16_t v = in[x], s = last[x];
       const std::uint32_t diff = v > s ? v - s : s - v;
       bool take = v == 0 || s == 0;
@@ -80,6 +101,17 @@ void Stabiliser::apply(const cv::Mat1w& in_mm, cv::Mat1w& out_mm) {
       out[x] = last[x];
     }
   }
+}
+
+std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
+                                const std::vector<proto::RoiRect>& rois) {
+  std::vector<bool> mask(static_cast<std::size_t>(grid.count()), false);
+  for (const auto& roi : rois) {
+    const cv::Rect r(roi.x, roi.y, roi.w, roi.h);
+    for (int i = 0; i < grid.count(); ++i)
+      if ((grid.rect(i) & r).area() > 0) mask[static_cast<std::size_t>(i)] = true;
+  }
+  return mask;
 }
 
 RegisterMode parse_register_mode(std::string_view text) {
@@ -221,20 +253,250 @@ const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
 }
 
 ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameRequest& request) {
-  const auto t_start = std::chrono::steady_clock::now();
+  ProcessedFrame out = process_roi(frame, request);
+  if (!rest_pending()) return out;
+  ProcessedFrame rest = process_rest(frame);
+  // One message set: every tile of the frame in index order, closed by the rest's manifest.
+  std::vector<proto::EncodedTile> tiles;
+  tiles.reserve(out.tiles.size() + rest.tiles.size());
+  std::merge(
+      std::make_move_iterator(out.tiles.begin()), std::make_move_iterator(out.tiles.end()),
+      std::make_move_iterator(rest.tiles.begin()), std::make_move_iterator(rest.tiles.end()),
+      std::back_inserter(tiles),
+      [](const proto::EncodedTile& a, const proto::EncodedTile& b) { return a.index < b.index; });
+  rest.tiles = std::move(tiles);
+  rest.part = FramePart::Whole;
+  rest.tiles_skipped += out.tiles_skipped;
+  rest.holes_in += out.holes_in;
+  rest.holes_out += out.holes_out;
+  rest.pixels_processed += out.pixels_processed;
+  rest.times.register_ms += out.times.register_ms;
+  rest.times.fill_ms += out.times.fill_ms;
+  rest.times.stabilise_ms += out.times.stabilise_ms;
+  rest.times.tile_ms += out.times.tile_ms;
+  rest.times.encode_ms += out.times.encode_ms;
+  rest.times.total_ms += out.times.total_ms;
+  return rest;
+}
+
+ProcessedFrame FramePipeline::start_frame(const DepthFrame& frame, const FrameRequest& request,
+                                          const DepthImage& image) {
   ProcessedFrame out;
   out.frame_id = static_cast<std::uint32_t>(frame.frame_id);
   out.capture_ns = frame.capture_ns;
+  out.intrinsics = image.intrinsics;
   out.codec = request.codec.value_or(config_.codec);
+  const cv::Mat1w& in = image.depth_mm;
+  out.grid = proto::TileGrid{in.cols, in.rows, config_.tile_width, config_.tile_height};
+  return out;
+}
+
+ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRequest& request) {
+  pending_.active = false;
+  if (!request.select_tiles || request.rois.empty()) return process_whole(frame, request);
+  const auto t_start = std::chrono::steady_clock::now();
+  const auto t_register = std::chrono::steady_clock::now();
+  const DepthImage& image = register_frame(frame.image);
+  const double register_ms = ms_since(t_register);
+  ProcessedFrame out = start_frame(frame, request, image);
+  out.times.register_ms = register_ms;
+  const cv::Mat1w& in = image.depth_mm;
+  const proto::TileGrid& grid = out.grid;
+
+  const bool size_changed = sent_view_.size() != in.size();
+  ++frames_;
+  const bool key = size_changed || request.force_key_frame ||
+                   since_key_ + 1 >= static_cast<std::uint64_t>(config_.key_frame_every) ||
+                   frames_ == 1;
+  since_key_ = key ? 0 : since_key_ + 1;
+  if (size_changed) sent_view_ = cv::Mat1w(in.size(), std::uint16_t(0));
+  const bool background_due = (frames_ % static_cast<std::uint64_t>(config_.background_every)) == 0;
+  const std::vector<bool> in_roi = tiles_in_rois(grid, request.rois);
+  std::vector<int> roi_tiles;
+  for (int i = 0; i < grid.count(); ++i)
+    if (in_roi[static_cast<std::size_t>(i)]) roi_tiles.push_back(i);
+  const bool has_rest =
+      (key || background_due) && roi_tiles.size() < static_cast<std::size_t>(grid.count());
+
+  // Fill, temporal fill and stabilise the ROI tiles only. The spatial fill runs per requested
+  // rectangle widened to whole tiles (with the fill's own margin, so its result equals a
+  // full-frame fill there); the stateful stages run once per tile.
   auto t0 = std::chrono::steady_clock::now();
-  const DepthImage& registered = register_frame(frame.image);
-  out.times.register_ms = ms_since(t0);
-  out.intrinsics = registered.intrinsics;
-  const cv::Mat1w& in = registered.depth_mm;
+  const cv::Mat1w* current = &in;
+  filled_.create(in.size());
+  temporal_out_.create(in.size());
+  stabilised_.create(in.size());
+  if (config_.fill) {
+    const cv::Rect image(0, 0, in.cols, in.rows);
+    for (const auto& roi : request.rois) {
+      const cv::Rect r = cv::Rect(roi.x, roi.y, roi.w, roi.h) & image;
+      if (r.empty()) continue;
+      const int x0 = r.x / grid.tile_width * grid.tile_width;
+      const int y0 = r.y / grid.tile_height * grid.tile_height;
+      const int x1 = (r.x + r.width + grid.tile_width - 1) / grid.tile_width * grid.tile_width;
+      const int y1 = (r.y + r.height + grid.tile_height - 1) / grid.tile_height * grid.tile_height;
+      fill_holes_mode_roi_into(in, cv::Rect(x0, y0, x1 - x0, y1 - y0) & image, filled_,
+                               config_.hole_fill);
+    }
+    current = &filled_;
+    if (config_.temporal_fill) {
+      temporal_.begin_frame(in.size(), static_cast<double>(frame.capture_ns) * 1e-6);
+      for (int i : roi_tiles) temporal_.apply_rect(filled_, grid.rect(i), temporal_out_);
+      current = &temporal_out_;
+    }
+  }
+  for (int i : roi_tiles) {
+    const cv::Rect r = grid.rect(i);
+    out.holes_in += count_holes(in(r));
+    out.holes_out += count_holes((*current)(r));
+    out.pixels_processed += static_cast<std::size_t>(r.area());
+  }
+  out.times.fill_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  stabiliser_.begin(in.size());
+  for (int i : roi_tiles) stabiliser_.apply_rect(*current, grid.rect(i), stabilised_);
+  out.times.stabilise_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  std::vector<int> send;
+  for (int i : roi_tiles) {
+    if (key || !same_tile(stabilised_, sent_view_, grid.rect(i)))
+      send.push_back(i);
+    else
+      ++out.tiles_skipped;
+  }
+  if (!has_rest) out.tiles_skipped += static_cast<std::size_t>(grid.count()) - roi_tiles.size();
+  for (int i : send) stabilised_(grid.rect(i)).copyTo(sent_view_(grid.rect(i)));
+  out.times.tile_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  encode_tiles(send, out);
+  out.times.encode_ms = ms_since(t0);
+
+  out.key_frame = key;
+  out.manifest.frame_id = out.frame_id;
+  out.manifest.tile_count = static_cast<std::uint16_t>(grid.count());
+  if (has_rest) {
+    // The ROI part lists the tiles it carries, even on a key frame; the rest's manifest closes
+    // the frame as a one-part frame's manifest would.
+    out.part = FramePart::RoiPart;
+    out.manifest.key_frame = false;
+    for (int i : send) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
+    pending_.active = true;
+    pending_.frame_id = frame.frame_id;
+    pending_.key = key;
+    pending_.in_roi = in_roi;
+    pending_.roi_sent = out.manifest.changed_tiles;
+    pending_.codec = out.codec;
+  } else {
+    out.part = FramePart::Whole;
+    out.manifest.key_frame = key;
+    if (!key)
+      for (int i : send) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
+  }
+  out.sent_view_mm = sent_view_.clone();
+  out.times.total_ms = ms_since(t_start);
+  return out;
+}
+
+ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame) {
+  if (!pending_.active || pending_.frame_id != frame.frame_id)
+    throw std::logic_error("process_rest: no ROI part of this frame is waiting for its rest");
+  pending_.active = false;
+  const auto t_start = std::chrono::steady_clock::now();
+  FrameRequest request;
+  request.codec = pending_.codec;
+  // The rest uses the image the ROI part registered (registered_ is untouched until the next
+  // frame).
+  const DepthImage& image =
+      config_.registration.mode == RegisterMode::None ? frame.image : registered_;
+  ProcessedFrame out = start_frame(frame, request, image);
+  const cv::Mat1w& in = image.depth_mm;
+  const proto::TileGrid& grid = out.grid;
+  std::vector<int> rest_tiles;
+  for (int i = 0; i < grid.count(); ++i)
+    if (!pending_.in_roi[static_cast<std::size_t>(i)]) rest_tiles.push_back(i);
+
+  // The spatial fill needs the whole frame (holes reach across tiles); inside the ROI tiles it
+  // rewrites the values the ROI part computed, bit for bit.
+  auto t0 = std::chrono::steady_clock::now();
+  const cv::Mat1w* current = &in;
+  if (config_.fill) {
+    fill_holes_mode_into(in, filled_, config_.hole_fill);
+    current = &filled_;
+    if (config_.temporal_fill) {
+      for (int i : rest_tiles) temporal_.apply_rect(filled_, grid.rect(i), temporal_out_);
+      current = &temporal_out_;
+    }
+  }
+  for (int i : rest_tiles) {
+    const cv::Rect r = grid.rect(i);
+    out.holes_in += count_holes(in(r));
+    out.holes_out += count_holes((*current)(r));
+    out.pixels_processed += static_cast<std::size_t>(r.area());
+  }
+  out.times.fill_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  for (int i : rest_tiles) stabiliser_.apply_rect(*current, grid.rect(i), stabilised_);
+  out.times.stabilise_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  std::vector<int> send;
+  for (int i : rest_tiles) {
+    if (pending_.key || !same_tile(stabilised_, sent_view_, grid.rect(i)))
+      send.push_back(i);
+    else
+      ++out.tiles_skipped;
+  }
+  for (int i : send) stabilised_(grid.rect(i)).copyTo(sent_view_(grid.rect(i)));
+  out.times.tile_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  encode_tiles(send, out);
+  out.times.encode_ms = ms_since(t0);
+
+  out.part = FramePart::Rest;
+  out.key_frame = pending_.key;
+  out.manifest.frame_id = out.frame_id;
+  out.manifest.tile_count = static_cast<std::uint16_t>(grid.count());
+  out.manifest.key_frame = pending_.key;
+  if (!pending_.key) {
+    std::vector<std::uint16_t> rest_sent;
+    for (int i : send) rest_sent.push_back(static_cast<std::uint16_t>(i));
+    std::merge(pending_.roi_sent.begin(), pending_.roi_sent.end(), rest_sent.begin(),
+               rest_sent.end(), std::back_inserter(out.manifest.changed_tiles));
+  }
+  out.sent_view_mm = sent_view_.clone();
+  out.times.total_ms = ms_since(t_start);
+  return out;
+}
+
+void FramePipeline::encode_tiles(const std::vector<int>& send, ProcessedFrame& out) const {
+  out.tiles.reserve(send.size());
+  for (int i : send) {
+    proto::EncodedTile t;
+    t.index = static_cast<std::uint16_t>(i);
+    t.rect = out.grid.rect(i);
+    t.bytes = proto::encode_depth(stabilised_(t.rect), out.codec, config_.zip_level);
+    out.tiles.push_back(std::move(t));
+  }
+}
+
+ProcessedFrame FramePipeline::process_whole(const DepthFrame& frame, const FrameRequest& request) {
+  const auto t_start = std::chrono::steady_clock::now();
+  const auto t_register = std::chrono::steady_clock::now();
+  const DepthImage& image = register_frame(frame.image);
+  const double register_ms = ms_since(t_register);
+  ProcessedFrame out = start_frame(frame, request, image);
+  out.times.register_ms = register_ms;
+  const cv::Mat1w& in = image.depth_mm;
   out.holes_in = count_holes(in);
+  out.pixels_processed = in.total();
 
   // Fill: windowed mode for small holes, then the per-pixel history for what the window missed.
-  t0 = std::chrono::steady_clock::now();
+  auto t0 = std::chrono::steady_clock::now();
   const cv::Mat1w* current = &in;
   if (config_.fill) {
     fill_holes_mode_into(in, filled_, config_.hole_fill);
@@ -254,8 +516,7 @@ ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameReques
 
   // Tile selection against what the receiver holds.
   t0 = std::chrono::steady_clock::now();
-  proto::TileGrid grid{in.cols, in.rows, config_.tile_width, config_.tile_height};
-  out.grid = grid;
+  const proto::TileGrid& grid = out.grid;
   if (!request.select_tiles) {
     // Nobody holds anything: the next receiver starts with a key frame.
     sent_view_.release();
@@ -269,14 +530,10 @@ ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameReques
                    frames_ == 1;
   since_key_ = key ? 0 : since_key_ + 1;
   if (size_changed) sent_view_ = cv::Mat1w(stabilised_.size(), std::uint16_t(0));
-  const bool background_due =
-      request.rois.empty() || (frames_ % static_cast<std::uint64_t>(config_.background_every)) == 0;
-  const std::vector<bool> in_roi = tiles_in_rois(grid, request.rois);
   std::vector<int> send;
   for (int i = 0; i < grid.count(); ++i) {
     const cv::Rect r = grid.rect(i);
-    const bool due = key || background_due || in_roi[static_cast<std::size_t>(i)];
-    if (due && (key || !same_tile(stabilised_, sent_view_, r)))
+    if (key || !same_tile(stabilised_, sent_view_, r))
       send.push_back(i);
     else
       ++out.tiles_skipped;
@@ -285,14 +542,7 @@ ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameReques
   out.times.tile_ms = ms_since(t0);
 
   t0 = std::chrono::steady_clock::now();
-  out.tiles.reserve(send.size());
-  for (int i : send) {
-    proto::EncodedTile t;
-    t.index = static_cast<std::uint16_t>(i);
-    t.rect = grid.rect(i);
-    t.bytes = proto::encode_depth(stabilised_(t.rect), out.codec, config_.zip_level);
-    out.tiles.push_back(std::move(t));
-  }
+  encode_tiles(send, out);
   out.times.encode_ms = ms_since(t0);
 
   out.key_frame = key;

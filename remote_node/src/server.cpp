@@ -135,13 +135,13 @@ class RemoteServer::Impl {
   }
 
   proto::Header header(std::uint32_t session_id, std::uint32_t frame_id, std::int64_t capture_ns,
-                       bool key) {
+                       bool key, std::uint16_t extra_flags = 0) {
     proto::Header h;
     h.session_id = session_id;
     h.seq = seq_++;
     h.frame_id = frame_id;
     h.capture_ns = static_cast<std::uint64_t>(capture_ns);
-    h.flags = key ? proto::kFlagKeyFrame : 0;
+    h.flags = static_cast<std::uint16_t>((key ? proto::kFlagKeyFrame : 0) | extra_flags);
     return h;
   }
 
@@ -194,6 +194,8 @@ class RemoteServer::Impl {
         if (active_ && active_generation_ == gen) send_control(buf);
       });
     }
+    // An ROI part's messages say so; the rest (or a whole frame) closes the frame and counts it.
+    const std::uint16_t part_flag = frame.part == FramePart::RoiPart ? proto::kFlagRoiPart : 0;
     std::vector<std::pair<proto::Header, proto::Message>> msgs;
     msgs.reserve(frame.tiles.size() + 1);
     for (const auto& t : frame.tiles) {
@@ -205,12 +207,15 @@ class RemoteServer::Impl {
       dt.h = static_cast<std::uint16_t>(t.rect.height);
       dt.codec = frame.codec;
       dt.payload = t.bytes;
-      msgs.emplace_back(header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame),
-                        std::move(dt));
+      msgs.emplace_back(
+          header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
+          std::move(dt));
     }
-    msgs.emplace_back(header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame),
-                      frame.manifest);
+    msgs.emplace_back(
+        header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
+        frame.manifest);
     OutFrame f = pack(*l, frame.frame_id, msgs);
+    f.counts_as_frame = frame.part != FramePart::RoiPart;
     asio::post(io_, [this, f = std::move(f), gen = l->generation]() mutable {
       if (active_ && active_generation_ == gen) enqueue_frame(std::move(f));
     });
@@ -492,10 +497,12 @@ class RemoteServer::Impl {
     std::lock_guard lock(mu_);
     connected_ = true;
     video_wanted_ = config_.video_available && (hello.capabilities & proto::kCapVideo);
+    frame_parts_ = (hello.capabilities & proto::kCapFrameParts) != 0;
     link_ = Link{session_id_, active_generation_, a->over_udp, a->session_key};
     request_ = FrameRequest{};
     request_.force_key_frame = true;  // a new receiver holds nothing
     request_.codec = codec;
+    request_.frame_parts = frame_parts_;
   }
 
   void send_control(Buffer buf) {
@@ -621,6 +628,7 @@ class RemoteServer::Impl {
   // shared
   mutable std::mutex mu_;
   FrameRequest request_;
+  bool frame_parts_ = false;  // guarded by mu_
   Link link_;
   std::atomic<bool> connected_{false};
   std::atomic<bool> video_wanted_{false};

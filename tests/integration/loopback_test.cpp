@@ -126,6 +126,37 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   EXPECT_GT(j["surfaces"].get<int>(), 30);
 }
 
+// ROI first end to end: with --roi the remote sends each frame's fingertip tiles as an ROI part
+// that the station publishes at once; the press gives the same Hooke force as the full frame.
+// With --no-frame-parts the same remote sends every frame in one part.
+TEST(Loopback, RoiFramePartsGiveTheSamePress) {
+  for (const bool parts : {true, false}) {
+    const auto dir = scratch_dir(parts ? "loopback_roi_parts" : "loopback_roi_one_part");
+    Remote remote(dir, {"--source", "synthetic:plane"});
+    std::vector<std::string> extra{"--hand", "script:press", "--stiffness", "500", "--max-force",
+                                   "10", "--duration", "7.5", "--roi"};
+    if (!parts) extra.push_back("--no-frame-parts");
+    Process local(local_args(remote.port, dir, extra), dir / "local.out", dir / "local.err");
+    const auto rc = local.wait(30s);
+    ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+    ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
+    double peak = 0;
+    for (const auto& r : read_forces(dir / "forces.csv"))
+      if (r.finger == "index") peak = std::max(peak, r.pressure);
+    EXPECT_NEAR(peak, 5.0, 0.5) << "k 500 N/m x 10 mm, parts " << parts;
+    const auto j = summary_of(local);
+    ASSERT_TRUE(j.is_object()) << local.stdout_text();
+    EXPECT_GT(j["frames"].get<int>(), 30) << parts;
+    if (parts) {
+      // Frames whose rest was due (every 2nd, key frames) came in two parts.
+      EXPECT_GT(j["roi_parts"].get<int>(), 0);
+      EXPECT_LE(j["roi_parts"].get<int>(), j["frames"].get<int>());
+    } else {
+      EXPECT_EQ(j["roi_parts"].get<int>(), 0);
+    }
+  }
+}
+
 TEST(Loopback, StrokeShearOpposesSliding) {
   const auto dir = scratch_dir("loopback_stroke");
   Remote remote(dir, {"--source", "synthetic:plane", "--transport", "tcp"});

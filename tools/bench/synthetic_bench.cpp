@@ -44,6 +44,20 @@ void BM_RendererMoving(benchmark::State& state) {
   cv::setNumThreads(-1);
 }
 
+// The incremental renderer on a static scene, as the synthetic depth source uses it: after the
+// first frame only the sensor pass runs.
+void BM_RendererStatic(benchmark::State& state, const char* name) {
+  cv::setNumThreads(1);
+  const telex::synth::Scene scene = telex::synth::Scene::named(name);
+  telex::synth::Renderer renderer(telex::kinect_v1_intrinsics(), telex::synth::SensorModel{});
+  std::uint64_t frame = 0;
+  for (auto _ : state) {
+    auto r = renderer.render(scene, frame++);
+    benchmark::DoNotOptimize(r.depth.depth_mm.data);
+  }
+  cv::setNumThreads(-1);
+}
+
 // A yardstick for how loaded the machine is: REFERENCES.md quotes about 0.6 ms for this on an
 // idle core, so render times scale by (this measurement / 0.6 ms) to an idle machine.
 void BM_MedianBlurYardstick(benchmark::State& state) {
@@ -58,6 +72,7 @@ void BM_MedianBlurYardstick(benchmark::State& state) {
 
 BENCHMARK(BM_MedianBlurYardstick)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RendererMoving)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_RendererStatic, plane_1thread, "plane")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, plane_1thread, "plane", false, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, box_1thread, "box", false, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Render, desk_1thread, "desk", false, 1)->Unit(benchmark::kMillisecond);

@@ -435,7 +435,8 @@ Sample run_chain(const Config& c, const Frame& f, ChainState& st, local::Surface
     throw std::logic_error("codec " + std::string(proto::codec_name(c.codec)) + " is not lossless");
 
   // Local side: smoothing, normals, snapshot (over fingertip windows with ROI).
-  local::AssembledFrame frame{st.received, f.intr, f.id, 0, 0, true};
+  local::AssembledFrame frame{st.received, f.intr, f.id, 0, 0, true, local::AssembledPart::Whole,
+                              {}};
   local::SurfaceOptions so;
   so.bilateral = c.bilateral;
   so.bilateral_options = c.bilateral_options;
@@ -1037,7 +1038,7 @@ int run(const Options& o) {
     far_hand.tips[1].p_camera_m = {0.0, 0.0, 0.2};  // far in front of the desk
     local::SurfaceOptions full, roi;
     roi.roi = true;
-    const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true};
+    const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true, local::AssembledPart::Whole, {}};
     std::vector<double> full_ms, roi_ms, none_ms, roi_snapshot_ms;
     local::SurfacePool full_pool, near_pool, none_pool;
     std::deque<std::shared_ptr<const Surface>> full_ring, near_ring, none_ring;

@@ -48,4 +48,11 @@ HoleFillResult fill_holes_mode_into(const cv::Mat1w& depth_mm, cv::Mat1w& out_mm
 HoleFillResult fill_holes_mode_roi(const cv::Mat1w& depth_mm, const cv::Rect& roi,
                                    const HoleFillOptions& options = {});
 
+// Same, but touches only `roi` of caller-owned `out_mm` (reallocated when its size differs; its
+// pixels outside `roi` are then undefined): work proportional to the ROI plus its margin, for
+// pipelines that process a few regions of a frame before (or instead of) the rest. Inside `roi`
+// the result equals fill_holes_mode's, bit for bit. Returns the result with an empty `depth_mm`.
+HoleFillResult fill_holes_mode_roi_into(const cv::Mat1w& depth_mm, const cv::Rect& roi,
+                                        cv::Mat1w& out_mm, const HoleFillOptions& options = {});
+
 }  // namespace telex

@@ -35,6 +35,15 @@ class TemporalFill {
   // a size change: the history restarts and the result says so.
   TemporalFillResult apply(const cv::Mat1w& depth_mm, double time_ms, cv::Mat1w& out_mm);
 
+  // The same in two steps, for callers that process a frame region by region: begin_frame
+  // advances the frame count and clock (returns true when the history was dropped, as
+  // TemporalFillResult::history_reset); apply_rect then records and fills only `rect` of the frame
+  // into `out_mm`, which must already have the frame's size. Each pixel at most once per frame;
+  // pixels a frame does not visit keep their history (their age keeps growing with the frames).
+  // Throws std::invalid_argument on a size mismatch or a rectangle outside the frame.
+  bool begin_frame(cv::Size size, double time_ms);
+  TemporalFillResult apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
+
   void reset();
   std::uint32_t frames_seen() const { return frame_; }
   const TemporalFillOptions& options() const { return options_; }

@@ -46,6 +46,8 @@ struct StationSummary {
   double period_median_us = 0;
   std::uint64_t missed_ticks = 0;
   std::uint64_t surfaces = 0;
+  std::uint64_t frames = 0;      // depth frames assembled (closing manifests)
+  std::uint64_t roi_parts = 0;   // frames whose ROI part was published before the rest
   double latency_median_ms = 0;  // capture (remote clock, offset-corrected) to force output
   double latency_p99_ms = 0;
   double peak_pressure_N = 0;

@@ -19,6 +19,7 @@ struct ClientConfig {
   std::uint16_t port = 7300;
   bool use_udp = true;      // ask for depth over UDP (the remote may still choose TCP)
   bool want_video = false;  // ask for the right-eye video
+  bool frame_parts = true;  // take frames as an ROI part and a rest (PROTOCOL.md 2.4)
   std::int64_t heartbeat_ns = 250'000'000;
   std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
   std::int64_t backoff_min_ns = 100'000'000;

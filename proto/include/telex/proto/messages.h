@@ -46,6 +46,9 @@ inline constexpr std::uint16_t kFlagKeyFrame =
     1u << 0;  // the frame this message belongs to is a key frame
 // A 16-byte authentication tag follows the payload (auth.h; sent only with a pre-shared key).
 inline constexpr std::uint16_t kFlagAuth = 1u << 1;
+// The message belongs to the ROI part of its frame: a second FrameManifest with the same frame id
+// (without this flag) follows and closes the frame (PROTOCOL.md 2.4).
+inline constexpr std::uint16_t kFlagRoiPart = 1u << 2;
 
 struct Header {
   std::uint32_t magic = kMagic;
@@ -67,6 +70,8 @@ inline constexpr std::uint32_t kCapDepthUdp = 1u << 1;
 inline constexpr std::uint32_t kCapVideo = 1u << 2;
 inline constexpr std::uint32_t kCapRoi = 1u << 3;
 inline constexpr std::uint32_t kCapStats = 1u << 4;
+// The client takes a frame in two parts (ROI tiles first, then the rest; PROTOCOL.md 2.4).
+inline constexpr std::uint32_t kCapFrameParts = 1u << 5;
 
 enum class Transport : std::uint8_t { Tcp = 0, Udp = 1 };
 

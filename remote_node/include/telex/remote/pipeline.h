@@ -31,6 +31,12 @@ class Stabiliser {
   explicit Stabiliser(double k_sigma = 0.0, int confirm_frames = 2, double immediate_factor = 3.0);
   // `out` receives the stabilised frame (reallocated when the size differs; history restarts).
   void apply(const cv::Mat1w& in_mm, cv::Mat1w& out_mm);
+  // Region by region: begin() (re)starts the history when the frame size differs; apply_rect()
+  // then stabilises only `rect` of `in_mm` into `out_mm` (already of the input's size). Pixels a
+  // frame does not visit keep their held value and their outside-band count. Visiting every pixel
+  // once per frame equals apply(), bit for bit.
+  void begin(cv::Size size);
+  void apply_rect(const cv::Mat1w& in_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
   void reset() { last_mm_.release(); }
   double k_sigma() const { return k_; }
   // Tolerance in mm around a held value of `depth_mm`.
@@ -98,13 +104,23 @@ struct FrameRequest {
   std::vector<proto::RoiRect> rois;   // in pixels of the frame as sent
   std::optional<proto::Codec> codec;  // negotiated codec (overrides the config)
   bool select_tiles = true;           // false: no receiver, stop after the stabiliser
+  bool frame_parts =
+      false;  // the receiver takes a frame as an ROI part and a rest (kCapFrameParts)
 };
 
 struct StageTimes {
   double register_ms = 0, fill_ms = 0, stabilise_ms = 0, tile_ms = 0, encode_ms = 0, total_ms = 0;
 };
 
+// Which part of a frame a ProcessedFrame carries (ROI first; docs/PROTOCOL.md "Frame parts").
+enum class FramePart : std::uint8_t {
+  Whole,    // the whole frame: its manifest closes it
+  RoiPart,  // only the tiles of the requested ROIs; the rest of the same frame follows
+  Rest,     // the tiles outside the ROIs; its manifest closes the frame and lists both parts' tiles
+};
+
 struct ProcessedFrame {
+  FramePart part = FramePart::Whole;
   std::uint32_t frame_id = 0;
   std::int64_t capture_ns = 0;
   bool key_frame = false;
@@ -115,7 +131,8 @@ struct ProcessedFrame {
   std::vector<proto::EncodedTile> tiles;  // tiles to send, increasing index
   proto::FrameManifest manifest;
   std::size_t tiles_skipped = 0;  // unchanged, or not due (outside ROI on a background-skip frame)
-  std::size_t holes_in = 0, holes_out = 0;
+  std::size_t holes_in = 0, holes_out = 0;  // over the pixels this part processed
+  std::size_t pixels_processed = 0;         // pixels through fill, temporal fill and stabiliser
   StageTimes times;
 };
 
@@ -124,20 +141,49 @@ std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
                                 const std::vector<proto::RoiRect>& rois);
 
 // Single-threaded: owned by the processing thread. Reads no clock except to time its own stages.
+//
+// ROI first: with ROIs requested, process_roi() fills, temporally fills, stabilises, selects and
+// encodes only the tiles that intersect an ROI. On frames where the rest is due (key frames, and
+// every `background_every`th frame) it returns them as FramePart::RoiPart and rest_pending() is
+// true: process_rest() with the same frame then does the other tiles (FramePart::Rest). On other
+// frames the ROI tiles are the whole frame (FramePart::Whole) and no pixel outside them is
+// touched: their fill, temporal history and stabiliser state wait for the next frame whose rest
+// is due. Without ROIs (or without a receiver) process_roi() processes the whole frame at once.
 class FramePipeline {
  public:
   explicit FramePipeline(PipelineConfig config);
+  // Both parts, merged into one message set (tiles in index order, the closing manifest).
   ProcessedFrame process(const DepthFrame& frame, const FrameRequest& request);
+  ProcessedFrame process_roi(const DepthFrame& frame, const FrameRequest& request);
+  bool rest_pending() const { return pending_.active; }
+  // The rest of the frame process_roi() just returned a RoiPart of; throws std::logic_error for
+  // any other frame.
+  ProcessedFrame process_rest(const DepthFrame& frame);
   const PipelineConfig& config() const { return config_; }
   // The registration stage alone: `in` itself when the mode is none, else the frame in the eye
   // camera (valid until the next call).
   const DepthImage& register_frame(const DepthImage& in);
 
  private:
+  ProcessedFrame start_frame(const DepthFrame& frame, const FrameRequest& request,
+                             const DepthImage& image);
+  ProcessedFrame process_whole(const DepthFrame& frame, const FrameRequest& request);
+  void encode_tiles(const std::vector<int>& send, ProcessedFrame& out) const;
+
+  struct Pending {
+    bool active = false;
+    std::uint64_t frame_id = 0;
+    bool key = false;
+    std::vector<bool> in_roi;             // tiles the ROI part processed
+    std::vector<std::uint16_t> roi_sent;  // tiles the ROI part sent
+    proto::Codec codec = proto::Codec::Zip;
+  };
+
   PipelineConfig config_;
   DepthImage registered_;
   ShiftScale shift_scale_;
   std::optional<Intrinsics> shift_scale_for_;  // source intrinsics shift_scale_ was derived for
+  Pending pending_;
   TemporalFill temporal_;
   Stabiliser stabiliser_;
   cv::Mat1w filled_, temporal_out_, stabilised_, sent_view_;

@@ -1,0 +1,239 @@
+// SPDX-License-Identifier: MIT
+// ROI-first processing: the ROI part carries exactly the ROI tiles, the rest follows on frames
+// where it is due, a receiver holding both parts holds the sender's frame, and frames without
+// the rest due leave every pixel outside the ROI tiles alone.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "telex/proto/depth_codec.h"
+#include "telex/remote/pipeline.h"
+
+namespace telex::remote {
+namespace {
+
+DepthFrame frame_of(const cv::Mat1w& depth, std::uint64_t id) {
+  DepthFrame f;
+  f.image.depth_mm = depth;
+  f.image.intrinsics = kinect_v1_intrinsics(depth.cols, depth.rows);
+  f.frame_id = id;
+  f.capture_ns = static_cast<std::int64_t>(id) * 33'333'333;
+  return f;
+}
+
+// A tilted surface with noise and holes of several sizes: the spatial fill needs several passes
+// and reaches across tile borders.
+cv::Mat1w holey_frame(unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  cv::Mat1w d(480, 640);
+  for (int y = 0; y < d.rows; ++y)
+    for (int x = 0; x < d.cols; ++x)
+      d(y, x) = static_cast<std::uint16_t>(900 + x / 2 + y + (x > 320 ? 150 : 0) + noise(rng));
+  std::uniform_int_distribution<int> px(0, 639), py(0, 479), size(1, 24);
+  for (int i = 0; i < 400; ++i) {
+    const cv::Rect r = cv::Rect(px(rng), py(rng), size(rng), size(rng)) & cv::Rect(0, 0, 640, 480);
+    d(r).setTo(0);
+  }
+  return d;
+}
+
+std::vector<int> indices(const std::vector<proto::EncodedTile>& tiles) {
+  std::vector<int> out;
+  for (const auto& t : tiles) out.push_back(t.index);
+  return out;
+}
+
+std::vector<int> mask_indices(const std::vector<bool>& mask, bool value) {
+  std::vector<int> out;
+  for (std::size_t i = 0; i < mask.size(); ++i)
+    if (mask[i] == value) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+// What a receiver holds after decoding `tiles` over `held`.
+void receive(cv::Mat1w& held, const ProcessedFrame& p) {
+  for (const auto& t : p.tiles)
+    ASSERT_EQ(proto::decode_tile_into(t.bytes, p.grid, t.index, p.codec, held),
+              proto::DecodeStatus::Ok);
+}
+
+FrameRequest roi_request(bool key = false) {
+  FrameRequest r;
+  r.force_key_frame = key;
+  r.rois = {{100, 100, 120, 100, 1}, {380, 290, 60, 40, 1}};
+  return r;
+}
+
+TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
+  PipelineConfig cfg;  // fill, temporal fill, 80x60 tiles, background every 2nd frame
+  cfg.stabilise_k_sigma = 3.0;
+  FramePipeline p(cfg);
+  const cv::Mat1w d = holey_frame(1);
+  const FrameRequest req = roi_request(true);
+  const proto::TileGrid grid{640, 480, 80, 60};
+  const std::vector<bool> in_roi = tiles_in_rois(grid, req.rois);
+  ASSERT_EQ(mask_indices(in_roi, true), (std::vector<int>{9, 10, 17, 18, 25, 26, 36, 37, 44, 45}));
+
+  // Key frame: the ROI part carries every ROI tile and lists them; it is not a key manifest.
+  const ProcessedFrame roi = p.process_roi(frame_of(d, 1), req);
+  EXPECT_EQ(roi.part, FramePart::RoiPart);
+  EXPECT_TRUE(roi.key_frame);
+  EXPECT_FALSE(roi.manifest.key_frame);
+  EXPECT_EQ(indices(roi.tiles), mask_indices(in_roi, true));
+  EXPECT_EQ(std::vector<int>(roi.manifest.changed_tiles.begin(), roi.manifest.changed_tiles.end()),
+            mask_indices(in_roi, true));
+  EXPECT_EQ(roi.pixels_processed, 10u * 80u * 60u);
+  ASSERT_TRUE(p.rest_pending());
+  EXPECT_THROW(p.process_rest(frame_of(d, 2)), std::logic_error);  // another frame's rest
+
+  const ProcessedFrame rest = p.process_rest(frame_of(d, 1));
+  EXPECT_FALSE(p.rest_pending());
+  EXPECT_EQ(rest.part, FramePart::Rest);
+  EXPECT_EQ(rest.frame_id, 1u);
+  EXPECT_TRUE(rest.manifest.key_frame);
+  EXPECT_EQ(indices(rest.tiles), mask_indices(in_roi, false));
+  EXPECT_EQ(rest.pixels_processed, 54u * 80u * 60u);
+
+  // A receiver holding both parts holds the sender's frame, and that frame is what a full-frame
+  // pipeline produces (the ROI fill's margin makes it exact; first frame, so no history differs).
+  cv::Mat1w held(480, 640, std::uint16_t(0));
+  receive(held, roi);
+  receive(held, rest);
+  EXPECT_EQ(cv::norm(held, rest.sent_view_mm, cv::NORM_INF), 0.0);
+  FramePipeline reference(cfg);
+  const ProcessedFrame whole = reference.process(frame_of(d, 1), {});
+  EXPECT_EQ(cv::norm(held, whole.sent_view_mm, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::countNonZero(held == 0), cv::countNonZero(d == 0) / 10);  // it was filled
+
+  // Frame 2 (rest due): the rest's manifest lists the changed tiles of both parts.
+  const cv::Mat1w d2 = holey_frame(2);
+  const ProcessedFrame roi2 = p.process_roi(frame_of(d2, 2), roi_request());
+  ASSERT_TRUE(p.rest_pending());
+  EXPECT_FALSE(roi2.tiles.empty());
+  for (int i : indices(roi2.tiles)) EXPECT_TRUE(in_roi[static_cast<std::size_t>(i)]) << i;
+  const ProcessedFrame rest2 = p.process_rest(frame_of(d2, 2));
+  EXPECT_FALSE(rest2.manifest.key_frame);
+  std::vector<int> both = indices(roi2.tiles);
+  for (int i : indices(rest2.tiles)) both.push_back(i);
+  std::sort(both.begin(), both.end());
+  EXPECT_EQ(
+      std::vector<int>(rest2.manifest.changed_tiles.begin(), rest2.manifest.changed_tiles.end()),
+      both);
+  receive(held, roi2);
+  receive(held, rest2);
+  EXPECT_EQ(cv::norm(held, rest2.sent_view_mm, cv::NORM_INF), 0.0);
+
+  // Frame 3 (rest not due): one part, ROI tiles only, nothing pending.
+  const ProcessedFrame f3 = p.process_roi(frame_of(holey_frame(3), 3), roi_request());
+  EXPECT_EQ(f3.part, FramePart::Whole);
+  EXPECT_FALSE(p.rest_pending());
+  EXPECT_FALSE(f3.manifest.key_frame);
+  for (int i : indices(f3.tiles)) EXPECT_TRUE(in_roi[static_cast<std::size_t>(i)]) << i;
+  EXPECT_EQ(f3.pixels_processed, 10u * 80u * 60u);
+  EXPECT_EQ(f3.tiles.size() + f3.tiles_skipped, 64u);
+  receive(held, f3);
+  EXPECT_EQ(cv::norm(held, f3.sent_view_mm, cv::NORM_INF), 0.0);
+}
+
+TEST(RoiFirst, FramesWithoutTheRestDueLeaveNonRoiPixelsAlone) {
+  PipelineConfig cfg;
+  cfg.hole_fill.max_passes = 0;  // spatial fill off: holes are left to the temporal history
+  cfg.temporal.max_age_frames = 4;
+  FramePipeline p(cfg);
+  const FrameRequest req = roi_request();
+  const proto::TileGrid grid{640, 480, 80, 60};
+  const std::vector<bool> in_roi = tiles_in_rois(grid, req.rois);
+  cv::Mat1b roi_pixels(480, 640, std::uint8_t(0));
+  for (int i : mask_indices(in_roi, true)) roi_pixels(grid.rect(i)).setTo(255);
+  const auto with_outside = [&](std::uint16_t outside) {
+    cv::Mat1w d(480, 640, outside);
+    d.setTo(1500, roi_pixels);
+    return d;
+  };
+  // Frame 1: key, everything 1500. Frame 2: rest due, the same.
+  EXPECT_EQ(p.process(frame_of(with_outside(1500), 1), req).pixels_processed, 640u * 480u);
+  EXPECT_EQ(p.process(frame_of(with_outside(1500), 2), req).pixels_processed, 640u * 480u);
+  // Frame 3: rest not due; outside the ROI tiles the camera now sees 2500 mm.
+  const ProcessedFrame f3 = p.process(frame_of(with_outside(2500), 3), req);
+  EXPECT_EQ(f3.part, FramePart::Whole);
+  EXPECT_EQ(f3.pixels_processed, 10u * 80u * 60u);
+  EXPECT_EQ(f3.sent_view_mm(0, 0), 1500);
+  // Frame 4: rest due, outside is all holes. Had frame 3's outside pixels been recorded, the
+  // temporal fill would bring back 2500; untouched, the history still holds frame 2's 1500.
+  const ProcessedFrame f4 = p.process(frame_of(with_outside(0), 4), req);
+  EXPECT_EQ(f4.pixels_processed, 640u * 480u);
+  cv::Mat1w outside_values;
+  f4.sent_view_mm.copyTo(outside_values);
+  outside_values.setTo(1500, roi_pixels);
+  EXPECT_EQ(cv::countNonZero(outside_values != 1500), 0);
+}
+
+TEST(RoiFirst, MergedProcessEqualsBothPartsInOneMessageSet) {
+  PipelineConfig cfg;
+  FramePipeline split(cfg), merged(cfg);
+  cv::Mat1w held_split(480, 640, std::uint16_t(0)), held_merged(480, 640, std::uint16_t(0));
+  for (std::uint64_t id = 1; id <= 6; ++id) {
+    const cv::Mat1w d = holey_frame(static_cast<unsigned>(10 + id));
+    const ProcessedFrame m = merged.process(frame_of(d, id), roi_request(id == 1));
+    EXPECT_EQ(m.part, FramePart::Whole);
+    EXPECT_TRUE(std::is_sorted(m.tiles.begin(), m.tiles.end(),
+                               [](const auto& a, const auto& b) { return a.index < b.index; }));
+    receive(held_merged, m);
+    const ProcessedFrame a = split.process_roi(frame_of(d, id), roi_request(id == 1));
+    receive(held_split, a);
+    std::size_t tiles = a.tiles.size();
+    proto::FrameManifest closing = a.manifest;
+    if (split.rest_pending()) {
+      const ProcessedFrame b = split.process_rest(frame_of(d, id));
+      receive(held_split, b);
+      tiles += b.tiles.size();
+      closing = b.manifest;
+    }
+    EXPECT_EQ(m.tiles.size(), tiles) << id;
+    EXPECT_EQ(m.manifest, closing) << id;
+    EXPECT_EQ(cv::norm(held_split, held_merged, cv::NORM_INF), 0.0) << id;
+    EXPECT_EQ(cv::norm(held_merged, m.sent_view_mm, cv::NORM_INF), 0.0) << id;
+  }
+}
+
+TEST(RoiFirst, WithoutRoisOrReceiverTheFrameIsWhole) {
+  FramePipeline p(PipelineConfig{});
+  const cv::Mat1w d = holey_frame(4);
+  const ProcessedFrame a = p.process_roi(frame_of(d, 1), {});
+  EXPECT_EQ(a.part, FramePart::Whole);
+  EXPECT_FALSE(p.rest_pending());
+  EXPECT_EQ(a.tiles.size(), 64u);
+  FrameRequest nobody = roi_request();
+  nobody.select_tiles = false;
+  const ProcessedFrame b = p.process_roi(frame_of(d, 2), nobody);
+  EXPECT_EQ(b.part, FramePart::Whole);
+  EXPECT_TRUE(b.tiles.empty());
+  EXPECT_FALSE(p.rest_pending());
+  EXPECT_THROW(p.process_rest(frame_of(d, 2)), std::logic_error);
+}
+
+TEST(Stabiliser, TileByTileEqualsWholeFrame) {
+  Stabiliser whole(3.0, 2), tiled(3.0, 2);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 4.0);
+  cv::Mat1w base(60, 80);
+  cv::randu(base, 800, 3000);
+  cv::Mat1w out_whole, out_tiled(base.size());
+  for (int f = 0; f < 6; ++f) {
+    cv::Mat1w in = base.clone();
+    for (auto& v : in) v = static_cast<std::uint16_t>(std::max(0.0, v + noise(rng) * (f % 3)));
+    in(cv::Rect(5 * f, 7, 9, 5)).setTo(0);
+    whole.apply(in, out_whole);
+    tiled.begin(in.size());
+    for (int y = 0; y < 60; y += 20)
+      for (int x = 0; x < 80; x += 16) tiled.apply_rect(in, cv::Rect(x, y, 16, 20), out_tiled);
+    EXPECT_EQ(cv::norm(out_whole, out_tiled, cv::NORM_INF), 0.0) << f;
+  }
+  cv::Mat1w wrong;
+  EXPECT_THROW(tiled.apply_rect(base, cv::Rect(0, 0, 4, 4), wrong), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace telex::remote
