@@ -54,8 +54,10 @@ int main(int argc, char** argv) {
                  "5dt-usb[:PATH], 5dt-serial:DEV")
       ->capture_default_str();
   app.add_flag("--repeat", cfg.tracker.repeat, "repeat a scripted hand until --duration ends");
-  app.add_option("--glove", glove, "finger bends with a NatNet wrist: 5dt-usb[:PATH] | 5dt-serial:DEV");
-  app.add_option("--glove-calibration", cfg.tracker.glove_calibration_path, "glove calibration JSON");
+  app.add_option("--glove", glove,
+                 "finger bends with a NatNet wrist: 5dt-usb[:PATH] | 5dt-serial:DEV");
+  app.add_option("--glove-calibration", cfg.tracker.glove_calibration_path,
+                 "glove calibration JSON");
   app.add_option("--head-body", cfg.tracker.head_body_id, "NatNet rigid body id of the head")
       ->capture_default_str();
   app.add_option("--hand-body", cfg.tracker.right_hand_body_id, "NatNet rigid body id of the hand")
@@ -94,25 +96,33 @@ int main(int argc, char** argv) {
   app.add_option("--ramp", cfg.haptic.startup_ramp_s, "start-up force ramp, s")
       ->check(CLI::Range(0.0, 60.0))
       ->capture_default_str();
-  app.add_option("--stale-limit", cfg.haptic.stale_limit_s, "surface/tracking age that fades forces out, s")
+  app.add_option("--stale-limit", cfg.haptic.stale_limit_s,
+                 "surface/tracking age that fades forces out, s")
       ->check(CLI::Range(0.01, 10.0))
       ->capture_default_str();
-  app.add_option("--rate", cfg.rate_hz, "haptic loop rate, Hz")->check(CLI::Range(10.0, 10000.0))->capture_default_str();
+  app.add_option("--rate", cfg.rate_hz, "haptic loop rate, Hz")
+      ->check(CLI::Range(10.0, 10000.0))
+      ->capture_default_str();
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO for the haptic thread");
   app.add_flag("--roi", cfg.surface.roi, "filter and build normals only near the fingertips");
   bool no_frame_parts = false;
   app.add_flag("--no-frame-parts", no_frame_parts,
                "take each frame in one part (ROI tiles are otherwise sent and published first)");
   app.add_flag("--no-bilateral", no_bilateral, "skip the bilateral filter");
-  app.add_option("--max-tile-age", cfg.max_tile_age_s, "a missing tile keeps its value this long, s")
+  app.add_option("--max-tile-age", cfg.max_tile_age_s,
+                 "a missing tile keeps its value this long, s")
       ->check(CLI::Range(0.0, 60.0))
       ->capture_default_str();
   app.add_option("--log-forces", cfg.log_forces_csv, "CSV of forces, one row per finger per tick");
   app.add_option("--log-tracking", cfg.log_tracking_csv,
                  "CSV of every rigid body as the tracker reported it (tracker frame)");
-  app.add_option("--log-every", cfg.log_every, "log one tick in N")->check(CLI::Range(1, 1000000))->capture_default_str();
-  app.add_option("--view", cfg.view_spec, "operator view: none | png:DIR | window")->capture_default_str();
-  app.add_option("--print-forces", cfg.print_forces_hz, "print forces on stdout at this rate, Hz (0 off)")
+  app.add_option("--log-every", cfg.log_every, "log one tick in N")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--view", cfg.view_spec, "operator view: none | png:DIR | window")
+      ->capture_default_str();
+  app.add_option("--print-forces", cfg.print_forces_hz,
+                 "print forces on stdout at this rate, Hz (0 off)")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   app.add_option("--duration", cfg.duration_s, "stop after this many seconds (0 = until Ctrl-C)")
@@ -179,12 +189,14 @@ int main(int argc, char** argv) {
     signals.join();
     std::fprintf(stderr,
                  "telex-local: done: %llu ticks at %.2f Hz (p99 jitter %.0f us, %llu missed), %llu "
-                 "surfaces, capture-to-force latency median %.2f ms p99 %.2f ms, peak pressure "
-                 "%.2f N, peak shear %.2f N\n",
+                 "surfaces, capture-to-force latency median %.2f ms p99 %.2f ms (in contact: "
+                 "median %.2f ms p99 %.2f ms over %llu), peak pressure %.2f N, peak shear %.2f N\n",
                  static_cast<unsigned long long>(s.ticks), s.haptic_rate_hz, s.period_p99_jitter_us,
                  static_cast<unsigned long long>(s.missed_ticks),
                  static_cast<unsigned long long>(s.surfaces), s.latency_median_ms, s.latency_p99_ms,
-                 s.peak_pressure_N, s.peak_shear_N);
+                 s.contact_latency_median_ms, s.contact_latency_p99_ms,
+                 static_cast<unsigned long long>(s.contact_latency_samples), s.peak_pressure_N,
+                 s.peak_shear_N);
     if (json_summary) {
       nlohmann::json j{{"ticks", s.ticks},
                        {"haptic_rate_hz", s.haptic_rate_hz},
@@ -196,6 +208,9 @@ int main(int argc, char** argv) {
                        {"roi_parts", s.roi_parts},
                        {"latency_median_ms", s.latency_median_ms},
                        {"latency_p99_ms", s.latency_p99_ms},
+                       {"contact_latency_samples", s.contact_latency_samples},
+                       {"contact_latency_median_ms", s.contact_latency_median_ms},
+                       {"contact_latency_p99_ms", s.contact_latency_p99_ms},
                        {"peak_pressure_N", s.peak_pressure_N},
                        {"peak_shear_N", s.peak_shear_N},
                        {"scheduling", s.scheduling},

@@ -333,7 +333,8 @@ StationSummary Station::run() {
 
   // ---- main thread: drain samples, log, print, view ----
   // Whole-run statistics in fixed memory, so a long run's resident size stays flat.
-  Histogram period_us(1.0, 20'000), jitter_us(1.0, 20'000), latency_ms(0.1, 20'000);
+  Histogram period_us(1.0, 20'000), jitter_us(1.0, 20'000), latency_ms(0.1, 20'000),
+      contact_latency_ms(0.1, 20'000);
   std::vector<std::int64_t> window_periods;
   std::vector<double> window_latency;
   TickSample s{};
@@ -369,6 +370,11 @@ StationSummary Station::run() {
         const double lat = static_cast<double>(s.t_ns - (s.surface_capture_ns - offset)) / 1e6;
         latency_ms.add(lat);
         window_latency.push_back(lat);
+        // The same, for surfaces first rendered while a finger touches them: the samples whose
+        // force depends on the surface's age (a surface no fingertip is near renders 0 N at any
+        // age; with --roi the remote then processes whole frames, not ROI parts).
+        if (std::any_of(s.forces.begin(), s.forces.end(), [](const auto& f) { return f.contact; }))
+          contact_latency_ms.add(lat);
       }
       for (const auto& f : s.forces) {
         summary.peak_pressure_N = std::max(summary.peak_pressure_N, f.normal_force_N);
@@ -524,6 +530,9 @@ StationSummary Station::run() {
   summary.roi_parts = assembler.counters().roi_parts;
   summary.latency_median_ms = latency_ms.quantile(0.5);
   summary.latency_p99_ms = latency_ms.quantile(0.99);
+  summary.contact_latency_samples = contact_latency_ms.count();
+  summary.contact_latency_median_ms = contact_latency_ms.quantile(0.5);
+  summary.contact_latency_p99_ms = contact_latency_ms.quantile(0.99);
   summary.auth_failed = client.stats().auth_failed.load();
   summary.unexpected_tag = client.stats().unexpected_tag.load();
   summary.replayed = client.stats().replayed.load();

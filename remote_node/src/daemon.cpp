@@ -42,7 +42,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
-      "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} | "
+      "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {}",
@@ -56,7 +56,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       mean(now.stage_ms_sum.tile_ms, before.stage_ms_sum.tile_ms),
       mean(now.stage_ms_sum.encode_ms, before.stage_ms_sum.encode_ms),
       mean(now.stage_ms_sum.total_ms, before.stage_ms_sum.total_ms),
-      mean(now.first_part_ms_sum, before.first_part_ms_sum),
+      mean(now.first_part_ms_sum, before.first_part_ms_sum), now.rests_cut - before.rests_cut,
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
@@ -193,9 +193,15 @@ void RemoteDaemon::process_loop() {
     server_->publish(p);
     const double first_part_ms = p.times.total_ms;
     if (pipeline_.rest_pending()) {
-      ProcessedFrame rest = pipeline_.process_rest(*frame);
+      // A newer frame waiting cuts this rest short, so its ROI part does not queue behind it.
+      ProcessedFrame rest =
+          pipeline_.process_rest(*frame, [this] { return depth_slot_.has_value(); });
       if (observer_) observer_(rest);
       server_->publish(rest);
+      if (rest.rest_cut) {
+        std::lock_guard lock(stats_mu_);
+        ++stats_.rests_cut;
+      }
       rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
                         std::make_move_iterator(p.tiles.end()));
       rest.tiles_skipped += p.tiles_skipped;

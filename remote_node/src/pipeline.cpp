@@ -198,17 +198,6 @@ RegistrationConfig parse_registration(std::string_view mode, std::string_view ey
   return c;
 }
 
-std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
-                                const std::vector<proto::RoiRect>& rois) {
-  std::vector<bool> mask(static_cast<std::size_t>(grid.count()), false);
-  for (const auto& roi : rois) {
-    const cv::Rect r(roi.x, roi.y, roi.w, roi.h);
-    for (int i = 0; i < grid.count(); ++i)
-      if ((grid.rect(i) & r).area() > 0) mask[static_cast<std::size_t>(i)] = true;
-  }
-  return mask;
-}
-
 FramePipeline::FramePipeline(PipelineConfig config)
     : config_(std::move(config)),
       temporal_(config_.temporal),
@@ -305,12 +294,14 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
 
   const bool size_changed = sent_view_.size() != in.size();
   ++frames_;
-  const bool key = size_changed || request.force_key_frame ||
+  const bool key = size_changed || request.force_key_frame || key_owed_ ||
                    since_key_ + 1 >= static_cast<std::uint64_t>(config_.key_frame_every) ||
                    frames_ == 1;
   since_key_ = key ? 0 : since_key_ + 1;
   if (size_changed) sent_view_ = cv::Mat1w(in.size(), std::uint16_t(0));
-  const bool background_due = (frames_ % static_cast<std::uint64_t>(config_.background_every)) == 0;
+  const bool background_due =
+      rest_owed_ || (frames_ % static_cast<std::uint64_t>(config_.background_every)) == 0;
+  key_owed_ = rest_owed_ = false;
   const std::vector<bool> in_roi = tiles_in_rois(grid, request.rois);
   std::vector<int> roi_tiles;
   for (int i = 0; i < grid.count(); ++i)
@@ -400,7 +391,8 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
   return out;
 }
 
-ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame) {
+ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame,
+                                           const std::function<bool()>& preempt) {
   if (!pending_.active || pending_.frame_id != frame.frame_id)
     throw std::logic_error("process_rest: no ROI part of this frame is waiting for its rest");
   pending_.active = false;
@@ -450,21 +442,46 @@ ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame) {
     else
       ++out.tiles_skipped;
   }
-  for (int i : send) stabilised_(grid.rect(i)).copyTo(sent_view_(grid.rect(i)));
   out.times.tile_ms = ms_since(t0);
 
+  // Encode tile by tile; a newer frame waiting cuts the rest here (its ROI part must not wait for
+  // this frame's background). What the receiver holds (sent_view_) moves only with sent tiles, so
+  // the unsent ones compare as changed and go out with the next rest.
   t0 = std::chrono::steady_clock::now();
-  encode_tiles(send, out);
+  const bool may_cut = preempt && !last_rest_cut_;
+  std::vector<int> sent;
+  sent.reserve(send.size());
+  out.tiles.reserve(send.size());
+  for (int i : send) {
+    if (may_cut && preempt()) {
+      out.rest_cut = true;
+      break;
+    }
+    stabilised_(grid.rect(i)).copyTo(sent_view_(grid.rect(i)));
+    sent.push_back(i);
+    proto::EncodedTile t;
+    t.index = static_cast<std::uint16_t>(i);
+    t.rect = grid.rect(i);
+    t.bytes = proto::encode_depth(stabilised_(t.rect), out.codec, config_.zip_level);
+    out.tiles.push_back(std::move(t));
+  }
   out.times.encode_ms = ms_since(t0);
+  last_rest_cut_ = out.rest_cut;
+  if (out.rest_cut) {
+    out.tiles_skipped += send.size() - sent.size();
+    rest_owed_ = true;
+    key_owed_ = pending_.key;
+  }
+  const bool key = pending_.key && !out.rest_cut;
 
   out.part = FramePart::Rest;
-  out.key_frame = pending_.key;
+  out.key_frame = key;
   out.manifest.frame_id = out.frame_id;
   out.manifest.tile_count = static_cast<std::uint16_t>(grid.count());
-  out.manifest.key_frame = pending_.key;
-  if (!pending_.key) {
+  out.manifest.key_frame = key;
+  if (!key) {
     std::vector<std::uint16_t> rest_sent;
-    for (int i : send) rest_sent.push_back(static_cast<std::uint16_t>(i));
+    for (int i : sent) rest_sent.push_back(static_cast<std::uint16_t>(i));
     std::merge(pending_.roi_sent.begin(), pending_.roi_sent.end(), rest_sent.begin(),
                rest_sent.end(), std::back_inserter(out.manifest.changed_tiles));
   }

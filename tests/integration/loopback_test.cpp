@@ -124,6 +124,12 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   const auto j = summary_of(local);
   ASSERT_TRUE(j.is_object()) << local.stdout_text();
   EXPECT_GT(j["surfaces"].get<int>(), 30);
+  // The press touched the plane, so some new surfaces were first rendered in contact; their
+  // latency is a subset of the whole distribution (loopback: positive and under a second).
+  EXPECT_GT(j["contact_latency_samples"].get<int>(), 0);
+  EXPECT_GT(j["contact_latency_median_ms"].get<double>(), 0.0);
+  EXPECT_LT(j["contact_latency_p99_ms"].get<double>(), 1000.0);
+  EXPECT_GT(j["latency_median_ms"].get<double>(), 0.0);
 }
 
 // ROI first end to end: with --roi the remote sends each frame's fingertip tiles as an ROI part

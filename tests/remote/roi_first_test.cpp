@@ -137,6 +137,57 @@ TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
   EXPECT_EQ(cv::norm(held, f3.sent_view_mm, cv::NORM_INF), 0.0);
 }
 
+TEST(RoiFirst, ACutRestLeavesItsTilesDueAndTheNextFrameCarriesThem) {
+  PipelineConfig cfg;
+  cfg.background_every = 1000;  // only the cut rest makes frame 2 have a rest
+  FramePipeline p(cfg);
+  const proto::TileGrid grid{640, 480, 80, 60};
+  const std::vector<bool> in_roi = tiles_in_rois(grid, roi_request().rois);
+  cv::Mat1w held(480, 640, std::uint16_t(0));
+
+  // Key frame 1; its rest is cut after 5 tiles (a newer frame "arrived").
+  const ProcessedFrame roi1 = p.process_roi(frame_of(holey_frame(1), 1), roi_request(true));
+  ASSERT_TRUE(p.rest_pending());
+  int polls = 0;
+  const ProcessedFrame rest1 =
+      p.process_rest(frame_of(holey_frame(1), 1), [&] { return ++polls > 5; });
+  EXPECT_TRUE(rest1.rest_cut);
+  EXPECT_EQ(rest1.tiles.size(), 5u);
+  // Cut, so not a key manifest: it lists exactly what both parts carried.
+  EXPECT_FALSE(rest1.key_frame);
+  EXPECT_FALSE(rest1.manifest.key_frame);
+  std::vector<int> carried = indices(roi1.tiles);
+  for (int i : indices(rest1.tiles)) carried.push_back(i);
+  std::sort(carried.begin(), carried.end());
+  EXPECT_EQ(
+      std::vector<int>(rest1.manifest.changed_tiles.begin(), rest1.manifest.changed_tiles.end()),
+      carried);
+  receive(held, roi1);
+  receive(held, rest1);
+  // What the sender believes the receiver holds is what it holds.
+  EXPECT_EQ(cv::norm(held, rest1.sent_view_mm, cv::NORM_INF), 0.0);
+
+  // Frame 2 (background not due by the divider): it is a key frame with a rest, owed by the cut;
+  // a second rest in a row is never cut, so it completes whatever `preempt` says.
+  const cv::Mat1w d2 = holey_frame(2);
+  const ProcessedFrame roi2 = p.process_roi(frame_of(d2, 2), roi_request());
+  EXPECT_TRUE(roi2.key_frame);
+  ASSERT_TRUE(p.rest_pending());
+  const ProcessedFrame rest2 = p.process_rest(frame_of(d2, 2), [] { return true; });
+  EXPECT_FALSE(rest2.rest_cut);
+  EXPECT_TRUE(rest2.manifest.key_frame);
+  EXPECT_EQ(indices(rest2.tiles), mask_indices(in_roi, false));
+  receive(held, roi2);
+  receive(held, rest2);
+  EXPECT_EQ(cv::norm(held, rest2.sent_view_mm, cv::NORM_INF), 0.0);
+
+  // Frame 3: nothing owed, background not due: ROI tiles only.
+  const ProcessedFrame f3 = p.process_roi(frame_of(holey_frame(3), 3), roi_request());
+  EXPECT_EQ(f3.part, FramePart::Whole);
+  EXPECT_FALSE(p.rest_pending());
+  EXPECT_FALSE(f3.key_frame);
+}
+
 TEST(RoiFirst, FramesWithoutTheRestDueLeaveNonRoiPixelsAlone) {
   PipelineConfig cfg;
   cfg.hole_fill.max_passes = 0;  // spatial fill off: holes are left to the temporal history

@@ -42,6 +42,12 @@ class LatestSlot {
     cv_.notify_all();
   }
 
+  // True while a value waits to be taken (a consumer may cut long work short for it).
+  bool has_value() const {
+    std::lock_guard lock(mu_);
+    return value_.has_value();
+  }
+
   std::uint64_t dropped() const {
     std::lock_guard lock(mu_);
     return dropped_;

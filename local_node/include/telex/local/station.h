@@ -25,9 +25,9 @@ struct StationConfig {
   HapticParams haptic;
   SurfaceOptions surface;
   double rate_hz = 1000.0;
-  bool realtime = true;             // try SCHED_FIFO for the haptic thread
-  double max_tile_age_s = 0.5;      // a missing tile keeps its last value this long
-  double duration_s = 0.0;          // 0 = until stopped
+  bool realtime = true;         // try SCHED_FIFO for the haptic thread
+  double max_tile_age_s = 0.5;  // a missing tile keeps its last value this long
+  double duration_s = 0.0;      // 0 = until stopped
   double first_surface_timeout_s = 10.0;
   std::filesystem::path log_forces_csv;    // empty = off
   int log_every = 1;                       // one row per finger every N ticks
@@ -50,6 +50,10 @@ struct StationSummary {
   std::uint64_t roi_parts = 0;   // frames whose ROI part was published before the rest
   double latency_median_ms = 0;  // capture (remote clock, offset-corrected) to force output
   double latency_p99_ms = 0;
+  // Over the surfaces first rendered while a finger was in contact (the force-carrying samples).
+  std::uint64_t contact_latency_samples = 0;
+  double contact_latency_median_ms = 0;
+  double contact_latency_p99_ms = 0;
   double peak_pressure_N = 0;
   double peak_shear_N = 0;
   std::string scheduling;

@@ -36,6 +36,7 @@ struct DaemonStats {
   std::uint64_t frames_in = 0;            // captured
   std::uint64_t frames_slot_dropped = 0;  // replaced in the slot before processing
   std::uint64_t frames_processed = 0;
+  std::uint64_t rests_cut = 0;  // rests cut short because a newer frame was waiting
   std::uint64_t frames_sent = 0;
   std::uint64_t frames_queue_dropped = 0;
   std::uint64_t tiles_sent = 0;

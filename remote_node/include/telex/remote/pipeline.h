@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string_view>
@@ -130,6 +131,7 @@ struct ProcessedFrame {
   cv::Mat1w sent_view_mm;  // what a receiver that got every message of every frame now holds
   std::vector<proto::EncodedTile> tiles;  // tiles to send, increasing index
   proto::FrameManifest manifest;
+  bool rest_cut = false;  // a Rest cut short for a newer frame: its unsent tiles go with the next
   std::size_t tiles_skipped = 0;  // unchanged, or not due (outside ROI on a background-skip frame)
   std::size_t holes_in = 0, holes_out = 0;  // over the pixels this part processed
   std::size_t pixels_processed = 0;         // pixels through fill, temporal fill and stabiliser
@@ -158,7 +160,11 @@ class FramePipeline {
   bool rest_pending() const { return pending_.active; }
   // The rest of the frame process_roi() just returned a RoiPart of; throws std::logic_error for
   // any other frame.
-  ProcessedFrame process_rest(const DepthFrame& frame);
+  // `preempt`, polled between stages and between tiles, cuts the rest short when it returns true
+  // (a newer frame is waiting): the tiles not yet encoded stay due and go out with the next
+  // frame's rest (a cut key frame makes the next frame a key frame). Two rests in a row are never
+  // cut, so the background always progresses.
+  ProcessedFrame process_rest(const DepthFrame& frame, const std::function<bool()>& preempt = {});
   const PipelineConfig& config() const { return config_; }
   // The registration stage alone: `in` itself when the mode is none, else the frame in the eye
   // camera (valid until the next call).
@@ -189,6 +195,9 @@ class FramePipeline {
   cv::Mat1w filled_, temporal_out_, stabilised_, sent_view_;
   std::uint64_t frames_ = 0;
   std::uint64_t since_key_ = 0;
+  bool rest_owed_ = false;  // the last rest was cut: the next frame has a rest
+  bool key_owed_ = false;   // ...and it was a key frame's: the next frame is a key frame
+  bool last_rest_cut_ = false;
 };
 
 }  // namespace telex::remote
