@@ -15,5 +15,7 @@ port="${TELEX_DEMO_PORT:-7300}"
 remote=$!
 trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 
+# --roi: the station filters and builds normals only around the fingertips and the remote sends
+# those tiles first, the lowest-latency path (docs/BENCHMARKS.md, operator station).
 "$bin/telex-local" --connect "127.0.0.1:$port" --hand script:press --repeat --duration "$duration" \
-  --haptics sim --print-forces 10 "$@"
+  --haptics sim --print-forces 10 --roi "$@"
