@@ -205,23 +205,14 @@ void RemoteDaemon::process_loop() {
       rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
                         std::make_move_iterator(p.tiles.end()));
       rest.tiles_skipped += p.tiles_skipped;
-      rest.times.fill_ms += p.times.fill_ms;
-      rest.times.stabilise_ms += p.times.stabilise_ms;
-      rest.times.tile_ms += p.times.tile_ms;
-      rest.times.encode_ms += p.times.encode_ms;
-      rest.times.total_ms += p.times.total_ms;
+      rest.times += p.times;
       p = std::move(rest);
     }
     std::lock_guard lock(stats_mu_);
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
     stats_.tiles_skipped += p.tiles_skipped;
-    stats_.stage_ms_sum.register_ms += p.times.register_ms;
-    stats_.stage_ms_sum.fill_ms += p.times.fill_ms;
-    stats_.stage_ms_sum.stabilise_ms += p.times.stabilise_ms;
-    stats_.stage_ms_sum.tile_ms += p.times.tile_ms;
-    stats_.stage_ms_sum.encode_ms += p.times.encode_ms;
-    stats_.stage_ms_sum.total_ms += p.times.total_ms;
+    stats_.stage_ms_sum += p.times;
     stats_.first_part_ms_sum += first_part_ms;
   }
 }

@@ -259,12 +259,7 @@ ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameReques
   rest.holes_in += out.holes_in;
   rest.holes_out += out.holes_out;
   rest.pixels_processed += out.pixels_processed;
-  rest.times.register_ms += out.times.register_ms;
-  rest.times.fill_ms += out.times.fill_ms;
-  rest.times.stabilise_ms += out.times.stabilise_ms;
-  rest.times.tile_ms += out.times.tile_ms;
-  rest.times.encode_ms += out.times.encode_ms;
-  rest.times.total_ms += out.times.total_ms;
+  rest.times += out.times;
   return rest;
 }
 

@@ -111,6 +111,16 @@ struct FrameRequest {
 
 struct StageTimes {
   double register_ms = 0, fill_ms = 0, stabilise_ms = 0, tile_ms = 0, encode_ms = 0, total_ms = 0;
+
+  StageTimes& operator+=(const StageTimes& o) {
+    register_ms += o.register_ms;
+    fill_ms += o.fill_ms;
+    stabilise_ms += o.stabilise_ms;
+    tile_ms += o.tile_ms;
+    encode_ms += o.encode_ms;
+    total_ms += o.total_ms;
+    return *this;
+  }
 };
 
 // Which part of a frame a ProcessedFrame carries (ROI first; docs/PROTOCOL.md "Frame parts").
