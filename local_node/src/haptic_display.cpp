@@ -17,11 +17,22 @@
 #include <vector>
 
 #include "telex/local/gravity_grabber.h"
+#include "telex/local/periodic.h"
 #include "telex/local/udp_sink.h"
 
 namespace telex::local {
 
 HapticDisplay::~HapticDisplay() = default;
+
+void ZeroForceOnExit::release() noexcept {
+  std::array<FingerForce, 5> zero{};
+  for (int i = 0; i < 5; ++i) zero[static_cast<std::size_t>(i)] = {i, 0.0, 0.0, false};
+  try {
+    display_.write(monotonic_ns(), zero);
+  } catch (...) {
+    // write() must not throw; a display that does has nothing more to command here.
+  }
+}
 
 namespace {
 

@@ -60,6 +60,22 @@ class HapticDisplay {
   virtual DisplayStats stats() const = 0;
 };
 
+// The safety duty as an object: commands zero force on every finger when it goes out of scope,
+// whatever the exit path (return, exception, stop). Declare it right after the display it guards
+// and before any thread that writes to that display, so it runs after those threads are joined.
+class ZeroForceOnExit {
+ public:
+  explicit ZeroForceOnExit(HapticDisplay& display) : display_(display) {}
+  ZeroForceOnExit(const ZeroForceOnExit&) = delete;
+  ZeroForceOnExit& operator=(const ZeroForceOnExit&) = delete;
+  ~ZeroForceOnExit() { release(); }
+  // Zero force now (also called by the owner of the writing thread when that thread ends).
+  void release() noexcept;
+
+ private:
+  HapticDisplay& display_;
+};
+
 // Spec grammar (docs/HARDWARE.md): "sim", "sim:CSV", "gravity-grabber:HIDPATH", "udp:HOST[:PORT]".
 // Throws std::invalid_argument for a malformed spec (naming it and the valid forms) and
 // std::runtime_error when the device or file cannot be opened (naming it and what to try).

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "telex/common/haptic_model.h"
@@ -15,6 +16,9 @@
 #include "telex/local/tracker.h"
 
 namespace telex::local {
+
+// The station's loops, each on its own thread (Main is the thread that called Station::run).
+enum class StationLoop { Main, Surface, Haptic };
 
 struct StationConfig {
   ClientConfig client;
@@ -36,6 +40,9 @@ struct StationConfig {
   double print_forces_hz = 0.0;            // live force lines on stdout (0 = off)
   bool status_line = true;                 // one status line per second on stderr
   bool roi_requests = true;                // ask the remote for full-rate tiles near the hands
+  // Test seam, never set by telex-local: called at the top of every pass of the named loop; an
+  // exception it throws takes that loop's error path (tests/integration/station_faults_test.cpp).
+  std::function<void(StationLoop)> fault_hook;
 };
 
 // Summary a run returns (and the status line prints), for tests and the benchmark report.
@@ -66,11 +73,14 @@ class Station {
   explicit Station(StationConfig config);
   ~Station();
   // Runs until duration_s elapses or request_stop() (e.g. from a signal handler thread).
-  // Throws std::runtime_error / std::invalid_argument for start-up problems (bad device, file).
+  // Throws std::runtime_error / std::invalid_argument for start-up problems (bad device, file),
+  // and rethrows the first exception of any of its threads after stopping them all. On every exit,
+  // normal or not, the display's last command is zero force on every finger.
   StationSummary run();
   void request_stop() { stop_.store(true); }
 
  private:
+  class Run;  // one run's devices, threads and shared state (station.cpp)
   StationConfig cfg_;
   std::atomic<bool> stop_{false};
 };

@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: MIT
+// A fault in any station thread stops the station cleanly with zero force on every finger.
+// The remote runs in-process on the synthetic plane; the station presses it with the scripted hand
+// into the recording display, and a test hook throws from the main loop, the surface thread or the
+// haptic thread once the finger pushes. Before the jthread members and the zero-force guard, the
+// main-loop case destroyed a joinable std::thread and the process terminated mid-press.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "telex/local/station.h"
+#include "telex/remote/daemon.h"
+
+namespace telex::local {
+namespace {
+
+// The sim display's CSV: time_ns, then pressure, shear and contact for each of five fingers.
+struct DisplayRow {
+  double max_pressure_N = 0.0;
+  bool any_force_or_contact = false;
+};
+
+std::vector<DisplayRow> read_display_csv(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<DisplayRow> rows;
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::stringstream ss(line);
+    std::vector<std::string> f;
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    if (f.size() != 16) ADD_FAILURE() << "malformed display row: " << line;
+    if (f.size() != 16) continue;
+    DisplayRow r;
+    for (int finger = 0; finger < 5; ++finger) {
+      const double p = std::stod(f[1 + 3 * finger]);
+      const double s = std::stod(f[2 + 3 * finger]);
+      r.max_pressure_N = std::max(r.max_pressure_N, p);
+      r.any_force_or_contact =
+          r.any_force_or_contact || p != 0.0 || s != 0.0 || f[3 + 3 * finger] != "0";
+    }
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+class StationFault : public ::testing::TestWithParam<StationLoop> {};
+
+std::string loop_name(StationLoop loop) {
+  switch (loop) {
+    case StationLoop::Main:
+      return "Main";
+    case StationLoop::Surface:
+      return "Surface";
+    case StationLoop::Haptic:
+      return "Haptic";
+  }
+  return "?";
+}
+
+TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastCommand) {
+  const StationLoop faulty = GetParam();
+  remote::DaemonConfig rc;
+  rc.depth_source = "synthetic:plane";
+  rc.server.port = 0;
+  rc.stats_line = false;
+  remote::RemoteDaemon remote(rc);
+  remote.start();
+
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("telex_station_fault_" + loop_name(faulty) + "_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto csv = dir / "display.csv";
+
+  StationConfig cfg;
+  cfg.client.host = "127.0.0.1";
+  cfg.client.port = remote.port();
+  cfg.hand_spec = "script:press";
+  cfg.haptics_spec = "sim:" + csv.string();
+  cfg.haptic.stiffness_N_per_m = 500.0;
+  cfg.status_line = false;
+  cfg.duration_s = 20.0;  // the fault comes long before
+  // 3500 ticks (3.5 s) into the run the scripted finger holds 10 mm inside the plane (it arrives
+  // at 0.1 m/s from 0.3 m away, about 3.1 s, and holds 1 s); the hook counts haptic ticks.
+  std::atomic<int> ticks{0};
+  std::atomic<bool> thrown{false};
+  cfg.fault_hook = [&](StationLoop loop) {
+    if (loop == StationLoop::Haptic) ticks.fetch_add(1);
+    if (loop == faulty && ticks.load() > 3500 && !thrown.exchange(true))
+      throw std::runtime_error("injected fault in the " + loop_name(loop) + " loop");
+  };
+  {
+    Station station(cfg);
+    try {
+      station.run();
+      ADD_FAILURE() << "run() returned although its " << loop_name(faulty) << " loop threw";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "injected fault in the " + loop_name(faulty) + " loop");
+    }
+  }  // the station and its display are gone: the CSV is complete
+  remote.stop();
+  EXPECT_TRUE(thrown.load());
+
+  const auto rows = read_display_csv(csv);
+  ASSERT_GT(rows.size(), 3400u);
+  double peak_N = 0.0;
+  for (const auto& r : rows) peak_N = std::max(peak_N, r.max_pressure_N);
+  EXPECT_GT(peak_N, 0.5) << "the finger never pressed: the test would not see a missing release";
+  EXPECT_FALSE(rows.back().any_force_or_contact)
+      << "the display's last command is not zero force (" << rows.back().max_pressure_N << " N)";
+  std::filesystem::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Loops, StationFault,
+                         ::testing::Values(StationLoop::Main, StationLoop::Surface,
+                                           StationLoop::Haptic),
+                         [](const auto& info) { return loop_name(info.param); });
+
+}  // namespace
+}  // namespace telex::local
