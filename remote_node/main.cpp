@@ -8,6 +8,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "flags.h"
 #include "telex/remote/daemon.h"
 
 namespace {

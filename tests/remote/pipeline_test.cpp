@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Stabiliser, tile selection, key frames and ROI rates of the remote pipeline, without a network.
+// Tile selection, key frames and ROI rates of the remote pipeline, without a network.
 #include "telex/remote/pipeline.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <random>
 
+#include "flags.h"
 #include "telex/common/synthetic.h"
 
 namespace telex::remote {
@@ -21,53 +22,6 @@ DepthFrame frame_of(const cv::Mat1w& depth, std::uint64_t id) {
   f.frame_id = id;
   f.capture_ns = static_cast<std::int64_t>(id) * 33'333'333;
   return f;
-}
-
-TEST(Stabiliser, ZeroToleranceIsBitExact) {
-  Stabiliser s(0.0);
-  std::mt19937 rng(3);
-  cv::Mat1w in(48, 64), out;
-  for (int i = 0; i < 5; ++i) {
-    cv::randu(in, 0, 4000);
-    s.apply(in, out);
-    EXPECT_EQ(cv::norm(in, out, cv::NORM_INF), 0.0);
-  }
-}
-
-TEST(Stabiliser, HoldsWithinTheNoiseBandAndFollowsRealChanges) {
-  Stabiliser s(3.0, /*confirm_frames=*/1);
-  // At 1 m the Nguyen sigma is 1.2 + 1.9 * 0.36 = 1.88 mm, so k = 3 gives a 5 mm band.
-  EXPECT_EQ(s.tolerance_mm(1000), 5);
-  cv::Mat1w a(2, 2, std::uint16_t(1000)), out;
-  s.apply(a, out);
-  cv::Mat1w b = (cv::Mat1w(2, 2) << 1004, 996, 1006, 0);
-  s.apply(b, out);
-  EXPECT_EQ(out(0, 0), 1000);  // within 5 mm: held
-  EXPECT_EQ(out(0, 1), 1000);
-  EXPECT_EQ(out(1, 0), 1006);  // beyond: follows
-  EXPECT_EQ(out(1, 1), 0);     // holes pass through
-  cv::Mat1w c = (cv::Mat1w(2, 2) << 1000, 1000, 1003, 1000);
-  s.apply(c, out);
-  EXPECT_EQ(out(1, 0), 1006);  // held around the new value
-  EXPECT_EQ(out(1, 1), 1000);  // after a hole the pixel restarts from the measurement
-}
-
-TEST(Stabiliser, SmallExcursionsMustPersistLargeJumpsPassAtOnce) {
-  Stabiliser s(3.0, /*confirm_frames=*/2,
-               /*immediate_factor=*/3.0);  // band 5 mm, jump 15 mm at 1 m
-  cv::Mat1w out;
-  s.apply(cv::Mat1w(1, 3, std::uint16_t(1000)), out);
-  s.apply((cv::Mat1w(1, 3) << 1008, 1008, 1100), out);
-  EXPECT_EQ(out(0, 0), 1000);  // one frame outside the band: noise until proven otherwise
-  EXPECT_EQ(out(0, 1), 1000);
-  EXPECT_EQ(out(0, 2), 1100);  // 100 mm: real motion, no delay
-  s.apply((cv::Mat1w(1, 3) << 1001, 1009, 1100), out);
-  EXPECT_EQ(out(0, 0), 1000);  // back inside: the excursion is forgotten
-  EXPECT_EQ(out(0, 1), 1009);  // second frame outside: taken
-  s.apply((cv::Mat1w(1, 3) << 1007, 1009, 1100), out);
-  EXPECT_EQ(out(0, 0), 1000);  // a new excursion starts counting from one again
-  EXPECT_THROW(Stabiliser(-1.0), std::invalid_argument);
-  EXPECT_THROW(Stabiliser(1.0, 0), std::invalid_argument);
 }
 
 PipelineConfig no_fill_config() {

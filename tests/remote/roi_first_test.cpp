@@ -265,26 +265,5 @@ TEST(RoiFirst, WithoutRoisOrReceiverTheFrameIsWhole) {
   EXPECT_THROW(p.process_rest(frame_of(d, 2)), std::logic_error);
 }
 
-TEST(Stabiliser, TileByTileEqualsWholeFrame) {
-  Stabiliser whole(3.0, 2), tiled(3.0, 2);
-  std::mt19937 rng(5);
-  std::normal_distribution<double> noise(0.0, 4.0);
-  cv::Mat1w base(60, 80);
-  cv::randu(base, 800, 3000);
-  cv::Mat1w out_whole, out_tiled(base.size());
-  for (int f = 0; f < 6; ++f) {
-    cv::Mat1w in = base.clone();
-    for (auto& v : in) v = static_cast<std::uint16_t>(std::max(0.0, v + noise(rng) * (f % 3)));
-    in(cv::Rect(5 * f, 7, 9, 5)).setTo(0);
-    whole.apply(in, out_whole);
-    tiled.begin(in.size());
-    for (int y = 0; y < 60; y += 20)
-      for (int x = 0; x < 80; x += 16) tiled.apply_rect(in, cv::Rect(x, y, 16, 20), out_tiled);
-    EXPECT_EQ(cv::norm(out_whole, out_tiled, cv::NORM_INF), 0.0) << f;
-  }
-  cv::Mat1w wrong;
-  EXPECT_THROW(tiled.apply_rect(base, cv::Rect(0, 0, 4, 4), wrong), std::invalid_argument);
-}
-
 }  // namespace
 }  // namespace telex::remote

@@ -54,13 +54,20 @@ remote::DepthFrame frame_of(const cv::Mat1w& d, std::uint64_t id) {
   return f;
 }
 
+// A 580 px focal right eye 2.5 cm to the right of the depth camera (the default extrinsics).
+remote::RegistrationConfig eye_registration(remote::RegisterMode mode) {
+  remote::RegistrationConfig r;
+  r.mode = mode;
+  r.eye = Intrinsics{580.0, 580.0, 322.0, 236.0, 640, 480};
+  return r;
+}
+
 // The registration stage alone, into a 580 px focal right eye 2.5 cm to the right (the default
 // extrinsics), as FramePipeline::register_frame runs it. Arg: 0 none, 1 shift, 2 full.
 void BM_Register(benchmark::State& state) {
   const auto mode = static_cast<remote::RegisterMode>(state.range(0));
   remote::PipelineConfig c;
-  c.registration = remote::parse_registration(remote::register_mode_name(mode), "0.025,0,0",
-                                              "0,0,0", "580,580,322,236,640,480", 1.0);
+  c.registration = eye_registration(mode);
   remote::FramePipeline p(c);
   DepthImage in;
   in.depth_mm = frames().a;
@@ -100,7 +107,7 @@ void BM_FillTemporal(benchmark::State& state) {
 BENCHMARK(BM_FillTemporal)->Unit(benchmark::kMillisecond);
 
 void BM_Stabilise(benchmark::State& state) {
-  remote::Stabiliser s(static_cast<double>(state.range(0)));
+  Stabiliser s(static_cast<double>(state.range(0)));
   cv::Mat1w out;
   bool flip = false;
   for (auto _ : state) {
@@ -134,8 +141,7 @@ BENCHMARK(BM_EncodeAllTiles)
 void run_pipeline(benchmark::State& state, bool key_every_frame, double k,
                   remote::RegisterMode reg = remote::RegisterMode::None) {
   remote::PipelineConfig c;
-  c.registration = remote::parse_registration(remote::register_mode_name(reg), "0.025,0,0", "0,0,0",
-                                              "580,580,322,236,640,480", 1.0);
+  c.registration = eye_registration(reg);
   c.key_frame_every = key_every_frame ? 1 : 100000;
   c.stabilise_k_sigma = k;
   remote::FramePipeline p(c);

@@ -13,44 +13,14 @@
 
 #include "telex/common/hole_fill.h"
 #include "telex/common/registration.h"
+#include "telex/common/stabilise.h"
+#include "telex/common/stage_clock.h"
 #include "telex/common/temporal_fill.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/messages.h"
 #include "telex/remote/sources.h"
 
 namespace telex::remote {
-
-// Keeps each pixel's last sent depth while new measurements stay within k sensor-noise sigmas of it
-// (Nguyen axial sigma at that depth, incidence unknown so the 10-60 deg term). Static surfaces then
-// stop changing, so their tiles stop being sent. k = 0 turns it off: output == input, bit-exact.
-// Holes (0) pass through and reset the pixel. A measurement outside the band replaces the held
-// value at once when it is beyond `immediate_factor` bands (real motion), otherwise only when it
-// stays outside for `confirm_frames` frames in a row: over 300k pixels a single-frame threshold
-// meets the Gaussian tail somewhere in every tile, two frames in a row almost never.
-class Stabiliser {
- public:
-  explicit Stabiliser(double k_sigma = 0.0, int confirm_frames = 2, double immediate_factor = 3.0);
-  // `out` receives the stabilised frame (reallocated when the size differs; history restarts).
-  void apply(const cv::Mat1w& in_mm, cv::Mat1w& out_mm);
-  // Region by region: begin() (re)starts the history when the frame size differs; apply_rect()
-  // then stabilises only `rect` of `in_mm` into `out_mm` (already of the input's size). Pixels a
-  // frame does not visit keep their held value and their outside-band count. Visiting every pixel
-  // once per frame equals apply(), bit for bit.
-  void begin(cv::Size size);
-  void apply_rect(const cv::Mat1w& in_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
-  void reset() { last_mm_.release(); }
-  double k_sigma() const { return k_; }
-  // Tolerance in mm around a held value of `depth_mm`.
-  std::uint16_t tolerance_mm(std::uint16_t depth_mm) const { return tol_mm_[depth_mm]; }
-
- private:
-  double k_;
-  int confirm_frames_;
-  std::vector<std::uint16_t> tol_mm_;   // per depth value 0..65535
-  std::vector<std::uint32_t> jump_mm_;  // immediate-replacement threshold per depth value
-  cv::Mat1w last_mm_;
-  cv::Mat1b outside_;  // consecutive frames outside the band
-};
 
 // Registration of the depth frame into the operator's right-eye camera, the first stage (before
 // fill, so fill and the haptic surface work in the eye's pixels). none: the frame passes as it is;
@@ -59,8 +29,8 @@ class Stabiliser {
 // nominal_depth_m (cheap, wrong by fx*b*|1/Z - 1/Z0| px away from it); full: per-pixel
 // reprojection with a z-buffer and crack fill (telex/common/registration.h).
 enum class RegisterMode { None, Shift, Full };
-// "none" | "shift" | "full"; throws std::invalid_argument naming the valid values.
-RegisterMode parse_register_mode(std::string_view text);
+// "none" | "shift" | "full" (the flag text is parsed beside telex-remote's main:
+// remote_node/flags.h).
 std::string_view register_mode_name(RegisterMode mode);
 
 struct RegistrationConfig {
@@ -73,14 +43,6 @@ struct RegistrationConfig {
   RigidTransform eye_from_depth{glm::dmat3(1.0), glm::dvec3(-0.025, 0.0, 0.0)};
   double nominal_depth_m = 1.0;  // shift: the depth at which shift+scale is exact
 };
-
-// Builds a RegistrationConfig from the command line's text: mode, eye centre "X,Y,Z" (metres, in
-// the depth camera's frame), rotation "RX,RY,RZ" (degrees, applied about x, then y, then z),
-// eye intrinsics "FX,FY,CX,CY,W,H" ("" = the source's). Throws std::invalid_argument naming the
-// flag and the expected form.
-RegistrationConfig parse_registration(std::string_view mode, std::string_view eye_centre_m,
-                                      std::string_view rotation_deg, std::string_view eye,
-                                      double nominal_depth_m);
 
 struct PipelineConfig {
   RegistrationConfig registration;
@@ -97,6 +59,7 @@ struct PipelineConfig {
       2;  // tiles outside any ROI are considered every Nth frame while an ROI is set
   proto::Codec codec = proto::Codec::Zip;
   int zip_level = proto::kDefaultZipLevel;
+  StageClock clock_ms = steady_clock_ms;  // stage times (the bench passes thread_cpu_ms)
 };
 
 // What the receiver asked for, sampled by the processing thread once per frame.
@@ -109,12 +72,16 @@ struct FrameRequest {
       false;  // the receiver takes a frame as an ROI part and a rest (kCapFrameParts)
 };
 
+// Milliseconds by PipelineConfig::clock_ms. fill_ms covers the spatial fill, the temporal fill
+// (temporal_ms, counted in fill_ms as well) and the hole count.
 struct StageTimes {
-  double register_ms = 0, fill_ms = 0, stabilise_ms = 0, tile_ms = 0, encode_ms = 0, total_ms = 0;
+  double register_ms = 0, fill_ms = 0, temporal_ms = 0, stabilise_ms = 0, tile_ms = 0,
+         encode_ms = 0, total_ms = 0;
 
   StageTimes& operator+=(const StageTimes& o) {
     register_ms += o.register_ms;
     fill_ms += o.fill_ms;
+    temporal_ms += o.temporal_ms;
     stabilise_ms += o.stabilise_ms;
     tile_ms += o.tile_ms;
     encode_ms += o.encode_ms;
@@ -184,7 +151,23 @@ class FramePipeline {
   ProcessedFrame start_frame(const DepthFrame& frame, const FrameRequest& request,
                              const DepthImage& image);
   ProcessedFrame process_whole(const DepthFrame& frame, const FrameRequest& request);
-  void encode_tiles(const std::vector<int>& send, ProcessedFrame& out) const;
+  // Key-frame decision for the next frame sent to a receiver (counts the frame).
+  bool next_frame_is_key(cv::Size size, const FrameRequest& request);
+
+  // One part of a frame: which tiles, and how the stages treat them.
+  struct TileJob {
+    const std::vector<int>* tiles = nullptr;  // increasing index
+    // Spatial fill only around these (widened to whole tiles); null: the whole frame.
+    const std::vector<proto::RoiRect>* fill_rois = nullptr;
+    bool new_frame = true;  // the first part of this frame: the temporal fill's clock advances
+    bool select = true;     // false: stop after the stabiliser (no receiver)
+    bool key = false;       // send every tile, changed or not
+    const std::function<bool()>* preempt = nullptr;  // polled between tiles; true cuts the encode
+  };
+  // Fill, temporal fill, hole count, stabilise, select and encode `job.tiles` into `out` (times
+  // and counters add up); returns the tiles sent. Every part of every frame goes through here.
+  std::vector<int> process_tiles(const DepthFrame& frame, const cv::Mat1w& in, const TileJob& job,
+                                 ProcessedFrame& out);
 
   struct Pending {
     bool active = false;

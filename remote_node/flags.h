@@ -1,0 +1,22 @@
+// SPDX-License-Identifier: MIT
+// telex-remote's flag values that need more than CLI11's own checks: text -> pipeline config.
+#pragma once
+
+#include <string_view>
+
+#include "telex/remote/pipeline.h"
+
+namespace telex::remote {
+
+// "none" | "shift" | "full"; throws std::invalid_argument naming the valid values.
+RegisterMode parse_register_mode(std::string_view text);
+
+// Builds a RegistrationConfig from the command line's text: mode, eye centre "X,Y,Z" (metres, in
+// the depth camera's frame), rotation "RX,RY,RZ" (degrees, applied about x, then y, then z),
+// eye intrinsics "FX,FY,CX,CY,W,H" ("" = the source's). Throws std::invalid_argument naming the
+// flag and the expected form.
+RegistrationConfig parse_registration(std::string_view mode, std::string_view eye_centre_m,
+                                      std::string_view rotation_deg, std::string_view eye,
+                                      double nominal_depth_m);
+
+}  // namespace telex::remote
