@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <new>
@@ -12,11 +11,6 @@
 #include <string>
 
 namespace telex::local {
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& depth_mm,
                                         const Intrinsics& k, const SurfaceOptions& o) {
@@ -147,7 +141,8 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
         throw std::invalid_argument("build_surface: window " + std::to_string(r.width) + "x" +
                                     std::to_string(r.height) + " at (" + std::to_string(r.x) +
                                     ", " + std::to_string(r.y) + ") is empty or outside the frame");
-  auto t0 = std::chrono::steady_clock::now();
+  const StageClock now_ms = o.clock_ms;
+  double t0 = now_ms();
   // A full-frame build writes every pixel; a region-of-interest one needs zeros outside its
   // windows (a fingertip that far from the surface cannot touch it before the next frame). Without
   // a pool, a region-of-interest snapshot gets fresh calloc'd buffers and a full-frame one lets the
@@ -163,26 +158,26 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
   s->intrinsics = frame.intrinsics;
   s->capture_ns = frame.capture_ns;
   s->frame_id = frame.frame_id;
-  local.snapshot_ms = ms_since(t0);
+  local.snapshot_ms = now_ms() - t0;
   // The kernels write straight into the snapshot's buffers (their outputs are valid by
   // construction: finite metres or 0, unit or zero normals): no copy, no re-check.
   if (!o.roi) {
     if (pooled) pooled->written_all = true;
-    t0 = std::chrono::steady_clock::now();
+    t0 = now_ms();
     if (o.bilateral)
       bilateral_filter_depth(frame.depth_mm, s->depth_m, o.bilateral_options);
     else
       frame.depth_mm.convertTo(s->depth_m, CV_32F, 1e-3);  // as depth_m_from_mm, in place
-    local.filter_ms = ms_since(t0);
-    t0 = std::chrono::steady_clock::now();
+    local.filter_ms = now_ms() - t0;
+    t0 = now_ms();
     compute_normals(s->depth_m, frame.intrinsics, s->normals, o.normal_options);
-    local.normals_ms = ms_since(t0);
+    local.normals_ms = now_ms() - t0;
     local.pixels_processed = frame.depth_mm.total();
     if (stats) *stats = local;
     return s;
   }
   pooled->written.assign(windows.begin(), windows.end());
-  t0 = std::chrono::steady_clock::now();
+  t0 = now_ms();
   for (const auto& r : windows) {
     cv::Mat1f dst = s->depth_m(r);  // the kernel writes through this view (same size: no realloc)
     if (o.bilateral)
@@ -190,8 +185,8 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
     else
       frame.depth_mm(r).convertTo(dst, CV_32F, 1e-3);
   }
-  local.filter_ms = ms_since(t0);
-  t0 = std::chrono::steady_clock::now();
+  local.filter_ms = now_ms() - t0;
+  t0 = now_ms();
   for (const auto& r : windows) {
     // Normals need a one-pixel-plus-stencil margin of depth around the window; the window edges
     // see the margin as holes and fall back to one-sided differences.
@@ -199,7 +194,7 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
     compute_normals_roi(s->depth_m, frame.intrinsics, r, dst, o.normal_options);
     local.pixels_processed += static_cast<std::size_t>(r.area());
   }
-  local.normals_ms = ms_since(t0);
+  local.normals_ms = now_ms() - t0;
   if (stats) *stats = local;
   return s;
 }

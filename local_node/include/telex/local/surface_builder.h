@@ -11,6 +11,7 @@
 #include "telex/common/bilateral.h"
 #include "telex/common/haptic_surface.h"
 #include "telex/common/normals.h"
+#include "telex/common/stage_clock.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/tracker.h"
 
@@ -28,6 +29,7 @@ struct SurfaceOptions {
   double roi_lookahead_s = 0.1;  // plus the distance the fingertip may travel in this time
   int roi_min_half_px = 16;
   double roi_max_distance_m = 0.25;  // fingertips farther than this from the surface need nothing
+  StageClock clock_ms = steady_clock_ms;  // SurfaceBuildStats' times (the bench: thread_cpu_ms)
 };
 
 // Windows (in pixels, clipped to the image) that the fingertips may touch before the next frame.
