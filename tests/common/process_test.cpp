@@ -145,6 +145,30 @@ TEST_F(ProcessCommand, BadInputExitsOneNamingTheFile) {
   EXPECT_NE(wrong.err.find("rgb.png"), std::string::npos) << wrong.err;
 }
 
+TEST_F(ProcessCommand, RunsReportsWarmMediansAndTheFirstRunApart) {
+  const auto r =
+      synth::render(synth::Scene::named("desk"), kinect_v1_intrinsics(), synth::SensorModel{}, 2);
+  const auto in = dir_ / "desk.png";
+  ASSERT_TRUE(cv::imwrite(in.string(), r.depth.depth_mm));
+  const ToolRun one = run_telex("process --in '" + in.string() + "' --runs 1 --json", dir_ / "e1");
+  const ToolRun four = run_telex("process --in '" + in.string() + "' --runs 4 --json", dir_ / "e4");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  ASSERT_EQ(four.exit_code, 0) << four.err;
+  const auto j1 = nlohmann::json::parse(one.out);
+  const auto j4 = nlohmann::json::parse(four.out);
+  EXPECT_EQ(j1.at("runs").get<int>(), 1);
+  EXPECT_EQ(j4.at("runs").get<int>(), 4);
+  for (const char* key : {"fill_ms", "bilateral_ms", "normals_ms"}) {
+    // One run: nothing warm to report, so the figure is that run's.
+    EXPECT_EQ(j1.at(key).get<double>(), j1.at("first_run").at(key).get<double>()) << key;
+    EXPECT_GE(j4.at("first_run").at(key).get<double>(), 0.0) << key;
+  }
+  // Repeating the stages changes the timing, never the result.
+  for (const char* key : {"holes_in", "holes_out", "fill_passes", "valid_normals"})
+    EXPECT_EQ(j1.at(key), j4.at(key)) << key;
+  EXPECT_EQ(run_telex("process --in '" + in.string() + "' --runs 0", dir_ / "e0").exit_code, 2);
+}
+
 TEST_F(ProcessCommand, BadFlagsExitTwo) {
   const auto in = dir_ / "d.png";
   ASSERT_TRUE(cv::imwrite(in.string(), cv::Mat1w(8, 8, std::uint16_t{900})));
