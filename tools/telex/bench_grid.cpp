@@ -119,7 +119,8 @@ std::vector<Config> make_grid(bool quick) {
 
 std::string describe(const Config& c) {
   std::ostringstream os;
-  os << c.width << 'x' << c.height << (c.temporal ? " T" : " -") << ' ';
+  os << c.width << 'x' << c.height << (c.fill && c.temporal ? " T" : " -")
+     << ' ';  // temporal fill runs only after a spatial fill, as in telex-remote
   if (c.fill)
     os << "w" << c.fill_options.window_px << "/b" << c.fill_options.bin_mm;
   else
