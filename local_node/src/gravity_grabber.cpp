@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "telex/local/triple_buffer.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "telex/local/gravity_grabber.h"
-#include "telex/local/periodic.h"
+#include "telex/base/periodic.h"
 #include "telex/local/udp_sink.h"
 
 namespace telex::local {

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "telex/base/byte_cursor.h"
+
 namespace telex::local::natnet {
 
 void Frame::clear() {
@@ -55,38 +57,13 @@ Version parse_version(std::string_view text) {
 
 namespace {
 
-class Reader {
+// NatNet's reads over the project's one byte cursor (telex/base/byte_cursor.h): little-endian
+// values assembled from bytes, bounds-checked.
+class Reader : public ByteReader {
  public:
-  explicit Reader(std::span<const std::uint8_t> b) : b_(b) {}
-  std::size_t offset() const { return pos_; }
-  std::size_t left() const { return b_.size() - pos_; }
-
-  template <typename T>
-  bool get(T& v) {
-    if (left() < sizeof(T)) return false;
-    std::memcpy(&v, b_.data() + pos_, sizeof(T));  // wire and host are little-endian (x86, ARM)
-    pos_ += sizeof(T);
-    return true;
-  }
+  using ByteReader::ByteReader;
+  std::size_t left() const { return remaining(); }
   bool vec3(Vec3f& v) { return get(v.x) && get(v.y) && get(v.z); }
-  bool skip(std::size_t n) {
-    if (left() < n) return false;
-    pos_ += n;
-    return true;
-  }
-  bool cstring(std::string& s) {
-    const auto* start = b_.data() + pos_;
-    const void* nul = std::memchr(start, 0, left());
-    if (nul == nullptr) return false;
-    const auto n = static_cast<std::size_t>(static_cast<const std::uint8_t*>(nul) - start);
-    s.assign(reinterpret_cast<const char*>(start), n);
-    pos_ += n + 1;
-    return true;
-  }
-
- private:
-  std::span<const std::uint8_t> b_;
-  std::size_t pos_ = 0;
 };
 
 #define TELEX_NN_FAIL(why) \
@@ -314,20 +291,16 @@ namespace {
 
 class Writer {
  public:
-  template <typename T>
+  template <WireScalar T>
   void put(T v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
-    b.insert(b.end(), p, p + sizeof(T));
+    w_.put(v);
   }
   void vec3(const Vec3f& v) {
     put(v.x);
     put(v.y);
     put(v.z);
   }
-  void cstring(const std::string& s) {
-    b.insert(b.end(), s.begin(), s.end());
-    b.push_back(0);
-  }
+  void cstring(const std::string& s) { w_.cstring(s); }
   // 4.1+: reserve a byte count and fill it in when the section ends.
   std::size_t open_section(Version v) {
     if (!v.at_least(4, 1)) return 0;
@@ -336,10 +309,12 @@ class Writer {
   }
   void close_section(Version v, std::size_t start) {
     if (!v.at_least(4, 1)) return;
-    const auto n = static_cast<std::uint32_t>(b.size() - start);
-    std::memcpy(b.data() + start - 4, &n, 4);
+    w_.patch_u32(start - 4, static_cast<std::uint32_t>(b.size() - start));
   }
   std::vector<std::uint8_t> b;
+
+ private:
+  ByteWriter w_{b};
 };
 
 void write_rigid_body(Writer& w, const RigidBody& rb, Version v) {
@@ -378,10 +353,12 @@ void write_analog(Writer& w, const std::vector<AnalogDevice>& devs, Version v) {
 std::vector<std::uint8_t> with_header(std::uint16_t id, std::vector<std::uint8_t> payload) {
   if (payload.size() > 0xFFFF) throw std::length_error("NatNet payload exceeds 65535 bytes");
   const auto n = static_cast<std::uint16_t>(payload.size());
-  std::vector<std::uint8_t> out(4 + payload.size());
-  std::memcpy(out.data(), &id, 2);
-  std::memcpy(out.data() + 2, &n, 2);
-  if (!payload.empty()) std::memcpy(out.data() + 4, payload.data(), payload.size());
+  std::vector<std::uint8_t> out;
+  out.reserve(4 + payload.size());
+  ByteWriter w(out);
+  w.u16(id);
+  w.u16(n);
+  w.bytes(payload);
   return out;
 }
 

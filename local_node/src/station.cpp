@@ -20,12 +20,12 @@
 #include <thread>
 #include <vector>
 
-#include "telex/common/latest_slot.h"
+#include "telex/base/latest_slot.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
-#include "telex/local/periodic.h"
-#include "telex/local/spsc_ring.h"
-#include "telex/local/triple_buffer.h"
+#include "telex/base/periodic.h"
+#include "telex/base/spsc_ring.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 namespace {

@@ -8,7 +8,7 @@
 #include <thread>
 #include <vector>
 
-#include "telex/local/periodic.h"
+#include "telex/base/periodic.h"
 #include "telex/proto/fragment.h"
 #include "telex/proto/parser.h"
 

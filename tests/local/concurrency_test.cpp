@@ -5,9 +5,9 @@
 #include <array>
 #include <thread>
 
-#include "telex/local/periodic.h"
-#include "telex/local/spsc_ring.h"
-#include "telex/local/triple_buffer.h"
+#include "telex/base/periodic.h"
+#include "telex/base/spsc_ring.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 namespace {

@@ -13,7 +13,7 @@
 #include <thread>
 
 #include "telex/common/synthetic.h"
-#include "telex/local/triple_buffer.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 namespace {

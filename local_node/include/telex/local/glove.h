@@ -12,7 +12,7 @@
 #include <string>
 #include <thread>
 
-#include "telex/local/triple_buffer.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 

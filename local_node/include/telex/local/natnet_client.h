@@ -14,7 +14,7 @@
 
 #include "telex/local/hand_model.h"
 #include "telex/local/natnet.h"
-#include "telex/local/triple_buffer.h"
+#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 

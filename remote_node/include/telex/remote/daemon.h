@@ -9,7 +9,7 @@
 #include <string>
 #include <thread>
 
-#include "telex/remote/latest_slot.h"
+#include "telex/base/latest_slot.h"
 #include "telex/remote/pipeline.h"
 #include "telex/remote/server.h"
 #include "telex/remote/sources.h"

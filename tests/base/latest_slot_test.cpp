@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // The newest-wins mailbox: replacing an unconsumed value counts a drop, take() times out.
-#include "telex/common/latest_slot.h"
+#include "telex/base/latest_slot.h"
 
 #include <gtest/gtest.h>
 

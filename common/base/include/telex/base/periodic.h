@@ -1,21 +1,31 @@
 // SPDX-License-Identifier: MIT
-// Fixed-rate loop timing (absolute deadlines, no drift) and period statistics for the haptic
-// thread.
+// Fixed-rate loop timing (absolute deadlines, no drift) and period statistics, for the haptic
+// thread and anything else that runs at a rate.
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
-namespace telex::local {
+namespace telex {
 
 std::int64_t monotonic_ns();
 
-// Sleeps until absolute monotonic deadlines spaced by period_ns. A tick that overran by more than a
-// whole period skips ahead instead of bursting to catch up (counted as missed).
+// What a PeriodicTimer reads and how it waits. The daemons use monotonic_clock() (CLOCK_MONOTONIC,
+// clock_nanosleep with an absolute deadline); tests substitute a simulated clock.
+class TimerClock {
+ public:
+  virtual ~TimerClock() = default;
+  virtual std::int64_t now_ns() = 0;
+  virtual void sleep_until_ns(std::int64_t deadline_ns) = 0;
+};
+TimerClock& monotonic_clock();
+
+// Sleeps until absolute deadlines spaced by period_ns. A tick that overran by more than a whole
+// period skips ahead instead of bursting to catch up (counted as missed).
 class PeriodicTimer {
  public:
-  explicit PeriodicTimer(std::int64_t period_ns);
+  explicit PeriodicTimer(std::int64_t period_ns, TimerClock& clock = monotonic_clock());
   // Waits for the next deadline; returns the actual wake-up time.
   std::int64_t wait_next();
   std::uint64_t missed() const { return missed_; }
@@ -23,6 +33,7 @@ class PeriodicTimer {
 
  private:
   std::int64_t period_ns_;
+  TimerClock& clock_;
   std::int64_t next_ns_ = 0;
   std::uint64_t missed_ = 0;
 };
@@ -65,4 +76,4 @@ class Histogram {
 // The p-quantile (0..1) of a sample, linearly interpolated (copies, does not modify input).
 double percentile(std::vector<double> values, double p);
 
-}  // namespace telex::local
+}  // namespace telex

@@ -6,7 +6,7 @@
 #include <atomic>
 #include <cstdint>
 
-namespace telex::local {
+namespace telex {
 
 // Device and surface threads publish, the haptic thread takes; neither ever waits for the other,
 // which is why the haptic loop reads trackers and surfaces without a lock. Two styles:
@@ -56,4 +56,4 @@ class TripleBuffer {
   std::atomic<std::uint64_t> overwritten_{0};
 };
 
-}  // namespace telex::local
+}  // namespace telex

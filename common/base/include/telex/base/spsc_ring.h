@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Bounded single-producer single-consumer ring: the haptic thread pushes without locks or allocation.
+// Bounded single-producer single-consumer ring: the haptic thread pushes without locks or
+// allocation.
 #pragma once
 
 #include <atomic>
@@ -7,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace telex::local {
+namespace telex {
 
 template <typename T>
 class SpscRing {
@@ -46,4 +47,4 @@ class SpscRing {
   std::atomic<std::uint64_t> dropped_{0};
 };
 
-}  // namespace telex::local
+}  // namespace telex

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Fixed-rate loop timing and period statistics.
-#include "telex/local/periodic.h"
+#include "telex/base/periodic.h"
 
 #include <pthread.h>
 #include <sched.h>
@@ -11,7 +11,9 @@
 #include <cmath>
 #include <cstring>
 
-namespace telex::local {
+#include "telex/base/demand.h"
+
+namespace telex {
 
 std::int64_t monotonic_ns() {
   timespec ts{};
@@ -19,10 +21,34 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-PeriodicTimer::PeriodicTimer(std::int64_t period_ns) : period_ns_(period_ns) {}
+namespace {
+
+class MonotonicClock final : public TimerClock {
+ public:
+  std::int64_t now_ns() override { return monotonic_ns(); }
+  void sleep_until_ns(std::int64_t deadline_ns) override {
+    timespec ts{};
+    ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
+    ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
+  }
+};
+
+}  // namespace
+
+TimerClock& monotonic_clock() {
+  static MonotonicClock clock;
+  return clock;
+}
+
+PeriodicTimer::PeriodicTimer(std::int64_t period_ns, TimerClock& clock)
+    : period_ns_(period_ns), clock_(clock) {
+  TELEX_DEMAND(period_ns > 0);
+}
 
 std::int64_t PeriodicTimer::wait_next() {
-  const std::int64_t now = monotonic_ns();
+  const std::int64_t now = clock_.now_ns();
   if (next_ns_ == 0) next_ns_ = now;
   next_ns_ += period_ns_;
   if (now - next_ns_ > period_ns_) {
@@ -30,12 +56,8 @@ std::int64_t PeriodicTimer::wait_next() {
     missed_ += static_cast<std::uint64_t>((now - next_ns_) / period_ns_);
     next_ns_ = now + period_ns_;
   }
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(next_ns_ / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(next_ns_ % 1'000'000'000);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-  return monotonic_ns();
+  clock_.sleep_until_ns(next_ns_);
+  return clock_.now_ns();
 }
 
 std::string try_realtime(int priority) {
@@ -98,4 +120,4 @@ PeriodSummary summarize_periods(const std::vector<std::int64_t>& periods_ns,
   return s;
 }
 
-}  // namespace telex::local
+}  // namespace telex
