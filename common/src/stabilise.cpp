@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "telex/base/demand.h"
 #include "telex/common/synthetic.h"
 
 namespace telex {
@@ -81,14 +82,12 @@ void Stabiliser::begin(cv::Size size) {
 }
 
 void Stabiliser::apply_rect(const cv::Mat1w& in_mm, const cv::Rect& rect, cv::Mat1w& out_mm) {
-  if (out_mm.size() != in_mm.size())
-    throw std::invalid_argument("stabiliser: output must have the input's size");
+  TELEX_DEMAND(out_mm.size() == in_mm.size());
   if (thresholds_.k_sigma == 0.0) {
     in_mm(rect).copyTo(out_mm(rect));
     return;
   }
-  if (held_mm_.size() != in_mm.size())
-    throw std::invalid_argument("stabiliser: begin() with the frame size before apply_rect()");
+  TELEX_DEMAND(held_mm_.size() == in_mm.size());  // begin() with the frame size first
   stabilise_rect(in_mm, rect, thresholds_, confirm_frames_, held_mm_, outside_, out_mm);
 }
 

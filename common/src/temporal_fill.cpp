@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "telex/base/demand.h"
+
 namespace telex {
 
 TemporalFill::TemporalFill(const TemporalFillOptions& options) : options_(options) {
@@ -50,13 +52,10 @@ TemporalFillResult TemporalFill::apply(const cv::Mat1w& depth_mm, double time_ms
 
 TemporalFillResult TemporalFill::apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect,
                                             cv::Mat1w& out_mm) {
-  if (frame_ == 0 || depth_mm.size() != last_mm_.size() || out_mm.size() != depth_mm.size())
-    throw std::invalid_argument(
-        "TemporalFill::apply_rect: call begin_frame with the frame size first, and pass an "
-        "output of that size");
-  if (rect.empty() || (rect & cv::Rect(0, 0, depth_mm.cols, depth_mm.rows)) != rect)
-    throw std::invalid_argument(
-        "TemporalFill::apply_rect: rectangle is empty or outside the frame");
+  // begin_frame with the frame size first, an output of that size, a rectangle inside the frame.
+  TELEX_DEMAND(frame_ != 0 && depth_mm.size() == last_mm_.size() &&
+               out_mm.size() == depth_mm.size());
+  TELEX_DEMAND(!rect.empty() && (rect & cv::Rect(0, 0, depth_mm.cols, depth_mm.rows)) == rect);
   TemporalFillResult r;
   const int frame = static_cast<int>(frame_);
   const double time_ms = prev_time_ms_;

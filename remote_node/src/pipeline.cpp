@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "telex/base/demand.h"
+
 namespace telex::remote {
 
 namespace {
@@ -287,8 +289,8 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
 
 ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame,
                                            const std::function<bool()>& preempt) {
-  if (!pending_.active || pending_.frame_id != frame.frame_id)
-    throw std::logic_error("process_rest: no ROI part of this frame is waiting for its rest");
+  // Only the frame whose ROI part process_roi() just returned has a rest.
+  TELEX_DEMAND(pending_.active && pending_.frame_id == frame.frame_id);
   pending_.active = false;
   const double t_start = config_.clock_ms();
   FrameRequest request;

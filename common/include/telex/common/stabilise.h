@@ -37,7 +37,7 @@ class Stabiliser {
   // Region by region: begin() (re)starts the history when the frame size differs; apply_rect()
   // then stabilises only `rect` of `in_mm` into `out_mm` (already of the input's size). Pixels a
   // frame does not visit keep their held value and their outside-band count. Visiting every pixel
-  // once per frame equals apply(), bit for bit.
+  // once per frame equals apply(), bit for bit. Sizes that differ are a caller bug (TELEX_DEMAND).
   void begin(cv::Size size);
   void apply_rect(const cv::Mat1w& in_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
   void reset() { held_mm_.release(); }

@@ -40,7 +40,7 @@ class TemporalFill {
   // TemporalFillResult::history_reset); apply_rect then records and fills only `rect` of the frame
   // into `out_mm`, which must already have the frame's size. Each pixel at most once per frame;
   // pixels a frame does not visit keep their history (their age keeps growing with the frames).
-  // Throws std::invalid_argument on a size mismatch or a rectangle outside the frame.
+  // A size mismatch or a rectangle outside the frame is a caller bug (TELEX_DEMAND aborts).
   bool begin_frame(cv::Size size, double time_ms);
   TemporalFillResult apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
 

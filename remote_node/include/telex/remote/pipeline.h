@@ -135,8 +135,8 @@ class FramePipeline {
   ProcessedFrame process(const DepthFrame& frame, const FrameRequest& request);
   ProcessedFrame process_roi(const DepthFrame& frame, const FrameRequest& request);
   bool rest_pending() const { return pending_.active; }
-  // The rest of the frame process_roi() just returned a RoiPart of; throws std::logic_error for
-  // any other frame.
+  // The rest of the frame process_roi() just returned a RoiPart of; calling it for any other frame
+  // is a bug (TELEX_DEMAND).
   // `preempt`, polled between stages and between tiles, cuts the rest short when it returns true
   // (a newer frame is waiting): the tiles not yet encoded stay due and go out with the next
   // frame's rest (a cut key frame makes the next frame a key frame). Two rests in a row are never
