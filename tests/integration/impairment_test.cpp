@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Tests for the impairment scheduler: rates over 100k datagrams, order, duplicates, corruption.
-#include "telex/local/impairment.h"
+#include "telex/sim/impairment.h"
 
 #include <gtest/gtest.h>
 
@@ -11,6 +11,8 @@
 
 namespace telex::local {
 namespace {
+
+using namespace ::telex::sim;  // the simulators of the other end
 
 constexpr int kN = 100'000;
 constexpr std::int64_t kMs = 1'000'000;

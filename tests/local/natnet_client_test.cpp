@@ -9,11 +9,13 @@
 #include <fstream>
 #include <thread>
 
-#include "telex/local/natnet_server.h"
 #include "telex/local/tracker.h"
+#include "telex/sim/natnet_server.h"
 
 namespace telex::local {
 namespace {
+
+using namespace ::telex::sim;  // the simulators of the other end
 
 // Waits for a sample without asserting on time: the bound only stops a broken test from hanging.
 bool wait_sample(NatNetClient& c, NatNetSample& s, int max_wait_ms = 10000) {

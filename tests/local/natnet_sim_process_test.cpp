@@ -10,13 +10,15 @@
 #include <thread>
 
 #include "telex/local/natnet_client.h"
-#include "telex/local/natnet_server.h"
+#include "telex/sim/natnet_server.h"
 #include "test_support.h"
 
 extern char** environ;
 
 namespace telex::local {
 namespace {
+
+using namespace ::telex::sim;  // the simulators of the other end
 
 int free_udp_port() {
   boost::asio::io_context io;

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // NatNet server simulator: Asio timer-driven frame stream, built-in and recorded motions.
-#include "telex/local/natnet_server.h"
+#include "telex/sim/natnet_server.h"
 
 // clang-format off
 // Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
@@ -16,7 +16,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace telex::local {
+namespace telex::sim {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
@@ -237,4 +237,4 @@ NatNetServerStats NatNetServer::stats() const {
   return impl_->stats;
 }
 
-}  // namespace telex::local
+}  // namespace telex::sim

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: MIT
 // Deterministic network impairment scheduler (the pure part of telex-sim-impair).
-#include "telex/local/impairment.h"
+#include "telex/sim/impairment.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-namespace telex::local {
+namespace telex::sim {
 
 namespace {
 
@@ -101,4 +101,4 @@ std::string to_string(const ImpairmentCounters& c) {
          " corrupted=" + std::to_string(c.corrupted) + " bytes_in=" + std::to_string(c.bytes_in);
 }
 
-}  // namespace telex::local
+}  // namespace telex::sim

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// A NatNet server (what telex-sim-natnet runs): answers connect requests and streams frames.
+// A NatNet server (what telex-sim-natnet runs): answers connect requests and streams frames. A
+// simulator of the other end of the station's NatNet client, so it lives with the tools.
 #pragma once
 
 #include <atomic>
@@ -12,7 +13,9 @@
 
 #include "telex/local/natnet.h"
 
-namespace telex::local {
+namespace telex::sim {
+
+namespace natnet = local::natnet;
 
 struct NatNetServerConfig {
   std::string bind_address = "127.0.0.1";
@@ -67,4 +70,4 @@ class NatNetServer {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace telex::local
+}  // namespace telex::sim

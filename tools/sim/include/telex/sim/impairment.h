@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace telex::local {
+namespace telex::sim {
 
 // Probabilities are per datagram in [0, 1]; times in milliseconds. validate() names a bad field.
 struct ImpairmentConfig {
@@ -67,4 +67,4 @@ class Impairment {
 // "received=... dropped=..." for logs and summaries.
 std::string to_string(const ImpairmentCounters& c);
 
-}  // namespace telex::local
+}  // namespace telex::sim

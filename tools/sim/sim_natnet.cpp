@@ -6,10 +6,11 @@
 #include <iostream>
 #include <thread>
 
-#include "telex/local/natnet_server.h"
+#include "telex/sim/natnet_server.h"
 
 int main(int argc, char** argv) {
   using namespace telex::local;
+  using namespace telex::sim;
   CLI::App app{
       "telex-sim-natnet: NatNet server simulator (answers PING with server info, streams "
       "FRAMEOFDATA with head id 1, right hand id 2, right shoulder id 3)"};

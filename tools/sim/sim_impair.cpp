@@ -13,13 +13,13 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
-#include "telex/local/impairment.h"
+#include "telex/sim/impairment.h"
 
 namespace asio = boost::asio;
 using asio::ip::udp;
-using telex::local::Impairment;
-using telex::local::ImpairmentConfig;
-using telex::local::ImpairmentCounters;
+using telex::sim::Impairment;
+using telex::sim::ImpairmentConfig;
+using telex::sim::ImpairmentCounters;
 
 namespace {
 
@@ -99,8 +99,8 @@ class Proxy {
   }
 
   std::string status() const {
-    return "to-server " + telex::local::to_string(to_server_.counters()) + " | to-client " +
-           telex::local::to_string(to_client_.counters()) + " | sent=" + std::to_string(sent_) +
+    return "to-server " + telex::sim::to_string(to_server_.counters()) + " | to-client " +
+           telex::sim::to_string(to_client_.counters()) + " | sent=" + std::to_string(sent_) +
            " send_errors=" + std::to_string(send_errors_) + " foreign=" + std::to_string(foreign_);
   }
 
@@ -155,7 +155,7 @@ class Proxy {
         });
   }
 
-  void enqueue(Dir dir, std::vector<telex::local::Delivery> deliveries) {
+  void enqueue(Dir dir, std::vector<telex::sim::Delivery> deliveries) {
     for (auto& d : deliveries) queue_.emplace(d.deliver_at_ns, Pending{dir, std::move(d.bytes)});
     flush();
   }
