@@ -51,12 +51,12 @@ Result MessageAuth::open(std::span<const std::uint8_t> message, const DecodeLimi
   return failure(ErrorReason::Replayed, "sequence number");
 }
 
-StreamParser::StreamParser(DecodeLimits limits) : limits_(limits) {}
-
-void StreamParser::set_frame_size(std::uint16_t width, std::uint16_t height) {
+void ParserCore::set_frame_size(std::uint16_t width, std::uint16_t height) {
   limits_.frame_width = width;
   limits_.frame_height = height;
 }
+
+StreamParser::StreamParser(DecodeLimits limits) : ParserCore(limits) {}
 
 std::size_t StreamParser::feed(std::span<const std::uint8_t> bytes) {
   if (failed_) return 0;
@@ -126,12 +126,7 @@ std::optional<Result> StreamParser::finish() {
   return fail(ErrorReason::Truncated, "stream ended inside a message", true);
 }
 
-DatagramParser::DatagramParser(DecodeLimits limits) : limits_(limits) {}
-
-void DatagramParser::set_frame_size(std::uint16_t width, std::uint16_t height) {
-  limits_.frame_width = width;
-  limits_.frame_height = height;
-}
+DatagramParser::DatagramParser(DecodeLimits limits) : ParserCore(limits) {}
 
 Result DatagramParser::parse(std::span<const std::uint8_t> datagram) {
   Result r = auth_.open(datagram, limits_);

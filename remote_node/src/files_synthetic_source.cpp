@@ -66,10 +66,47 @@ class Pacer {
   std::int64_t next_ns_ = 0;
 };
 
+// Where the file sources are in their sorted file list: paced at the nominal rate, looping or
+// ending after the last file.
+class FileCursor {
+ public:
+  FileCursor(double fps, bool loop) : pacer_(fps), loop_(loop) {}
+  void restart() {
+    next_ = 0;
+    pacer_.reset();
+  }
+  // The index of the next of `count` files, or nothing with `out` saying why: not started (an
+  // error naming `what`), end of stream, or not due within `timeout` (a timeout).
+  template <typename T>
+  std::optional<std::size_t> take(std::size_t count, std::chrono::milliseconds timeout,
+                                  const char* what, ReadResult<T>& out) {
+    if (count == 0) {
+      out.status = ReadStatus::Error;
+      out.error = std::string(what) + " read before start";
+      return std::nullopt;
+    }
+    if (next_ >= count) {
+      if (!loop_) {
+        out.status = ReadStatus::EndOfStream;
+        return std::nullopt;
+      }
+      next_ = 0;
+    }
+    if (!pacer_.wait_due(timeout)) return std::nullopt;  // Timeout
+    return next_++;
+  }
+  bool loop() const { return loop_; }
+
+ private:
+  Pacer pacer_;
+  bool loop_;
+  std::size_t next_ = 0;
+};
+
 class FilesDepthSource final : public DepthSource {
  public:
   FilesDepthSource(std::string pattern, DepthUnits units, double fps, bool loop)
-      : pattern_(std::move(pattern)), units_(units), fps_(fps), loop_(loop), pacer_(fps) {}
+      : pattern_(std::move(pattern)), units_(units), fps_(fps), cursor_(fps, loop) {}
 
   void start() override {
     files_ = expand_glob(pattern_);
@@ -80,28 +117,16 @@ class FilesDepthSource final : public DepthSource {
     // Load the first frame now so a bad file or unit fails at start-up, not in the loop.
     const DepthImage first = load_depth(files_.front(), units_);
     intrinsics_ = first.intrinsics;
-    next_ = 0;
     frames_ = 0;
-    pacer_.reset();
+    cursor_.restart();
   }
   void stop() override {}
 
   ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<DepthFrame> out;
-    if (files_.empty()) {
-      out.status = ReadStatus::Error;
-      out.error = "files source read before start";
-      return out;
-    }
-    if (next_ >= files_.size()) {
-      if (!loop_) {
-        out.status = ReadStatus::EndOfStream;
-        return out;
-      }
-      next_ = 0;
-    }
-    if (!pacer_.wait_due(timeout)) return out;  // Timeout
-    const std::string& file = files_[next_++];
+    const auto next = cursor_.take(files_.size(), timeout, "files source", out);
+    if (!next) return out;
+    const std::string& file = files_[*next];
     try {
       out.frame.image = load_depth(file, units_);
     } catch (const std::exception& e) {
@@ -121,17 +146,15 @@ class FilesDepthSource final : public DepthSource {
   std::int64_t frame_count() const override { return static_cast<std::int64_t>(files_.size()); }
   std::string describe() const override {
     return fmt::format("files:{} ({} files, {}, {} fps{})", pattern_, files_.size(),
-                       to_string(units_), fps_, loop_ ? ", loop" : "");
+                       to_string(units_), fps_, cursor_.loop() ? ", loop" : "");
   }
 
  private:
   std::string pattern_;
   DepthUnits units_;
   double fps_;
-  bool loop_;
-  Pacer pacer_;
+  FileCursor cursor_;
   std::vector<std::string> files_;
-  std::size_t next_ = 0;
   std::uint64_t frames_ = 0;
   Intrinsics intrinsics_;
 };
@@ -196,10 +219,7 @@ class SyntheticDepthSource final : public DepthSource {
 class FilesStereoSource final : public StereoSource {
  public:
   FilesStereoSource(std::string left, std::string right, double fps, bool loop)
-      : left_pattern_(std::move(left)),
-        right_pattern_(std::move(right)),
-        loop_(loop),
-        pacer_(fps) {}
+      : left_pattern_(std::move(left)), right_pattern_(std::move(right)), cursor_(fps, loop) {}
   void start() override {
     left_ = expand_glob(left_pattern_);
     right_ = expand_glob(right_pattern_);
@@ -211,25 +231,14 @@ class FilesStereoSource final : public StereoSource {
       throw std::runtime_error(
           fmt::format("left images '{}' ({}) and right images '{}' ({}) differ in count",
                       left_pattern_, left_.size(), right_pattern_, right_.size()));
-    next_ = 0;
+    cursor_.restart();
   }
   void stop() override {}
   ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<StereoFrame> out;
-    if (left_.empty()) {
-      out.status = ReadStatus::Error;
-      out.error = "files stereo source read before start";
-      return out;
-    }
-    if (next_ >= left_.size()) {
-      if (!loop_) {
-        out.status = ReadStatus::EndOfStream;
-        return out;
-      }
-      next_ = 0;
-    }
-    if (!pacer_.wait_due(timeout)) return out;
-    const std::size_t i = next_++;
+    const auto next = cursor_.take(left_.size(), timeout, "files stereo source", out);
+    if (!next) return out;
+    const std::size_t i = *next;
     out.frame.left_bgr = cv::imread(left_[i], cv::IMREAD_COLOR);
     out.frame.right_bgr = cv::imread(right_[i], cv::IMREAD_COLOR);
     if (out.frame.left_bgr.empty() || out.frame.right_bgr.empty()) {
@@ -249,10 +258,8 @@ class FilesStereoSource final : public StereoSource {
 
  private:
   std::string left_pattern_, right_pattern_;
-  bool loop_;
-  Pacer pacer_;
+  FileCursor cursor_;
   std::vector<std::string> left_, right_;
-  std::size_t next_ = 0;
   std::uint64_t frames_ = 0;
 };
 

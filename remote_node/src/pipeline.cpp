@@ -24,6 +24,18 @@ bool same_tile(const cv::Mat1w& a, const cv::Mat1w& b, const cv::Rect& r) {
   return true;
 }
 
+// The manifest that closes a frame sent in one part: a key frame's lists no tiles (it holds them
+// all), any other lists the tiles sent.
+void close_one_part(ProcessedFrame& out, bool key, const std::vector<int>& sent) {
+  out.part = FramePart::Whole;
+  out.key_frame = key;
+  out.manifest.frame_id = out.frame_id;
+  out.manifest.tile_count = static_cast<std::uint16_t>(out.grid.count());
+  out.manifest.key_frame = key;
+  if (!key)
+    for (int i : sent) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
+}
+
 }  // namespace
 
 std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
@@ -261,13 +273,13 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
   const std::vector<int> sent = process_tiles(frame, in, job, out);
   if (!has_rest) out.tiles_skipped += static_cast<std::size_t>(grid.count()) - roi_tiles.size();
 
-  out.key_frame = key;
-  out.manifest.frame_id = out.frame_id;
-  out.manifest.tile_count = static_cast<std::uint16_t>(grid.count());
   if (has_rest) {
     // The ROI part lists the tiles it carries, even on a key frame; the rest's manifest closes
     // the frame as a one-part frame's manifest would.
     out.part = FramePart::RoiPart;
+    out.key_frame = key;
+    out.manifest.frame_id = out.frame_id;
+    out.manifest.tile_count = static_cast<std::uint16_t>(grid.count());
     out.manifest.key_frame = false;
     for (int i : sent) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
     pending_.active = true;
@@ -277,10 +289,7 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
     pending_.roi_sent = out.manifest.changed_tiles;
     pending_.codec = out.codec;
   } else {
-    out.part = FramePart::Whole;
-    out.manifest.key_frame = key;
-    if (!key)
-      for (int i : sent) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
+    close_one_part(out, key, sent);
   }
   out.sent_view_mm = sent_view_.clone();
   out.times.total_ms = config_.clock_ms() - t_start;
@@ -358,14 +367,7 @@ ProcessedFrame FramePipeline::process_whole(const DepthFrame& frame, const Frame
   const bool key = next_frame_is_key(in.size(), request);
   key_owed_ = rest_owed_ = false;  // a whole frame sends every tile that differs
   job.key = key;
-  const std::vector<int> sent = process_tiles(frame, in, job, out);
-
-  out.key_frame = key;
-  out.manifest.frame_id = out.frame_id;
-  out.manifest.tile_count = static_cast<std::uint16_t>(out.grid.count());
-  out.manifest.key_frame = key;
-  if (!key)
-    for (int i : sent) out.manifest.changed_tiles.push_back(static_cast<std::uint16_t>(i));
+  close_one_part(out, key, process_tiles(frame, in, job, out));
   out.sent_view_mm = sent_view_.clone();
   out.times.total_ms = config_.clock_ms() - t_start;
   return out;

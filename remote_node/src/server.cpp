@@ -199,17 +199,9 @@ class RemoteServer::Impl {
     std::vector<std::pair<proto::Header, proto::Message>> msgs;
     msgs.reserve(frame.tiles.size() + 1);
     for (const auto& t : frame.tiles) {
-      proto::DepthTile dt;
-      dt.tile_index = t.index;
-      dt.x = static_cast<std::uint16_t>(t.rect.x);
-      dt.y = static_cast<std::uint16_t>(t.rect.y);
-      dt.w = static_cast<std::uint16_t>(t.rect.width);
-      dt.h = static_cast<std::uint16_t>(t.rect.height);
-      dt.codec = frame.codec;
-      dt.payload = t.bytes;
       msgs.emplace_back(
           header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
-          std::move(dt));
+          proto::tile_message(t, frame.codec));
     }
     msgs.emplace_back(
         header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Frame reassembly from tiles: whole frames, skipped unchanged tiles, missing and expired tiles.
-#include <gtest/gtest.h>
-
 #include "telex/local/frame_assembler.h"
+
+#include <gtest/gtest.h>
 
 namespace telex::local {
 namespace {
@@ -41,14 +41,7 @@ proto::FrameManifest send(FrameAssembler& a, const cv::Mat1w& frame, std::uint32
     const bool wanted = key || std::find(which.begin(), which.end(), t.index) != which.end();
     const bool dropped = std::find(drop.begin(), drop.end(), t.index) != drop.end();
     if (!wanted || dropped) continue;
-    proto::DepthTile tile{t.index,
-                          static_cast<std::uint16_t>(t.rect.x),
-                          static_cast<std::uint16_t>(t.rect.y),
-                          static_cast<std::uint16_t>(t.rect.width),
-                          static_cast<std::uint16_t>(t.rect.height),
-                          proto::Codec::Zip,
-                          t.bytes};
-    EXPECT_TRUE(a.apply_tile(h, tile, now));
+    EXPECT_TRUE(a.apply_tile(h, proto::tile_message(t, proto::Codec::Zip), now));
   }
   proto::FrameManifest m;
   m.frame_id = frame_id;
@@ -99,9 +92,9 @@ TEST(FrameAssembler, MissingTileKeepsLastValueThenExpires) {
   EXPECT_EQ(a.counters().tiles_missing, 1u);
   const cv::Rect t0(0, 0, 20, 15);
   EXPECT_EQ(cv::norm(out->depth_mm(t0), f1(t0), cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::norm(out->depth_mm(cv::Rect(20, 0, 20, 15)), f2(cv::Rect(20, 0, 20, 15)),
-                     cv::NORM_INF),
-            0.0);
+  EXPECT_EQ(
+      cv::norm(out->depth_mm(cv::Rect(20, 0, 20, 15)), f2(cv::Rect(20, 0, 20, 15)), cv::NORM_INF),
+      0.0);
   // Tile 0 keeps being lost: after 100 ms it becomes no data, the rest stays.
   h.frame_id = 3;
   out = a.finish(h, send(a, f2, 3, {}, true, 150 * kMs, {0}), 151 * kMs);

@@ -39,14 +39,8 @@ void tiles(FrameAssembler& a, const cv::Mat1w& frame, std::uint32_t id,
   h.frame_id = id;
   for (const auto& t : proto::encode_tiles(frame, grid, proto::Codec::Zip)) {
     if (std::find(which.begin(), which.end(), t.index) == which.end()) continue;
-    proto::DepthTile tile{t.index,
-                          static_cast<std::uint16_t>(t.rect.x),
-                          static_cast<std::uint16_t>(t.rect.y),
-                          static_cast<std::uint16_t>(t.rect.width),
-                          static_cast<std::uint16_t>(t.rect.height),
-                          proto::Codec::Zip,
-                          t.bytes};
-    EXPECT_TRUE(a.apply_tile(h, tile, now)) << "frame " << id << " tile " << t.index;
+    EXPECT_TRUE(a.apply_tile(h, proto::tile_message(t, proto::Codec::Zip), now))
+        << "frame " << id << " tile " << t.index;
   }
 }
 

@@ -38,15 +38,7 @@ std::vector<proto::Message> frame_messages() {
   std::vector<proto::Message> msgs;
   proto::FrameManifest fm{1, 64, true, {}};
   for (const auto& t : proto::encode_tiles(frame(), grid, proto::Codec::Zip)) {
-    proto::DepthTile dt;
-    dt.tile_index = t.index;
-    dt.x = static_cast<std::uint16_t>(t.rect.x);
-    dt.y = static_cast<std::uint16_t>(t.rect.y);
-    dt.w = static_cast<std::uint16_t>(t.rect.width);
-    dt.h = static_cast<std::uint16_t>(t.rect.height);
-    dt.codec = proto::Codec::Zip;
-    dt.payload = t.bytes;
-    msgs.push_back(std::move(dt));
+    msgs.push_back(proto::tile_message(t, proto::Codec::Zip));
   }
   msgs.push_back(fm);
   return msgs;

@@ -66,14 +66,7 @@ void BM_TileMessagesOverUdp(benchmark::State& state) {
   std::vector<std::vector<std::uint8_t>> datagrams;
   std::uint32_t id = 0;
   for (const auto& t : proto::encode_tiles(f, grid, proto::Codec::Zip)) {
-    proto::DepthTile tile{t.index,
-                          static_cast<std::uint16_t>(t.rect.x),
-                          static_cast<std::uint16_t>(t.rect.y),
-                          static_cast<std::uint16_t>(t.rect.width),
-                          static_cast<std::uint16_t>(t.rect.height),
-                          proto::Codec::Zip,
-                          t.bytes};
-    const auto msg = proto::encode(proto::Header{}, tile);
+    const auto msg = proto::encode(proto::Header{}, proto::tile_message(t, proto::Codec::Zip));
     for (auto& d : proto::fragment_message(msg, id++, 1)) datagrams.push_back(std::move(d));
   }
   std::uint64_t now = 0;

@@ -162,6 +162,17 @@ struct DepthTile {
   bool operator==(const DepthTile&) const = default;
 };
 
+// The message that carries one encoded tile (what the remote sends for each tile of a frame).
+inline DepthTile tile_message(const EncodedTile& t, Codec codec) {
+  return DepthTile{t.index,
+                   static_cast<std::uint16_t>(t.rect.x),
+                   static_cast<std::uint16_t>(t.rect.y),
+                   static_cast<std::uint16_t>(t.rect.width),
+                   static_cast<std::uint16_t>(t.rect.height),
+                   codec,
+                   t.bytes};
+}
+
 struct FrameManifest {
   std::uint32_t frame_id = 0;
   std::uint16_t tile_count = 0;              // tiles in the grid

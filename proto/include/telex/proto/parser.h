@@ -39,6 +39,26 @@ struct DropCounters {
   std::uint64_t total() const;
 };
 
+// What both parsers keep: the decode limits (with the frame size once known), the authentication
+// state and the counters.
+class ParserCore {
+ public:
+  const DropCounters& drops() const { return drops_; }
+  std::uint64_t messages() const { return messages_; }
+  // Lets tile rectangles be checked against the frame once StreamConfig is known.
+  void set_frame_size(std::uint16_t width, std::uint16_t height);
+  // Pre-shared or session key (nullopt: none); see MessageAuth. Applies from the next message.
+  void set_key(std::optional<AuthKey> key) { auth_.set_key(std::move(key)); }
+  bool keyed() const { return auth_.keyed(); }
+
+ protected:
+  explicit ParserCore(DecodeLimits limits) : limits_(limits) {}
+  DecodeLimits limits_;
+  MessageAuth auth_;
+  DropCounters drops_;
+  std::uint64_t messages_ = 0;
+};
+
 // TCP stream parser. Bytes in: feed(); messages out: next(). Never touches a socket.
 //
 // Memory: the internal buffer never holds more than 4 + limits.max_message_bytes + kAuthTagBytes
@@ -55,7 +75,7 @@ struct DropCounters {
 //    BadPayload, BadTileGeometry, DecompressionBomb) and authentication errors (AuthFailed,
 //    UnexpectedTag, Replayed; see MessageAuth): the message is skipped, the error returned, and
 //    parsing continues with the next message.
-class StreamParser {
+class StreamParser : public ParserCore {
  public:
   explicit StreamParser(DecodeLimits limits = {});
 
@@ -67,44 +87,22 @@ class StreamParser {
   bool failed() const { return failed_; }
   std::size_t buffered() const { return end_ - begin_; }
   std::size_t capacity() const { return 4 + limits_.max_message_bytes + kAuthTagBytes; }
-  const DropCounters& drops() const { return drops_; }
-  std::uint64_t messages() const { return messages_; }
-  // Lets tile rectangles be checked against the frame once StreamConfig is known.
-  void set_frame_size(std::uint16_t width, std::uint16_t height);
-  // Pre-shared or session key (nullopt: none); see MessageAuth. Applies from the next message.
-  void set_key(std::optional<AuthKey> key) { auth_.set_key(std::move(key)); }
-  bool keyed() const { return auth_.keyed(); }
 
  private:
   Result fail(ErrorReason reason, const char* detail, bool fatal);
 
-  DecodeLimits limits_;
-  MessageAuth auth_;
   std::vector<std::uint8_t> buf_;
   std::size_t begin_ = 0;
   std::size_t end_ = 0;
   bool failed_ = false;
-  DropCounters drops_;
-  std::uint64_t messages_ = 0;
 };
 
 // One message per datagram (or per reassembled UDP message); no length prefix. Stateless apart
 // from counters and, with a key, the replay window, so every datagram stands alone.
-class DatagramParser {
+class DatagramParser : public ParserCore {
  public:
   explicit DatagramParser(DecodeLimits limits = {});
   Result parse(std::span<const std::uint8_t> datagram);
-  const DropCounters& drops() const { return drops_; }
-  std::uint64_t messages() const { return messages_; }
-  void set_frame_size(std::uint16_t width, std::uint16_t height);
-  void set_key(std::optional<AuthKey> key) { auth_.set_key(std::move(key)); }
-  bool keyed() const { return auth_.keyed(); }
-
- private:
-  DecodeLimits limits_;
-  MessageAuth auth_;
-  DropCounters drops_;
-  std::uint64_t messages_ = 0;
 };
 
 }  // namespace telex::proto
