@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The stability suite's criteria on a fast subset: passivity bound, clamps, extreme inputs,
 // accuracy.
-#include "telex/common/haptic_stability.h"
+#include "telex/stability/haptic_stability.h"
 
 #include <gtest/gtest.h>
 

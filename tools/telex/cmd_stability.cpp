@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
-#include "telex/common/haptic_stability.h"
+#include "telex/stability/haptic_stability.h"
 
 namespace telex::tool {
 namespace {

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Stability and accuracy suite of the haptic model: stiff walls, extreme inputs, analytic surfaces.
+// A test of the daemons' code, so it lives with the tools (`telex stability`), not in common/.
 #pragma once
 
 #include <cstdint>
