@@ -38,13 +38,18 @@ void validate(const DaemonConfig& c) {
 
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
   const double dt = seconds > 0 ? seconds : 1.0;
+  std::string ended;  // sessions ended so far, by reason
+  for (std::size_t i = 0; i < kSessionEndCount; ++i)
+    if (now.sessions_ended[i] != 0)
+      ended += fmt::format(" {}={}", session_end_name(static_cast<SessionEnd>(i)),
+                           now.sessions_ended[i]);
   const std::uint64_t n = now.frames_processed - before.frames_processed;
   const auto mean = [&](double a, double b) { return n ? (a - b) / static_cast<double>(n) : 0.0; };
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
-      "timeouts {}) | "
+      "timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
@@ -60,8 +65,9 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
-      now.clients_rejected, now.client_timeouts, now.source_errors, now.malformed_in,
-      now.auth_failed, now.unexpected_tag, now.replayed, now.udp_ignored);
+      now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
+      now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
+      now.udp_ignored);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -130,6 +136,7 @@ DaemonStats RemoteDaemon::stats() const {
     s.clients_accepted = c.clients_accepted;
     s.clients_rejected = c.clients_rejected;
     s.client_timeouts = c.client_timeouts;
+    for (std::size_t i = 0; i < kSessionEndCount; ++i) s.sessions_ended[i] = c.sessions_ended[i];
     s.client = server_->state();
   }
   return s;

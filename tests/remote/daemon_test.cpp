@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <mutex>
+#include <thread>
 
 #include "test_client.h"
 #include "test_support.h"
@@ -148,6 +149,47 @@ TEST(RemoteDaemon, SecondOperatorIsRejectedWithAReasonAndHeartbeatsAreAnswered) 
   d.stop();
 }
 
+std::uint64_t ended(const RemoteDaemon& d, SessionEnd why) {
+  return d.stats().sessions_ended[static_cast<std::size_t>(why)];
+}
+std::uint64_t ended_total(const RemoteDaemon& d) {
+  std::uint64_t n = 0;
+  for (auto v : d.stats().sessions_ended) n += v;
+  return n;
+}
+// Waits until the daemon has counted `n` session ends in all.
+bool wait_ended(const RemoteDaemon& d, std::uint64_t n) {
+  for (int i = 0; i < 500 && ended_total(d) < n; ++i) std::this_thread::sleep_for(10ms);
+  return ended_total(d) == n;
+}
+
+TEST(RemoteDaemon, EachSessionEndIsCountedUnderItsReasonAndShownInTheStatsLine) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  RemoteDaemon d(cfg);
+  d.start();
+  const DaemonStats before = d.stats();
+  {
+    test::TestClient polite(d.port(), true);
+    ASSERT_TRUE(polite.run_until([&] { return polite.accept_.has_value(); }, 5s));
+    polite.send(proto::Bye{});
+    ASSERT_TRUE(wait_ended(d, 1));
+    EXPECT_EQ(ended(d, SessionEnd::ClientBye), 1u);
+  }
+  {
+    test::TestClient abrupt(d.port(), true);
+    ASSERT_TRUE(abrupt.run_until([&] { return abrupt.accept_.has_value(); }, 5s));
+    abrupt.close();
+    ASSERT_TRUE(wait_ended(d, 2));
+    EXPECT_EQ(ended(d, SessionEnd::ConnectionLost), 1u);
+  }
+  const std::string line = format_stats_line(d.stats(), before, 1.0);
+  EXPECT_NE(line.find("ended client-bye=1 connection-lost=1"), std::string::npos) << line;
+  d.stop();
+  EXPECT_EQ(ended(d, SessionEnd::ServerStopping), 0u);  // nobody was connected at the stop
+}
+
 TEST(RemoteDaemon, SilentClientTimesOutAndTheNextIsAccepted) {
   auto cfg = base_config("synthetic:plane");
   cfg.source_options.width = 160;
@@ -159,6 +201,8 @@ TEST(RemoteDaemon, SilentClientTimesOutAndTheNextIsAccepted) {
   ASSERT_TRUE(silent.run_until([&] { return silent.accept_.has_value(); }, 5s));
   ASSERT_TRUE(silent.run_until([&] { return silent.tcp_closed_; }, 5s));  // the server hung up
   EXPECT_EQ(d.stats().client_timeouts, 1u);
+  EXPECT_EQ(ended(d, SessionEnd::ClientSilent), 1u);
+  EXPECT_EQ(ended_total(d), 1u);
   test::TestClient next(d.port(), true);
   ASSERT_TRUE(
       next.run_until([&] { return next.accept_.has_value() && !next.frames_.empty(); }, 5s));
@@ -182,6 +226,8 @@ TEST(RemoteDaemon, MalformedBytesAreCountedAndTheServerKeepsServing) {
     ASSERT_TRUE(bad.run_until([&] { return bad.tcp_closed_; }, 5s));
   }
   EXPECT_GE(d.stats().malformed_in, 1u);
+  EXPECT_EQ(ended(d, SessionEnd::Unparseable), 1u);
+  EXPECT_EQ(ended_total(d), 1u);
   test::TestClient good(d.port(), true);
   ASSERT_TRUE(good.run_until([&] { return !good.frames_.empty(); }, 5s));
   d.stop();

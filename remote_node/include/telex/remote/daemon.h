@@ -2,6 +2,7 @@
 // The remote daemon: capture threads, the processing thread, the server, and the stats line.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <functional>
 #include <memory>
@@ -47,7 +48,8 @@ struct DaemonStats {
   std::uint64_t malformed_in = 0;
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, udp_ignored = 0;
   std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
-  StageTimes stage_ms_sum;       // summed over frames_processed
+  std::array<std::uint64_t, kSessionEndCount> sessions_ended{};  // by SessionEnd
+  StageTimes stage_ms_sum;                                       // summed over frames_processed
   double first_part_ms_sum = 0;  // processing time until the first part (ROI part) was published
   ClientState client = ClientState::Waiting;
   bool source_ended = false;

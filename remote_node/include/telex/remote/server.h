@@ -3,6 +3,7 @@
 // TCP.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -32,6 +33,19 @@ struct ServerConfig {
   std::optional<proto::AuthKey> psk;
 };
 
+// Why an operator's session ended; each is logged and counted (ServerCounters::sessions_ended).
+enum class SessionEnd : std::uint8_t {
+  ClientBye,       // the station said Bye
+  ConnectionLost,  // the TCP connection closed or broke under a read
+  WriteFailed,     // a write to the station failed
+  ClientSilent,    // nothing that verified arrived for client_timeout
+  Unparseable,     // the stream's framing broke (the byte boundary is lost)
+  Refused,         // refused after connecting: not Hello first, wrong version, authentication
+  ServerStopping,
+};
+inline constexpr std::size_t kSessionEndCount = 7;
+std::string_view session_end_name(SessionEnd reason);
+
 // Monotonic counters, readable from any thread.
 struct ServerCounters {
   std::atomic<std::uint64_t> clients_accepted{0};
@@ -51,12 +65,19 @@ struct ServerCounters {
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> udp_ignored{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
+  std::array<std::atomic<std::uint64_t>, kSessionEndCount> sessions_ended{};  // by SessionEnd
+  std::uint64_t ended(SessionEnd reason) const {
+    return sessions_ended[static_cast<std::size_t>(reason)].load();
+  }
 };
 
 enum class ClientState { Waiting, Connected };
 std::string_view client_state_name(ClientState state);
 
-// Owns an io_context and its thread. publish*() are called from the processing thread: they encode
+// Owns an io_context and its thread; split as Asio's chat server is: the acceptor and the one-
+// operator policy (server.cpp), the connected operator's session (server_session.cpp), and the
+// transport of frames over UDP or TCP (server_transport.cpp), with their shared declarations in
+// src/server_impl.h. publish*() are called from the processing thread: they encode
 // on the caller's thread and hand finished buffers to the network thread.
 class RemoteServer {
  public:

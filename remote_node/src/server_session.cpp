@@ -1,0 +1,221 @@
+// SPDX-License-Identifier: MIT
+// The remote's network server, session part (Asio's chat_session): the operator's TCP read loop
+// through proto::StreamParser, Hello/Accept, heartbeats, ROI requests, key-frame requests, Bye,
+// dropped messages, and the TCP write queue (one async_write in flight, control first).
+#include "server_impl.h"
+
+namespace telex::remote {
+
+void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) {
+  a->socket.async_read_some(
+      asio::buffer(a->rx), [this, a, gen](boost::system::error_code ec, std::size_t n) {
+        if (active_ != a || gen != active_generation_) return;
+        if (ec) {
+          end_session(SessionEnd::ConnectionLost);
+          return;
+        }
+        std::size_t off = 0;
+        while (off < n) {
+          const std::size_t took =
+              a->parser.feed(std::span<const std::uint8_t>(a->rx.data() + off, n - off));
+          off += took;
+          while (auto r = a->parser.next()) {
+            if (!r->ok()) {
+              on_bad_message(a, *r);
+              if (active_ != a) return;
+              continue;
+            }
+            // Only a message that decoded (and, with --psk, verified) keeps the session alive.
+            a->last_rx = std::chrono::steady_clock::now();
+            handle(a, *r->envelope);
+            if (active_ != a) return;
+          }
+          if (a->parser.failed()) {
+            ++counters_.malformed_in;
+            end_session(SessionEnd::Unparseable);
+            return;
+          }
+          if (took == 0) break;
+        }
+        do_read(a, gen);
+      });
+}
+
+void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::Envelope& env) {
+  if (!a->hello_done) {
+    const auto* hello = std::get_if<proto::Hello>(&env.message);
+    if (hello == nullptr) {
+      ++counters_.malformed_in;
+      refuse_session(proto::RejectReason::BadRequest, "the first message must be Hello");
+      return;
+    }
+    on_hello(a, *hello, env.header.capture_ns);
+    return;
+  }
+  std::visit(
+      [&](const auto& m) {
+        using T = std::decay_t<decltype(m)>;
+        if constexpr (std::is_same_v<T, proto::Heartbeat>) {
+          // Only probes (t2 = 0) are answered: an answer to an answer would ping-pong forever.
+          if (m.t2_ns != 0) return;
+          proto::Heartbeat reply = m;
+          reply.t2_ns = static_cast<std::uint64_t>(steady_now_ns());
+          reply.t3_ns = static_cast<std::uint64_t>(steady_now_ns());
+          send_control(make_buffer(proto::encode_stream_sealed(
+              header(session_id_, 0, steady_now_ns(), false), reply, a->session_key.get())));
+        } else if constexpr (std::is_same_v<T, proto::RoiRequest>) {
+          std::lock_guard lock(mu_);
+          request_.rois = m.rects;
+        } else if constexpr (std::is_same_v<T, proto::Stats>) {
+          for (const auto& [key, value] : m.counters)
+            if (key == "key_frame_request" && value != 0) {
+              ++counters_.key_frame_requests;
+              request_key_frame();
+            }
+        } else if constexpr (std::is_same_v<T, proto::Bye>) {
+          end_session(SessionEnd::ClientBye);
+        } else {
+          ++counters_.malformed_in;  // a message only the server sends
+        }
+      },
+      env.message);
+}
+
+// Counts a rejected message by reason and logs at most once a second. Before Hello an
+// authentication failure refuses the connection with a reason the station can report.
+void RemoteServer::Impl::on_bad_message(const std::shared_ptr<Session>& a, const proto::Result& r) {
+  switch (r.error) {
+    case proto::ErrorReason::AuthFailed:
+      ++counters_.auth_failed;
+      break;
+    case proto::ErrorReason::UnexpectedTag:
+      ++counters_.unexpected_tag;
+      break;
+    case proto::ErrorReason::Replayed:
+      ++counters_.replayed;
+      break;
+    default:
+      ++counters_.malformed_in;
+      break;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_drop_log_ > std::chrono::seconds(1)) {
+    last_drop_log_ = now;
+    spdlog::warn(
+        "dropped a message from {}: {} ({}); totals: auth_failed {} unexpected_tag {} replayed "
+        "{} malformed {}",
+        a->peer, proto::error_reason_name(r.error), r.detail, counters_.auth_failed.load(),
+        counters_.unexpected_tag.load(), counters_.replayed.load(), counters_.malformed_in.load());
+  }
+  if (a->hello_done) return;
+  if (r.error == proto::ErrorReason::AuthFailed)
+    refuse_session(proto::RejectReason::AuthFailed,
+                   "authentication failed: the station's Hello does not verify under this "
+                   "telex-remote's --psk key (a different key, or the station has none)");
+  else if (r.error == proto::ErrorReason::UnexpectedTag)
+    refuse_session(proto::RejectReason::AuthFailed,
+                   "this telex-remote has no --psk key but the station's messages carry "
+                   "authentication tags: start both daemons with the same --psk, or neither");
+}
+
+void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string text) {
+  auto a = active_;
+  ++counters_.sessions_ended[static_cast<std::size_t>(SessionEnd::Refused)];
+  spdlog::info("session with {} refused: {}", a->peer, text);
+  active_.reset();
+  {
+    std::lock_guard lock(mu_);
+    connected_ = false;
+  }
+  reject(std::move(a->socket), reason, std::move(text));
+}
+
+void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto::Hello& hello,
+                                  std::uint64_t hello_nonce) {
+  if (hello.version != proto::kProtocolVersion) {
+    refuse_session(proto::RejectReason::VersionMismatch,
+                   fmt::format("server speaks protocol version {}, client {}",
+                               proto::kProtocolVersion, hello.version));
+    return;
+  }
+  proto::Codec codec = config_.codec;
+  if (!hello.codecs.empty() &&
+      std::find(hello.codecs.begin(), hello.codecs.end(), codec) == hello.codecs.end())
+    codec = hello.codecs.front();
+  a->over_udp =
+      !config_.force_tcp && (hello.capabilities & proto::kCapDepthUdp) && hello.udp_port != 0;
+  boost::system::error_code ec;
+  if (a->over_udp)
+    a->udp_peer = udp::endpoint(a->socket.remote_endpoint(ec).address(), hello.udp_port);
+  a->hello_done = true;
+  session_id_ = next_session_id_++;
+  proto::Header accept_header = header(session_id_, 0, steady_now_ns(), false);
+  if (config_.psk) {
+    // Both nonces go into the session key: a Hello or a stream recorded in another session
+    // verifies under none of this session's keys (docs/PROTOCOL.md section 7).
+    accept_header.capture_ns = proto::random_u64();
+    a->session_key = std::make_shared<const proto::AuthKey>(proto::derive_session_key(
+        *config_.psk, hello_nonce, accept_header.capture_ns, session_id_));
+  }
+  proto::Accept acc;
+  acc.session_id = session_id_;
+  acc.codec = codec;
+  acc.transport = a->over_udp ? proto::Transport::Udp : proto::Transport::Tcp;
+  acc.udp_port = a->over_udp ? udp_.local_endpoint().port() : 0;
+  send_control(make_buffer(proto::encode_stream_sealed(accept_header, acc, psk())));
+  if (a->session_key) a->parser.set_key(*a->session_key);
+  ++counters_.clients_accepted;
+  std::lock_guard lock(mu_);
+  connected_ = true;
+  video_wanted_ = config_.video_available && (hello.capabilities & proto::kCapVideo);
+  frame_parts_ = (hello.capabilities & proto::kCapFrameParts) != 0;
+  link_ = Link{session_id_, active_generation_, a->over_udp, a->session_key};
+  request_ = FrameRequest{};
+  request_.force_key_frame = true;  // a new receiver holds nothing
+  request_.codec = codec;
+  request_.frame_parts = frame_parts_;
+}
+
+void RemoteServer::Impl::request_key_frame() {
+  std::lock_guard lock(mu_);
+  request_.force_key_frame = true;
+}
+
+void RemoteServer::Impl::send_control(Buffer buf) {
+  if (!active_) return;
+  active_->control.push_back(std::move(buf));
+  kick_tcp(active_);
+}
+
+void RemoteServer::Impl::kick_tcp(const std::shared_ptr<Session>& a) {
+  if (a->tcp_writing) return;
+  Buffer buf;
+  bool frame_done = false, counts = false, is_data = false;
+  if (!a->control.empty()) {
+    buf = a->control.front();
+    a->control.pop_front();
+  } else if (!a->over_udp) {
+    buf = a->next_frame_item(frame_done, counts);
+    is_data = true;
+  }
+  if (!buf) return;
+  a->tcp_writing = true;
+  asio::async_write(
+      a->socket, asio::buffer(*buf),
+      [this, a, buf, frame_done, counts, is_data](boost::system::error_code ec, std::size_t n) {
+        a->tcp_writing = false;
+        if (active_ != a) return;
+        if (ec) {
+          end_session(SessionEnd::WriteFailed);
+          return;
+        }
+        if (is_data) {
+          counters_.bytes_sent += n;
+          ++counters_.messages_sent;
+          if (frame_done && counts) ++counters_.frames_sent;
+        }
+        kick_tcp(a);
+      });
+}
+
+}  // namespace telex::remote

@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: MIT
+// The remote's network server, transport part: frames and video packed into messages for the
+// current session (fragmented into tagged datagrams over UDP, length-prefixed over TCP), the
+// bounded frame queue, and the UDP send loop (one async_send_to in flight).
+#include "server_impl.h"
+#include "telex/proto/fragment.h"
+
+namespace telex::remote {
+namespace {
+
+// Drops the oldest frames nobody has started sending so that at most `bound` remain queued.
+std::uint64_t trim_queue(std::deque<OutFrame>& q, std::size_t bound) {
+  std::uint64_t dropped = 0;
+  while (q.size() > bound) {
+    auto it = q.begin();
+    if (it->next != 0) ++it;  // the frame on the wire finishes
+    if (it == q.end()) break;
+    q.erase(it);
+    ++dropped;
+  }
+  return dropped;
+}
+
+}  // namespace
+
+std::optional<RemoteServer::Impl::Link> RemoteServer::Impl::link() const {
+  std::lock_guard lock(mu_);
+  if (!connected_) return std::nullopt;
+  return link_;
+}
+
+proto::Header RemoteServer::Impl::header(std::uint32_t session_id, std::uint32_t frame_id,
+                                         std::int64_t capture_ns, bool key,
+                                         std::uint16_t extra_flags) {
+  proto::Header h;
+  h.session_id = session_id;
+  h.seq = seq_++;
+  h.frame_id = frame_id;
+  h.capture_ns = static_cast<std::uint64_t>(capture_ns);
+  h.flags = static_cast<std::uint16_t>((key ? proto::kFlagKeyFrame : 0) | extra_flags);
+  return h;
+}
+
+// Turns whole messages into what goes on the wire for this link.
+OutFrame RemoteServer::Impl::pack(
+    const Link& l, std::uint32_t frame_id,
+    const std::vector<std::pair<proto::Header, proto::Message>>& msgs) {
+  OutFrame f;
+  f.frame_id = frame_id;
+  for (const auto& [h, m] : msgs) {
+    if (l.udp) {
+      const auto bytes = proto::encode_sealed(h, m, l.key.get());
+      for (auto& d : proto::fragment_message(bytes, message_id_++, frame_id)) {
+        // Every datagram carries its own tag, so a forged fragment never reaches the reassembler.
+        if (l.key) proto::append_tag(d, *l.key);
+        f.items.push_back(make_buffer(std::move(d)));
+      }
+    } else {
+      f.items.push_back(make_buffer(proto::encode_stream_sealed(h, m, l.key.get())));
+    }
+  }
+  return f;
+}
+
+void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
+  const auto l = link();
+  if (!l) return;
+  // A frame processed while nobody was connected has no tiles or manifest: a receiver that
+  // connected in between waits for the next one (its key frame).
+  if (frame.manifest.tile_count == 0) return;
+  // A new session, or a frame of another shape or codec, announces the stream first (on TCP).
+  proto::StreamConfig sc;
+  sc.width = static_cast<std::uint16_t>(frame.grid.frame_width);
+  sc.height = static_cast<std::uint16_t>(frame.grid.frame_height);
+  sc.fx = frame.intrinsics.fx;
+  sc.fy = frame.intrinsics.fy;
+  sc.cx = frame.intrinsics.cx;
+  sc.cy = frame.intrinsics.cy;
+  sc.tile_width = static_cast<std::uint16_t>(frame.grid.tile_width);
+  sc.tile_height = static_cast<std::uint16_t>(frame.grid.tile_height);
+  sc.grid_cols = static_cast<std::uint16_t>(frame.grid.cols());
+  sc.grid_rows = static_cast<std::uint16_t>(frame.grid.rows());
+  sc.codec = frame.codec;
+  sc.fps = config_.fps;
+  if (l->generation != announced_generation_ || !(sc == announced_)) {
+    announced_generation_ = l->generation;
+    announced_ = sc;
+    auto buf = make_buffer(proto::encode_stream_sealed(
+        header(l->session_id, frame.frame_id, frame.capture_ns, false), sc, l->key.get()));
+    asio::post(io_, [this, buf, gen = l->generation] {
+      if (active_ && active_generation_ == gen) send_control(buf);
+    });
+  }
+  // An ROI part's messages say so; the rest (or a whole frame) closes the frame and counts it.
+  const std::uint16_t part_flag = frame.part == FramePart::RoiPart ? proto::kFlagRoiPart : 0;
+  std::vector<std::pair<proto::Header, proto::Message>> msgs;
+  msgs.reserve(frame.tiles.size() + 1);
+  for (const auto& t : frame.tiles) {
+    msgs.emplace_back(
+        header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
+        proto::tile_message(t, frame.codec));
+  }
+  msgs.emplace_back(
+      header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
+      frame.manifest);
+  OutFrame f = pack(*l, frame.frame_id, msgs);
+  f.counts_as_frame = frame.part != FramePart::RoiPart;
+  post_frame(std::move(f), l->generation);
+}
+
+void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
+                                       const std::vector<std::uint8_t>& left,
+                                       const std::vector<std::uint8_t>& right, int width,
+                                       int height) {
+  const auto l = link();
+  if (!l || !video_wanted_) return;
+  std::vector<std::pair<proto::Header, proto::Message>> msgs;
+  for (std::uint8_t eye : {std::uint8_t{0}, std::uint8_t{1}}) {
+    const auto& jpeg = eye == 0 ? left : right;
+    if (jpeg.empty()) continue;
+    proto::VideoFrame v;
+    v.eye = eye;
+    v.width = static_cast<std::uint16_t>(width);
+    v.height = static_cast<std::uint16_t>(height);
+    v.jpeg = jpeg;
+    msgs.emplace_back(header(l->session_id, frame_id, capture_ns, false), std::move(v));
+  }
+  OutFrame f = pack(*l, frame_id, msgs);
+  f.counts_as_frame = false;
+  post_frame(std::move(f), l->generation);
+}
+
+// Hands a packed frame to the io thread, for the session it was packed for only.
+void RemoteServer::Impl::post_frame(OutFrame f, std::uint32_t generation) {
+  asio::post(io_, [this, f = std::move(f), generation]() mutable {
+    if (active_ && active_generation_ == generation) enqueue_frame(std::move(f));
+  });
+}
+
+void RemoteServer::Impl::enqueue_frame(OutFrame f) {
+  auto& a = *active_;
+  a.frames.push_back(std::move(f));
+  const auto dropped = trim_queue(a.frames, config_.max_queued_frames);
+  if (dropped > 0) {
+    counters_.frames_dropped += dropped;
+    // The receiver misses those tiles: resend everything with the next frame.
+    request_key_frame();
+  }
+  if (a.over_udp)
+    kick_udp(active_);
+  else
+    kick_tcp(active_);
+}
+
+void RemoteServer::Impl::kick_udp(const std::shared_ptr<Session>& a) {
+  if (a->udp_sending) return;
+  bool frame_done = false, counts = false;
+  Buffer buf = a->next_frame_item(frame_done, counts);
+  if (!buf) return;
+  a->udp_sending = true;
+  udp_.async_send_to(
+      asio::buffer(*buf), a->udp_peer,
+      [this, a, buf, frame_done, counts](boost::system::error_code ec, std::size_t n) {
+        a->udp_sending = false;
+        if (active_ != a) return;
+        // A refused or failed datagram is lost like any other; key frames repair it.
+        if (!ec) {
+          counters_.bytes_sent += n;
+          ++counters_.datagrams_sent;
+          if (frame_done && counts) ++counters_.frames_sent;
+        }
+        kick_udp(a);
+      });
+}
+
+void RemoteServer::Impl::udp_receive() {
+  udp_.async_receive_from(asio::buffer(udp_rx_), udp_from_,
+                          [this](boost::system::error_code ec, std::size_t) {
+                            if (ec == asio::error::operation_aborted || !udp_.is_open()) return;
+                            if (!ec) ++counters_.udp_ignored;
+                            udp_receive();
+                          });
+}
+
+}  // namespace telex::remote
