@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "depth_error.h"
 #include "telex/common/synthetic.h"
 
 namespace telex {
@@ -18,34 +19,6 @@ namespace {
 const Intrinsics kDepthK = kinect_v1_intrinsics();
 const Intrinsics kEyeK{580.0, 580.0, 322.0, 236.0, 640, 480};
 const glm::dvec3 kEyeCentre_m(0.025, 0.0, 0.0);
-
-struct ErrorStats {
-  double median_mm = 0;
-  double p90_mm = 0;
-  double coverage = 0;   // fraction of pixels valid in the truth that are valid in the estimate
-  double over_10mm = 0;  // fraction of compared pixels off by more than 10 mm (misplaced edges)
-};
-
-ErrorStats compare(const cv::Mat1w& estimate, const cv::Mat1f& truth_m) {
-  std::vector<double> err;
-  int truth_valid = 0;
-  for (int v = 0; v < truth_m.rows; ++v)
-    for (int u = 0; u < truth_m.cols; ++u) {
-      if (!(truth_m(v, u) > 0)) continue;
-      ++truth_valid;
-      if (estimate(v, u) == 0) continue;
-      err.push_back(std::abs(estimate(v, u) - truth_m(v, u) * 1000.0));
-    }
-  ErrorStats s;
-  if (err.empty()) return s;
-  std::sort(err.begin(), err.end());
-  s.median_mm = err[err.size() / 2];
-  s.p90_mm = err[err.size() * 9 / 10];
-  s.coverage = static_cast<double>(err.size()) / truth_valid;
-  s.over_10mm =
-      static_cast<double>(err.end() - std::upper_bound(err.begin(), err.end(), 10.0)) / err.size();
-  return s;
-}
 
 RigidTransform eye_from_depth() {
   RigidTransform x;
@@ -109,7 +82,7 @@ TEST(Registration, FullReprojectionMatchesSecondViewpoint) {
         synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
     for (bool fill : {false, true}) {
       const DepthImage reg = reproject_depth(from_depth.depth, kEyeK, eye_from_depth(), fill);
-      const ErrorStats e = compare(reg.depth_mm, truth.true_depth_m);
+      const test::DepthError e = test::compare_depth(reg.depth_mm, truth.true_depth_m);
       std::printf("[ reproject ] %-7s fill_cracks=%d median %.2f mm, p90 %.2f mm, coverage %.3f\n",
                   name, fill, e.median_mm, e.p90_mm, e.coverage);
       EXPECT_LT(e.median_mm, 2.0);
@@ -131,7 +104,7 @@ TEST(Registration, ShiftScaleExactAtNominalDepthAndWorseAway) {
     const synth::Rendered truth =
         synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
     const cv::Mat1w ss = register_shift_scale(from_depth.depth, p, kEyeK).depth_mm;
-    const ErrorStats full = compare(
+    const test::DepthError full = test::compare_depth(
         reproject_depth(from_depth.depth, kEyeK, eye_from_depth()).depth_mm, truth.true_depth_m);
     std::vector<double> err, predicted, err_near_nominal;
     const cv::Mat1f& t = truth.true_depth_m;
@@ -172,12 +145,12 @@ TEST(Registration, DeskShiftScaleVersusFull) {
   const synth::Rendered from_depth = synth::render(scene, kDepthK, synth::SensorModel::ideal());
   const synth::Rendered truth =
       synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
-  const ErrorStats full = compare(
+  const test::DepthError full = test::compare_depth(
       reproject_depth(from_depth.depth, kEyeK, eye_from_depth()).depth_mm, truth.true_depth_m);
   for (double nominal_m : {0.8, 1.2, 2.0}) {
     const ShiftScale p = shift_scale_from_calibration(kDepthK, kEyeK, -kEyeCentre_m, nominal_m);
-    const ErrorStats ss =
-        compare(register_shift_scale(from_depth.depth, p, kEyeK).depth_mm, truth.true_depth_m);
+    const test::DepthError ss = test::compare_depth(
+        register_shift_scale(from_depth.depth, p, kEyeK).depth_mm, truth.true_depth_m);
     std::printf(
         "[ desk ] shift+scale @%.1f m: median %.2f mm, p90 %.2f mm, >10 mm %.2f %%; "
         "full: median %.2f mm, p90 %.2f mm, >10 mm %.2f %%\n",

@@ -23,11 +23,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-#define TELEX_REQUIRE_REMOTE()                                                                \
-  do {                                                                                        \
-    if (!std::filesystem::exists(built_binary("telex-remote")))                               \
-      GTEST_SKIP() << "telex-remote is not built in this tree (remote_node/main.cpp absent)"; \
-  } while (0)
+#define TELEX_REQUIRE_REMOTE() TELEX_REQUIRE_BINARIES("telex-remote")
 
 nlohmann::json last_json_line(std::string out) {
   while (!out.empty() && out.back() == '\n') out.pop_back();

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "daemons.h"
 #include "process.h"
 #include "test_support.h"
 
@@ -50,48 +51,9 @@ std::vector<ForceRow> read_forces(const std::filesystem::path& csv) {
   return rows;
 }
 
-// One remote daemon on a free port, stopped (SIGINT) at the end of the test.
-struct Remote {
-  std::uint16_t port = free_port();
-  Process proc;
-  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
-      : proc(
-            [&] {
-              std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
-                                         "127.0.0.1:" + std::to_string(port)};
-              a.insert(a.end(), extra.begin(), extra.end());
-              return a;
-            }(),
-            dir / "remote.out", dir / "remote.err") {}
-  ~Remote() {
-    proc.signal(SIGINT);
-    proc.wait(5s);
-  }
-};
-
-std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::path& dir,
-                                    std::vector<std::string> extra) {
-  std::vector<std::string> a{built_binary("telex-local").string(), "--connect",
-                             "127.0.0.1:" + std::to_string(port), "--haptics", "sim",
-                             "--log-forces", (dir / "forces.csv").string(), "--json-summary",
-                             "--no-realtime",
-                             // These tests check the force model end to end, not the stale-surface
-                             // fade (RemoteRestart does): tolerate a loaded machine's slow frames.
-                             "--stale-limit", "1.0"};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
-}
-
-nlohmann::json summary_of(const Process& p) {
-  const std::string out = p.stdout_text();
-  const auto brace = out.rfind('{');
-  if (brace == std::string::npos) return {};
-  return nlohmann::json::parse(out.substr(brace), nullptr, false);
-}
-
 TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   const auto dir = scratch_dir("loopback_press");
-  Remote remote(dir, {"--source", "synthetic:plane"});
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
   Process local(local_args(remote.port, dir,
                            {"--hand", "script:press", "--stiffness", "500", "--max-force", "10",
                             "--duration", "7.5"}),
@@ -138,9 +100,9 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
 TEST(Loopback, RoiFramePartsGiveTheSamePress) {
   for (const bool parts : {true, false}) {
     const auto dir = scratch_dir(parts ? "loopback_roi_parts" : "loopback_roi_one_part");
-    Remote remote(dir, {"--source", "synthetic:plane"});
-    std::vector<std::string> extra{"--hand", "script:press", "--stiffness", "500", "--max-force",
-                                   "10", "--duration", "7.5", "--roi"};
+    RemoteProcess remote(dir, {"--source", "synthetic:plane"});
+    std::vector<std::string> extra{"--hand", "script:press", "--stiffness", "500",  "--max-force",
+                                   "10",     "--duration",   "7.5",         "--roi"};
     if (!parts) extra.push_back("--no-frame-parts");
     Process local(local_args(remote.port, dir, extra), dir / "local.out", dir / "local.err");
     const auto rc = local.wait(30s);
@@ -165,7 +127,7 @@ TEST(Loopback, RoiFramePartsGiveTheSamePress) {
 
 TEST(Loopback, StrokeShearOpposesSliding) {
   const auto dir = scratch_dir("loopback_stroke");
-  Remote remote(dir, {"--source", "synthetic:plane", "--transport", "tcp"});
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--transport", "tcp"});
   Process local(local_args(remote.port, dir,
                            {"--hand", "script:stroke", "--stiffness", "500", "--max-force", "10",
                             "--transport", "tcp", "--duration", "9.5"}),
@@ -192,7 +154,7 @@ TEST(Loopback, StrokeShearOpposesSliding) {
 
 TEST(Loopback, ViewPngShowsHandAndForceArrow) {
   const auto dir = scratch_dir("loopback_view");
-  Remote remote(dir, {"--source", "synthetic:plane"});
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
   Process local(local_args(remote.port, dir,
                            {"--hand", "script:press", "--stiffness", "500", "--duration", "4.6",
                             "--view", "png:" + (dir / "view").string()}),
@@ -223,7 +185,7 @@ namespace {
 
 TEST(Loopback, NatNetSimulatorDrivesTheFingertips) {
   const auto dir = scratch_dir("loopback_natnet");
-  Remote remote(dir, {"--source", "synthetic:plane"});
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
   const std::uint16_t cmd_port = free_port();
   Process sim({built_binary("telex-sim-natnet").string(), "--command-port",
                std::to_string(cmd_port), "--duration", "20", "--natnet-version", "4.1"},

@@ -8,7 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "../remote/test_client.h"
+#include "test_client.h"
+#include "daemons.h"
 #include "process.h"
 #include "telex/remote/openni_record.h"
 #include "telex/remote/sources.h"
@@ -18,24 +19,6 @@ namespace telex::test {
 namespace {
 
 using namespace std::chrono_literals;
-
-struct Remote {
-  std::uint16_t port = free_port();
-  Process proc;
-  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
-      : proc(
-            [&] {
-              std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
-                                         "127.0.0.1:" + std::to_string(port), "--no-stats"};
-              a.insert(a.end(), extra.begin(), extra.end());
-              return a;
-            }(),
-            dir / "remote.out", dir / "remote.err") {}
-  ~Remote() {
-    proc.signal(SIGINT);
-    proc.wait(5s);
-  }
-};
 
 // Every frame of the file, in order, as this process's oni source plays it (the sources tests
 // check that against the frames read while recording).
@@ -71,7 +54,8 @@ TEST(OniEndToEnd, RemoteProcessSendsTheRecordedFramesExactly) {
   ASSERT_GE(recorded.size(), 14u);
   // No fill (the Dummy frames are mostly holes) and a lossless codec: what arrives must be the
   // recording itself.
-  Remote remote(dir, {"--source", "oni:" + oni.string() + ",loop", "--no-fill", "--codec", "zip"});
+  RemoteProcess remote(dir, {"--no-stats", "--source", "oni:" + oni.string() + ",loop", "--no-fill",
+                             "--codec", "zip"});
   ASSERT_TRUE(eventually(10s, [&] {
     return remote.proc.stdout_text().find("listening") != std::string::npos ||
            !remote.proc.running();
@@ -102,7 +86,7 @@ TEST(OniEndToEnd, RemoteProcessSendsTheRecordedFramesExactly) {
 TEST(OniEndToEnd, OperatorStationConsumesAnOniPlayback) {
   const auto dir = scratch_dir("oni_e2e_local");
   const auto oni = record_dummy(dir, 10);
-  Remote remote(dir, {"--source", "oni:" + oni.string() + ",loop"});
+  RemoteProcess remote(dir, {"--no-stats", "--source", "oni:" + oni.string() + ",loop"});
   Process local(
       {built_binary("telex-local").string(), "--connect",
        "127.0.0.1:" + std::to_string(remote.port), "--haptics", "sim", "--hand", "script:press",

@@ -17,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "daemons.h"
 #include "process.h"
 #include "telex/proto/auth.h"
 #include "telex/proto/fragment.h"
@@ -28,12 +29,23 @@ namespace {
 
 using namespace std::chrono_literals;
 
-#define TELEX_REQUIRE_DAEMONS()                                        \
-  do {                                                                 \
-    if (!std::filesystem::exists(built_binary("telex-remote")) ||      \
-        !std::filesystem::exists(built_binary("telex-local")))         \
-      GTEST_SKIP() << "telex-remote or telex-local is not built here"; \
-  } while (0)
+#define TELEX_REQUIRE_DAEMONS() TELEX_REQUIRE_BINARIES("telex-remote", "telex-local")
+
+// The psk tests' remote serves the synthetic plane; their stations run quietly.
+struct Remote : RemoteProcess {
+  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
+      : RemoteProcess(dir, with_front({"--source", "synthetic:plane"}, std::move(extra))) {}
+  static std::vector<std::string> with_front(std::vector<std::string> a,
+                                             std::vector<std::string> b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+  }
+};
+std::vector<std::string> quiet_local_args(std::uint16_t port, const std::filesystem::path& dir,
+                                          std::vector<std::string> extra) {
+  extra.insert(extra.begin(), "--quiet");
+  return local_args(port, dir, std::move(extra));
+}
 
 std::filesystem::path write_key(const std::filesystem::path& dir, const std::string& name,
                                 const std::string& bytes, std::filesystem::perms mode) {
@@ -53,50 +65,6 @@ std::string key_bytes(std::uint32_t seed) {
   std::string k(32, '\0');
   for (auto& c : k) c = static_cast<char>(rng());
   return k;
-}
-
-nlohmann::json summary_of(const Process& p) {
-  const std::string out = p.stdout_text();
-  const auto brace = out.rfind('{');
-  if (brace == std::string::npos) return {};
-  return nlohmann::json::parse(out.substr(brace), nullptr, false);
-}
-
-struct Remote {
-  std::uint16_t port = free_port();
-  Process proc;
-  Remote(const std::filesystem::path& dir, std::vector<std::string> extra)
-      : proc(
-            [&] {
-              std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
-                                         "127.0.0.1:" + std::to_string(port), "--source",
-                                         "synthetic:plane"};
-              a.insert(a.end(), extra.begin(), extra.end());
-              return a;
-            }(),
-            dir / "remote.out", dir / "remote.err") {}
-  ~Remote() {
-    proc.signal(SIGINT);
-    proc.wait(5s);
-  }
-};
-
-std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::path& dir,
-                                    std::vector<std::string> extra) {
-  std::vector<std::string> a{built_binary("telex-local").string(),
-                             "--connect",
-                             "127.0.0.1:" + std::to_string(port),
-                             "--haptics",
-                             "sim",
-                             "--log-forces",
-                             (dir / "forces.csv").string(),
-                             "--json-summary",
-                             "--no-realtime",
-                             "--quiet",
-                             "--stale-limit",
-                             "1.0"};
-  a.insert(a.end(), extra.begin(), extra.end());
-  return a;
 }
 
 // Peak index-finger pressure in a --log-forces CSV (column 2).
@@ -134,9 +102,9 @@ TEST_P(SameKey, ForcesAreThoseOfAnUnkeyedRunAndNothingIsDropped) {
   const auto key = write_key(dir, "key", key_bytes(1), kOwnerRw);
   Remote remote(dir, {"--psk", key.string(), "--transport", transport});
   Process local(
-      local_args(remote.port, dir,
-                 {"--psk", key.string(), "--transport", transport, "--hand", "script:press",
-                  "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
+      quiet_local_args(remote.port, dir,
+                       {"--psk", key.string(), "--transport", transport, "--hand", "script:press",
+                        "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
       dir / "local.out", dir / "local.err");
   const auto rc = local.wait(40s);
   ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
@@ -177,7 +145,8 @@ TEST_P(KeyMismatch, NoSessionAMessageNamingTheFixAndCounters) {
   if (m.remote_key) remote_extra = {"--psk", k1.string()};
   if (m.local_key) local_extra.insert(local_extra.end(), {"--psk", k2.string()});
   Remote remote(dir, remote_extra);
-  Process local(local_args(remote.port, dir, local_extra), dir / "local.out", dir / "local.err");
+  Process local(quiet_local_args(remote.port, dir, local_extra), dir / "local.out",
+                dir / "local.err");
   const auto rc = local.wait(40s);
   ASSERT_TRUE(rc.has_value()) << "telex-local hung";
   EXPECT_NE(*rc, 0) << "a session without matching keys";
@@ -287,9 +256,9 @@ TEST(PskAttack, ReplayedHelloToAnIdleRemoteHoldsTheSlotOnlyUntilTheTimeout) {
            last_counter(remote.proc.stderr_text(), "auth-failed") >= 5;
   })) << remote.proc.stderr_text();
   close(fd);
-  Process local(local_args(remote.port, dir,
-                           {"--psk", key.string(), "--hand", "script:press", "--duration", "2",
-                            "--first-surface-timeout", "15"}),
+  Process local(quiet_local_args(remote.port, dir,
+                                 {"--psk", key.string(), "--hand", "script:press", "--duration",
+                                  "2", "--first-surface-timeout", "15"}),
                 dir / "local.out", dir / "local.err");
   const auto rc = local.wait(40s);
   ASSERT_TRUE(rc.has_value());
@@ -320,10 +289,10 @@ TEST(PskAttack, ForgedCorruptedAndReplayedTrafficIsDroppedAndCounted) {
                  "--seed", "11", "--json-summary"},
                 dir / "proxy.out", dir / "proxy.err");
   Process local(
-      local_args(remote.port, dir,
-                 {"--psk", key.string(), "--udp-port", std::to_string(udp_port),
-                  "--udp-announce-port", std::to_string(proxy_port), "--hand", "script:press",
-                  "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
+      quiet_local_args(remote.port, dir,
+                       {"--psk", key.string(), "--udp-port", std::to_string(udp_port),
+                        "--udp-announce-port", std::to_string(proxy_port), "--hand", "script:press",
+                        "--stiffness", "500", "--max-force", "10", "--duration", "7.5"}),
       dir / "local.out", dir / "local.err");
   // Start once the session is up, so the replayed Hello meets a busy remote.
   ASSERT_TRUE(

@@ -4,24 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include "stream_fixtures.h"
+
 namespace telex::local {
 namespace {
 
 constexpr std::int64_t kMs = 1'000'000;
 
-proto::StreamConfig small_config() {
-  proto::StreamConfig c;
-  c.width = 40;
-  c.height = 30;
-  c.tile_width = 20;
-  c.tile_height = 15;
-  c.grid_cols = 2;
-  c.grid_rows = 2;
-  c.fx = c.fy = 50;
-  c.cx = 19.5;
-  c.cy = 14.5;
-  return c;
-}
+proto::StreamConfig small_config() { return test::stream_config_2x2(); }
 
 cv::Mat1w ramp(int w, int h, int offset) {
   cv::Mat1w m(h, w);

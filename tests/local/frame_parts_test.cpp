@@ -6,6 +6,7 @@
 
 #include <algorithm>
 
+#include "stream_fixtures.h"
 #include "telex/local/frame_assembler.h"
 
 namespace telex::local {
@@ -13,19 +14,7 @@ namespace {
 
 constexpr std::int64_t kMs = 1'000'000;
 
-proto::StreamConfig config_2x2() {
-  proto::StreamConfig c;
-  c.width = 40;
-  c.height = 30;
-  c.tile_width = 20;
-  c.tile_height = 15;
-  c.grid_cols = 2;
-  c.grid_rows = 2;
-  c.fx = c.fy = 50;
-  c.cx = 19.5;
-  c.cy = 14.5;
-  return c;
-}
+proto::StreamConfig config_2x2() { return test::stream_config_2x2(); }
 
 cv::Mat1w level(std::uint16_t mm) { return cv::Mat1w(30, 40, mm); }
 

@@ -55,8 +55,11 @@ void expect_round_trip(const cv::Mat1w& img, Codec codec, int level = kDefaultZi
   ASSERT_EQ(cv::norm(img, out, cv::NORM_INF), 0.0) << codec_name(codec);
 }
 
-TEST(DepthCodec, RoundTripsEdgeCaseFrames) {
-  const int w = 97, h = 53;  // odd sizes exercise the edges of every loop
+// Every test below that takes a codec runs once per wire codec and names it when it fails
+// (CodecRoundTrip/...: Raw, Zip, Fast).
+class CodecRoundTrip : public ::testing::TestWithParam<Codec> {};
+
+std::vector<cv::Mat1w> edge_case_frames(int w, int h) {
   std::vector<cv::Mat1w> frames = {
       cv::Mat1w(h, w, std::uint16_t{0}),      // all holes
       cv::Mat1w(h, w, std::uint16_t{1234}),   // single value, no holes
@@ -78,9 +81,16 @@ TEST(DepthCodec, RoundTripsEdgeCaseFrames) {
   cv::Mat1w no_holes = structured_frame(w, h, 3);
   no_holes.setTo(500, no_holes == 0);
   frames.push_back(no_holes);
-  for (const auto& f : frames)
-    for (Codec c : kWireCodecs) expect_round_trip(f, c);
-  for (const auto& f : frames) {
+  return frames;
+}
+
+TEST_P(CodecRoundTrip, EdgeCaseFrames) {
+  for (const auto& f : edge_case_frames(97, 53)) expect_round_trip(f, GetParam());
+}
+
+TEST(DepthCodec, RvlReferenceRoundTripsEdgeCaseFrames) {
+  const int w = 97, h = 53;  // odd sizes exercise the edges of every loop
+  for (const auto& f : edge_case_frames(w, h)) {
     const auto bytes = rvl_ref_encode(f);
     cv::Mat1w out;
     ASSERT_EQ(rvl_ref_decode(bytes, w, h, out), DecodeStatus::Ok);
@@ -102,7 +112,10 @@ TEST(DepthCodec, RoundTripsWideTableGapsLargeStepsAndRiceParameters) {
       steps(y, x) = (x % 11 == 5) ? 0 : levels[static_cast<std::size_t>((x * 7 + y * 13) % 64)];
   const auto fast = encode_depth(steps, Codec::Fast);
   ASSERT_EQ(fast[0], 0x01) << "table, Rice k = 0";
-  for (Codec c : kWireCodecs) expect_round_trip(steps, c);
+  for (Codec c : kWireCodecs) {
+    SCOPED_TRACE(codec_name(c));
+    expect_round_trip(steps, c);
+  }
   for (int level : {0, 6}) expect_round_trip(steps, Codec::Zip, level);
 
   cv::Mat1w ramp(h, w);
@@ -112,7 +125,10 @@ TEST(DepthCodec, RoundTripsWideTableGapsLargeStepsAndRiceParameters) {
   const auto ramp_fast = encode_depth(ramp, Codec::Fast);
   EXPECT_EQ(ramp_fast[0] & 0x01, 0) << "no table";
   EXPECT_GT((ramp_fast[0] >> 1) & 0x0F, 0) << "Rice k above 0";
-  for (Codec c : kWireCodecs) expect_round_trip(ramp, c);
+  for (Codec c : kWireCodecs) {
+    SCOPED_TRACE(codec_name(c));
+    expect_round_trip(ramp, c);
+  }
 
   // No proper prefix of either stream decodes.
   for (const cv::Mat1w* f : {&steps, &ramp}) {
@@ -133,7 +149,7 @@ TEST(DepthCodec, RoundTripsEveryZipLevel) {
   EXPECT_THROW(encode_depth(f, Codec::Zip, 10), std::invalid_argument);
 }
 
-TEST(DepthCodec, RoundTripsTileSizesFromOnePixelUp) {
+TEST_P(CodecRoundTrip, TileSizesFromOnePixelUp) {
   const cv::Mat1w frame = structured_frame(128, 96, 5);
   const cv::Mat1w noise = noise_frame(128, 96, 6);
   // Every size 1..16 on both axes, then a sparse sample up to the whole frame.
@@ -143,49 +159,47 @@ TEST(DepthCodec, RoundTripsTileSizesFromOnePixelUp) {
   for (int tw : sizes) {
     for (int th : sizes) {
       const cv::Rect r((tw * 7) % (128 - tw + 1), (th * 5) % (96 - th + 1), tw, th);
-      for (Codec c : kWireCodecs) {
-        expect_round_trip(frame(r), c);
-        expect_round_trip(noise(r), c);
-      }
+      expect_round_trip(frame(r), GetParam());
+      expect_round_trip(noise(r), GetParam());
     }
   }
 }
 
-TEST(DepthCodec, TileGridCoversTheFrameAndEachTileDecodesAlone) {
+TEST_P(CodecRoundTrip, TileGridCoversTheFrameAndEachTileDecodesAlone) {
+  const Codec c = GetParam();
   const cv::Mat1w frame = structured_frame(203, 157, 7);  // not a multiple of the tile size
   const TileGrid grid{203, 157, 40, 30};
   ASSERT_TRUE(grid.valid());
   EXPECT_EQ(grid.cols(), 6);
   EXPECT_EQ(grid.rows(), 6);
-  for (Codec c : kWireCodecs) {
-    const auto tiles = encode_tiles(frame, grid, c);
-    ASSERT_EQ(tiles.size(), 36u);
-    cv::Mat1w out(157, 203, std::uint16_t{9});
-    // Decode in reverse order: no tile depends on another.
-    for (auto it = tiles.rbegin(); it != tiles.rend(); ++it)
-      ASSERT_EQ(decode_tile_into(it->bytes, grid, it->index, c, out), DecodeStatus::Ok);
-    EXPECT_EQ(cv::norm(frame, out, cv::NORM_INF), 0.0) << codec_name(c);
-  }
+  const auto tiles = encode_tiles(frame, grid, c);
+  ASSERT_EQ(tiles.size(), 36u);
+  cv::Mat1w decoded(157, 203, std::uint16_t{9});
+  // Decode in reverse order: no tile depends on another.
+  for (auto it = tiles.rbegin(); it != tiles.rend(); ++it)
+    ASSERT_EQ(decode_tile_into(it->bytes, grid, it->index, c, decoded), DecodeStatus::Ok);
+  EXPECT_EQ(cv::norm(frame, decoded, cv::NORM_INF), 0.0);
   cv::Mat1w out(157, 203);
   EXPECT_EQ(decode_tile_into({}, grid, 36, Codec::Zip, out), DecodeStatus::BadGeometry);
 }
 
-TEST(DepthCodec, RejectsTruncatedAndOversizedStreams) {
+TEST_P(CodecRoundTrip, RejectsTruncatedAndOversizedStreams) {
+  const Codec c = GetParam();
   const cv::Mat1w f = structured_frame(80, 60, 8);
-  for (Codec c : kWireCodecs) {
-    const auto bytes = encode_depth(f, c);
-    cv::Mat1w out;
-    for (std::size_t cut : {std::size_t{0}, std::size_t{1}, bytes.size() / 2, bytes.size() - 1}) {
-      const std::span<const std::uint8_t> part(bytes.data(), cut);
-      EXPECT_NE(decode_depth(part, 80, 60, c, out), DecodeStatus::Ok)
-          << codec_name(c) << " cut at " << cut;
-    }
-    // The same bytes claimed for a smaller tile must not decode either.
-    EXPECT_NE(decode_depth(bytes, 40, 60, c, out), DecodeStatus::Ok) << codec_name(c);
-    auto longer = bytes;
-    longer.push_back(0);
-    EXPECT_NE(decode_depth(longer, 80, 60, c, out), DecodeStatus::Ok) << codec_name(c);
+  const auto bytes = encode_depth(f, c);
+  cv::Mat1w out;
+  for (std::size_t cut : {std::size_t{0}, std::size_t{1}, bytes.size() / 2, bytes.size() - 1}) {
+    const std::span<const std::uint8_t> part(bytes.data(), cut);
+    EXPECT_NE(decode_depth(part, 80, 60, c, out), DecodeStatus::Ok) << "cut at " << cut;
   }
+  // The same bytes claimed for a smaller tile must not decode either.
+  EXPECT_NE(decode_depth(bytes, 40, 60, c, out), DecodeStatus::Ok);
+  auto longer = bytes;
+  longer.push_back(0);
+  EXPECT_NE(decode_depth(longer, 80, 60, c, out), DecodeStatus::Ok);
+}
+
+TEST(DepthCodec, RejectsBadGeometryAndUnknownCodecs) {
   cv::Mat1w out;
   EXPECT_EQ(decode_depth({}, 0, 10, Codec::Zip, out), DecodeStatus::BadGeometry);
   EXPECT_EQ(decode_depth({}, 10, 10, static_cast<Codec>(7), out), DecodeStatus::UnknownCodec);
@@ -233,7 +247,8 @@ TEST(DepthCodec, PredictiveCodecsCompressStructuredDepth) {
   EXPECT_LT(fast, rvl);
 }
 
-TEST(DepthCodec, RoundTripsEverySyntheticSceneWithSensorNoise) {
+TEST_P(CodecRoundTrip, EverySyntheticSceneWithSensorNoiseWholeAndTiled) {
+  const Codec c = GetParam();
   const Intrinsics intr = kinect_v1_intrinsics(320, 240);
   for (const std::string& name : synth::Scene::names()) {
     const synth::Scene scene = synth::Scene::named(name);
@@ -241,36 +256,48 @@ TEST(DepthCodec, RoundTripsEverySyntheticSceneWithSensorNoise) {
       const cv::Mat1w d =
           synth::render(scene.at_time(0.1 * frame), intr, synth::SensorModel{}, frame)
               .depth.depth_mm;
-      for (Codec c : kWireCodecs) expect_round_trip(d, c);
+      expect_round_trip(d, c);
       const TileGrid grid{d.cols, d.rows, 80, 60};
       cv::Mat1w out(d.rows, d.cols, std::uint16_t{0});
-      for (const auto& t : encode_tiles(d, grid, Codec::Zip))
-        ASSERT_EQ(decode_tile_into(t.bytes, grid, t.index, Codec::Zip, out), DecodeStatus::Ok);
+      for (const auto& t : encode_tiles(d, grid, c))
+        ASSERT_EQ(decode_tile_into(t.bytes, grid, t.index, c, out), DecodeStatus::Ok);
       EXPECT_EQ(cv::norm(d, out, cv::NORM_INF), 0.0) << name;
     }
   }
 }
 
-TEST(DepthCodec, RoundTripsRealFrames) {
+TEST_P(CodecRoundTrip, RealFramesWholeAndTiled) {
+  TELEX_REQUIRE_REAL_DATA();
+  const Codec c = GetParam();
+  for (int i = 0; i < 3; ++i) {
+    const auto path =
+        test::real_data_dir() / "desk" / ("desk_" + std::to_string(i) + "_depth_mm.png");
+    const cv::Mat1w f = load_depth(path, DepthUnits::Millimetres).depth_mm;
+    ASSERT_FALSE(f.empty()) << path;
+    expect_round_trip(f, c);
+    const TileGrid grid{f.cols, f.rows, 80, 60};
+    cv::Mat1w out(f.rows, f.cols, std::uint16_t{0});
+    for (const auto& t : encode_tiles(f, grid, c))
+      ASSERT_EQ(decode_tile_into(t.bytes, grid, t.index, c, out), DecodeStatus::Ok);
+    EXPECT_EQ(cv::norm(f, out, cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(DepthCodec, RvlReferenceRoundTripsRealFrames) {
   TELEX_REQUIRE_REAL_DATA();
   for (int i = 0; i < 3; ++i) {
     const auto path =
         test::real_data_dir() / "desk" / ("desk_" + std::to_string(i) + "_depth_mm.png");
     const cv::Mat1w f = load_depth(path, DepthUnits::Millimetres).depth_mm;
     ASSERT_FALSE(f.empty()) << path;
-    for (Codec c : kWireCodecs) expect_round_trip(f, c);
-    const TileGrid grid{f.cols, f.rows, 80, 60};
-    for (Codec c : {Codec::Zip, Codec::Fast}) {
-      cv::Mat1w out(f.rows, f.cols, std::uint16_t{0});
-      for (const auto& t : encode_tiles(f, grid, c))
-        ASSERT_EQ(decode_tile_into(t.bytes, grid, t.index, c, out), DecodeStatus::Ok);
-      EXPECT_EQ(cv::norm(f, out, cv::NORM_INF), 0.0);
-    }
     cv::Mat1w out;
     ASSERT_EQ(rvl_ref_decode(rvl_ref_encode(f), f.cols, f.rows, out), DecodeStatus::Ok);
     EXPECT_EQ(cv::norm(f, out, cv::NORM_INF), 0.0);
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Codecs, CodecRoundTrip, ::testing::ValuesIn(kWireCodecs),
+                         [](const auto& info) { return std::string(codec_name(info.param)); });
 
 }  // namespace
 }  // namespace telex::proto

@@ -9,20 +9,15 @@
 #include <cstdio>
 #include <random>
 
+#include "depth_error.h"
 #include "flags.h"
+#include "remote_frames.h"
 #include "telex/common/synthetic.h"
 
 namespace telex::remote {
 namespace {
 
-DepthFrame frame_of(const cv::Mat1w& depth, std::uint64_t id) {
-  DepthFrame f;
-  f.image.depth_mm = depth;
-  f.image.intrinsics = kinect_v1_intrinsics(depth.cols, depth.rows);
-  f.frame_id = id;
-  f.capture_ns = static_cast<std::int64_t>(id) * 33'333'333;
-  return f;
-}
+using test::frame_of;
 
 PipelineConfig no_fill_config() {
   PipelineConfig c;
@@ -130,32 +125,6 @@ namespace {
 const Intrinsics kEyeK{580.0, 580.0, 322.0, 236.0, 640, 480};
 const glm::dvec3 kEyeCentre_m(0.025, 0.0, 0.0);
 
-struct RegError {
-  double median_mm = 0, p90_mm = 0, coverage = 0;
-  double over_10mm = 0;  // fraction of compared pixels off by more than 10 mm (misplaced edges)
-};
-
-RegError compare_with_truth(const cv::Mat1w& estimate, const cv::Mat1f& truth_m) {
-  std::vector<double> err;
-  int truth_valid = 0;
-  for (int v = 0; v < truth_m.rows; ++v)
-    for (int u = 0; u < truth_m.cols; ++u) {
-      if (!(truth_m(v, u) > 0)) continue;
-      ++truth_valid;
-      if (estimate(v, u) == 0) continue;
-      err.push_back(std::abs(estimate(v, u) - truth_m(v, u) * 1000.0));
-    }
-  RegError e;
-  if (err.empty()) return e;
-  std::sort(err.begin(), err.end());
-  e.median_mm = err[err.size() / 2];
-  e.p90_mm = err[err.size() * 9 / 10];
-  e.coverage = static_cast<double>(err.size()) / truth_valid;
-  e.over_10mm =
-      static_cast<double>(err.end() - std::upper_bound(err.begin(), err.end(), 10.0)) / err.size();
-  return e;
-}
-
 PipelineConfig registering(RegisterMode mode, double nominal_m = 1.0) {
   PipelineConfig c;
   c.registration = parse_registration(register_mode_name(mode), "0.025,0,0", "0,0,0",
@@ -188,7 +157,7 @@ TEST(PipelineRegistration, FullMatchesTheSceneSeenFromTheEye) {
     EXPECT_EQ(out.intrinsics, kEyeK);
     ASSERT_EQ(out.sent_view_mm.size(), truth.true_depth_m.size());
     EXPECT_EQ(out.grid.frame_width, 640);
-    const RegError e = compare_with_truth(out.sent_view_mm, truth.true_depth_m);
+    const test::DepthError e = test::compare_depth(out.sent_view_mm, truth.true_depth_m);
     std::printf("[ pipeline full ] %-7s median %.2f mm, p90 %.2f mm, coverage %.3f\n", name,
                 e.median_mm, e.p90_mm, e.coverage);
     EXPECT_LT(e.median_mm, 2.0);
@@ -197,7 +166,7 @@ TEST(PipelineRegistration, FullMatchesTheSceneSeenFromTheEye) {
     // pixels misplaced by more than 10 mm. The stage did the work.
     const ProcessedFrame raw = through_pipeline(scene, registering(RegisterMode::None));
     EXPECT_EQ(raw.intrinsics, kinect_v1_intrinsics());
-    const RegError unregistered = compare_with_truth(raw.sent_view_mm, truth.true_depth_m);
+    const test::DepthError unregistered = test::compare_depth(raw.sent_view_mm, truth.true_depth_m);
     std::printf("[ pipeline none ] %-7s >10 mm %.2f %% (registered %.2f %%)\n", name,
                 100 * unregistered.over_10mm, 100 * e.over_10mm);
     EXPECT_GT(unregistered.over_10mm, 2.0 * e.over_10mm + 0.005);
@@ -210,7 +179,7 @@ TEST(PipelineRegistration, ShiftIsExactAtItsNominalDepthOnly) {
   at_nominal.add_plane({0, 0, 1}, 1.2);
   const synth::Rendered truth =
       synth::render_from(at_nominal, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
-  const RegError exact = compare_with_truth(
+  const test::DepthError exact = test::compare_depth(
       through_pipeline(at_nominal, registering(RegisterMode::Shift, 1.2)).sent_view_mm,
       truth.true_depth_m);
   EXPECT_LT(exact.median_mm, 1.0);
@@ -220,12 +189,12 @@ TEST(PipelineRegistration, ShiftIsExactAtItsNominalDepthOnly) {
   const synth::Scene desk = synth::Scene::named("desk");
   const synth::Rendered desk_truth =
       synth::render_from(desk, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
-  const RegError shift =
-      compare_with_truth(through_pipeline(desk, registering(RegisterMode::Shift, 0.8)).sent_view_mm,
-                         desk_truth.true_depth_m);
-  const RegError full =
-      compare_with_truth(through_pipeline(desk, registering(RegisterMode::Full)).sent_view_mm,
-                         desk_truth.true_depth_m);
+  const test::DepthError shift = test::compare_depth(
+      through_pipeline(desk, registering(RegisterMode::Shift, 0.8)).sent_view_mm,
+      desk_truth.true_depth_m);
+  const test::DepthError full =
+      test::compare_depth(through_pipeline(desk, registering(RegisterMode::Full)).sent_view_mm,
+                          desk_truth.true_depth_m);
   std::printf("[ pipeline desk ] shift@0.8 p90 %.2f mm, full p90 %.2f mm\n", shift.p90_mm,
               full.p90_mm);
   EXPECT_GT(shift.p90_mm, full.p90_mm);

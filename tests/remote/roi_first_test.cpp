@@ -7,20 +7,14 @@
 #include <algorithm>
 #include <random>
 
+#include "remote_frames.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/remote/pipeline.h"
 
 namespace telex::remote {
 namespace {
 
-DepthFrame frame_of(const cv::Mat1w& depth, std::uint64_t id) {
-  DepthFrame f;
-  f.image.depth_mm = depth;
-  f.image.intrinsics = kinect_v1_intrinsics(depth.cols, depth.rows);
-  f.frame_id = id;
-  f.capture_ns = static_cast<std::int64_t>(id) * 33'333'333;
-  return f;
-}
+using test::frame_of;
 
 // A tilted surface with noise and holes of several sizes: the spatial fill needs several passes
 // and reaches across tile borders.

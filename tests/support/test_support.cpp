@@ -16,4 +16,12 @@ std::filesystem::path built_binary(const std::string& name) {
   return p;
 }
 
+std::string missing_binaries(std::initializer_list<const char*> names) {
+  std::string missing;
+  for (const char* n : names)
+    if (!std::filesystem::exists(built_binary(n)))
+      missing += (missing.empty() ? "" : ", ") + std::string(n);
+  return missing;
+}
+
 }  // namespace telex::test

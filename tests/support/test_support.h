@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 
 namespace telex::test {
@@ -10,15 +11,29 @@ namespace telex::test {
 // Directory ../shared/data/real beside the clone, or empty when this clone has none.
 std::filesystem::path real_data_dir();
 
-// Skips the calling test with a clear message when the shared real frames are absent.
-#define TELEX_REQUIRE_REAL_DATA()                                                              \
-  do {                                                                                         \
-    if (::telex::test::real_data_dir().empty())                                                \
-      GTEST_SKIP() << "shared real frames not found at " TELEX_SHARED_DIR                      \
-                      "/data/real (present in CI beside the clone; absent in a user's clone)"; \
-  } while (0)
-
 // Path of a binary built by this project (telex, telex-remote, telex-local, ...).
 std::filesystem::path built_binary(const std::string& name);
+
+// The names among `names` that this tree has not built, comma-separated ("" when all are).
+std::string missing_binaries(std::initializer_list<const char*> names);
+
+// The one way a test skips: with the reason it gives, when `condition` does not hold.
+#define TELEX_SKIP_UNLESS(condition, reason)  \
+  do {                                        \
+    if (!(condition)) GTEST_SKIP() << reason; \
+  } while (0)
+
+// Skips when the shared real frames are absent (present in CI beside the clone, absent in a
+// user's).
+#define TELEX_REQUIRE_REAL_DATA()                                                     \
+  TELEX_SKIP_UNLESS(!::telex::test::real_data_dir().empty(),                          \
+                    "shared real frames not found at " TELEX_SHARED_DIR               \
+                    "/data/real (present in CI beside the clone; absent in a user's " \
+                    "clone)")
+
+// Skips when one of the named binaries was not built in this tree.
+#define TELEX_REQUIRE_BINARIES(...)                                         \
+  TELEX_SKIP_UNLESS(::telex::test::missing_binaries({__VA_ARGS__}).empty(), \
+                    "not built in this tree: " << ::telex::test::missing_binaries({__VA_ARGS__}))
 
 }  // namespace telex::test
