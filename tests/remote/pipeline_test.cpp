@@ -147,31 +147,35 @@ ProcessedFrame through_pipeline(const synth::Scene& scene, const PipelineConfig&
   return p.process(f, req);
 }
 
-TEST(PipelineRegistration, FullMatchesTheSceneSeenFromTheEye) {
-  for (const char* name : {"desk", "box", "sphere", "tilted", "stairs"}) {
-    SCOPED_TRACE(name);
-    const synth::Scene scene = synth::Scene::named(name);
-    const ProcessedFrame out = through_pipeline(scene, registering(RegisterMode::Full));
-    const synth::Rendered truth =
-        synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
-    EXPECT_EQ(out.intrinsics, kEyeK);
-    ASSERT_EQ(out.sent_view_mm.size(), truth.true_depth_m.size());
-    EXPECT_EQ(out.grid.frame_width, 640);
-    const test::DepthError e = test::compare_depth(out.sent_view_mm, truth.true_depth_m);
-    std::printf("[ pipeline full ] %-7s median %.2f mm, p90 %.2f mm, coverage %.3f\n", name,
-                e.median_mm, e.p90_mm, e.coverage);
-    EXPECT_LT(e.median_mm, 2.0);
-    EXPECT_GT(e.coverage, 0.97);
-    // Unregistered, the same frame has its edges where the depth camera saw them: many more
-    // pixels misplaced by more than 10 mm. The stage did the work.
-    const ProcessedFrame raw = through_pipeline(scene, registering(RegisterMode::None));
-    EXPECT_EQ(raw.intrinsics, kinect_v1_intrinsics());
-    const test::DepthError unregistered = test::compare_depth(raw.sent_view_mm, truth.true_depth_m);
-    std::printf("[ pipeline none ] %-7s >10 mm %.2f %% (registered %.2f %%)\n", name,
-                100 * unregistered.over_10mm, 100 * e.over_10mm);
-    EXPECT_GT(unregistered.over_10mm, 2.0 * e.over_10mm + 0.005);
-  }
+class PipelineRegistrationScene : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(PipelineRegistrationScene, FullMatchesTheSceneSeenFromTheEye) {
+  const char* name = GetParam();
+  const synth::Scene scene = synth::Scene::named(name);
+  const ProcessedFrame out = through_pipeline(scene, registering(RegisterMode::Full));
+  const synth::Rendered truth =
+      synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
+  EXPECT_EQ(out.intrinsics, kEyeK);
+  ASSERT_EQ(out.sent_view_mm.size(), truth.true_depth_m.size());
+  EXPECT_EQ(out.grid.frame_width, 640);
+  const test::DepthError e = test::compare_depth(out.sent_view_mm, truth.true_depth_m);
+  std::printf("[ pipeline full ] %-7s median %.2f mm, p90 %.2f mm, coverage %.3f\n", name,
+              e.median_mm, e.p90_mm, e.coverage);
+  EXPECT_LT(e.median_mm, 2.0);
+  EXPECT_GT(e.coverage, 0.97);
+  // Unregistered, the same frame has its edges where the depth camera saw them: many more
+  // pixels misplaced by more than 10 mm. The stage did the work.
+  const ProcessedFrame raw = through_pipeline(scene, registering(RegisterMode::None));
+  EXPECT_EQ(raw.intrinsics, kinect_v1_intrinsics());
+  const test::DepthError unregistered = test::compare_depth(raw.sent_view_mm, truth.true_depth_m);
+  std::printf("[ pipeline none ] %-7s >10 mm %.2f %% (registered %.2f %%)\n", name,
+              100 * unregistered.over_10mm, 100 * e.over_10mm);
+  EXPECT_GT(unregistered.over_10mm, 2.0 * e.over_10mm + 0.005);
 }
+
+INSTANTIATE_TEST_SUITE_P(Scenes, PipelineRegistrationScene,
+                         ::testing::Values("desk", "box", "sphere", "tilted", "stairs"),
+                         [](const auto& info) { return std::string(info.param); });
 
 TEST(PipelineRegistration, ShiftIsExactAtItsNominalDepthOnly) {
   // A fronto-parallel plane at the nominal depth: shift+scale is exact there.
