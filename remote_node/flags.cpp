@@ -66,8 +66,8 @@ RegistrationConfig parse_registration(std::string_view mode, std::string_view ey
   // point p is at R^T (p - C) in the eye's frame.
   const glm::dmat3 r = rz * ry * rx;
   const glm::dvec3 c_m(centre[0], centre[1], centre[2]);
-  c.eye_from_depth.rotation = glm::transpose(r);
-  c.eye_from_depth.translation_m = -(glm::transpose(r) * c_m);
+  c.X_EyeDepth.rotation = glm::transpose(r);
+  c.X_EyeDepth.translation_m = -(glm::transpose(r) * c_m);
   if (!eye.empty()) {
     const auto e = parse_numbers(eye, 6, "--register-eye", "FX,FY,CX,CY,W,H in pixels");
     if (!(e[0] > 0 && e[1] > 0 && e[4] >= 1 && e[5] >= 1 && e[4] <= 8192 && e[5] <= 8192 &&

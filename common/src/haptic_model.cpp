@@ -401,7 +401,7 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
     Finger& f = fingers_[i];
     const FingertipInput& fin = in[i];
     FingertipForce& fo = out[i];
-    const bool finite = finite3(fin.p_camera) && finite3(fin.axis_camera);
+    const bool finite = finite3(fin.p_CameraFingertip) && finite3(fin.axis_Camera);
     if (!finite) ++counters_.nonfinite_inputs;
     bool sample_fresh = true;
     if (fin.sample_ns != FingertipInput::kUnknownTime) {
@@ -410,8 +410,9 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
       sample_fresh = std::abs(age_s) <= params_.stale_limit_s;
       if (!sample_fresh) ++counters_.stale_tracking;
     }
-    const bool tracked = fin.tracked && finite && sample_fresh && std::abs(fin.p_camera.x) < 1e3 &&
-                         std::abs(fin.p_camera.y) < 1e3 && std::abs(fin.p_camera.z) < 1e3;
+    const bool tracked =
+        fin.tracked && finite && sample_fresh && std::abs(fin.p_CameraFingertip.x) < 1e3 &&
+        std::abs(fin.p_CameraFingertip.y) < 1e3 && std::abs(fin.p_CameraFingertip.z) < 1e3;
 
     const double target = (tracked && fresh) ? 1.0 : 0.0;
     if (target > f.gain) {
@@ -431,12 +432,12 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
       f.contact = false;
     } else if (current_ == nullptr) {
       f.status = FingertipStatus::NoSurface;
-      f.proxy = fin.p_camera;
+      f.proxy = fin.p_CameraFingertip;
       f.has_proxy = false;
       f.contact = false;
       f.raw_force = glm::dvec3(0.0);
     } else {
-      const glm::dvec3& x = fin.p_camera;
+      const glm::dvec3& x = fin.p_CameraFingertip;
       update_proxy(f, view, x, dt_s);
       if (!fresh) {
         f.status = FingertipStatus::StaleSurface;
@@ -524,7 +525,7 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
     const double fn = glm::dot(force, n);
     fo.normal_force_N = std::max(0.0, fn);
     fo.tangential_force_N = force - fn * n;
-    glm::dvec3 axis = fin.axis_camera - glm::dot(fin.axis_camera, n) * n;
+    glm::dvec3 axis = fin.axis_Camera - glm::dot(fin.axis_Camera, n) * n;
     const double axis_len = finite ? glm::length(axis) : 0.0;
     fo.shear_along_axis_N =
         axis_len > 1e-9 ? glm::dot(fo.tangential_force_N, axis / axis_len) : 0.0;

@@ -21,7 +21,7 @@ constexpr double kPi = std::numbers::pi;
 
 inline double deg(double d) { return d * kPi / 180.0; }
 
-// Camera pitched down by `a` rad: p_camera = R * p_world, world y down, z forward and level.
+// Camera pitched down by `a` rad: p_CameraHit = R * p_WorldQ, world y down, z forward and level.
 inline glm::dmat3 pitch_down(double a) {
   glm::dmat3 r(1.0);
   const double c = std::cos(a), s = std::sin(a);

@@ -78,7 +78,7 @@ bool Scene::cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t 
   if (kind < 0) return false;
 
   hit.t_m = best;
-  hit.p_camera = o + best * d;
+  hit.p_CameraHit = o + best * d;
   switch (kind) {
     case 0: {
       const Plane& p = planes_[index];
@@ -88,13 +88,13 @@ bool Scene::cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t 
     }
     case 1: {
       const Sphere& s = spheres_[index];
-      hit.normal_camera = (hit.p_camera - s.c) / s.r;
+      hit.normal_camera = (hit.p_CameraHit - s.c) / s.r;
       hit.object_id = s.id;
       break;
     }
     case 2: {
       const Box& b = boxes_[index];
-      const glm::dvec3 q = to_local(b.rot, hit.p_camera - b.c);
+      const glm::dvec3 q = to_local(b.rot, hit.p_CameraHit - b.c);
       int axis = 0;
       double most = -1;
       for (int i = 0; i < 3; ++i) {
@@ -107,7 +107,7 @@ bool Scene::cast_masked(const glm::dvec3& o, const glm::dvec3& d, std::uint64_t 
     }
     default: {
       const Cylinder& c = cylinders_[index];
-      const glm::dvec3 q = hit.p_camera - c.c;
+      const glm::dvec3 q = hit.p_CameraHit - c.c;
       const double qa = glm::dot(q, c.axis);
       const glm::dvec3 radial = q - qa * c.axis;
       // The face the hit lies closest to, in units of each face's extent.

@@ -68,13 +68,13 @@ struct ColumnSpan {
 // Casts the rays of single pixels of one scene, one camera and its projector.
 class PixelCaster {
  public:
-  PixelCaster(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
+  PixelCaster(const Scene& scene, const Intrinsics& intr, const glm::dvec3& p_CameraViewpoint,
               const SensorModel& sensor)
       : scene_(scene),
         intr_(intr),
-        t_cam_(t_cam_m),
+        t_cam_(p_CameraViewpoint),
         sensor_(sensor),
-        projector_(t_cam_m + glm::dvec3(sensor.baseline_m, 0, 0)),
+        projector_(p_CameraViewpoint + glm::dvec3(sensor.baseline_m, 0, 0)),
         row_mask_(intr.height, ~std::uint64_t{0}),
         col_mask_(intr.width, ~std::uint64_t{0}),
         projector_rows_(intr.height),
@@ -116,7 +116,7 @@ class PixelCaster {
     g.id(v, u) = hit.object_id;
     g.theta_rad(v, u) = static_cast<float>(theta_from_cos(-glm::dot(n, dir)));
     if (!sensor_.shadow_holes) return;
-    const glm::dvec3 to = hit.p_camera - projector_;
+    const glm::dvec3 to = hit.p_CameraHit - projector_;
     const double dist = glm::length(to);
     // Every object is convex or a plane, so it shadows itself exactly when it faces away from
     // the projector, and only the other objects need a shadow ray.
@@ -235,11 +235,12 @@ Rendered render(const Scene& scene, const Intrinsics& intr, const SensorModel& s
   return render_from(scene, intr, glm::dvec3(0.0), sensor, frame_index);
 }
 
-Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
-                     const SensorModel& sensor, std::uint64_t frame_index) {
+Rendered render_from(const Scene& scene, const Intrinsics& intr,
+                     const glm::dvec3& p_CameraViewpoint, const SensorModel& sensor,
+                     std::uint64_t frame_index) {
   check_render_inputs(intr, sensor);
   Geometry g = allocate_geometry(intr.width, intr.height);
-  cast_all(PixelCaster(scene, intr, t_cam_m, sensor), g);
+  cast_all(PixelCaster(scene, intr, p_CameraViewpoint, sensor), g);
   Rendered out;
   out.depth.depth_mm = apply_sensor(g, sensor, frame_index);
   out.depth.intrinsics = intr;
@@ -251,14 +252,15 @@ Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec
 
 // ---- Incremental renderer ----------------------------------------------------------------------
 
-Renderer::Renderer(const Intrinsics& intr, const SensorModel& sensor, const glm::dvec3& t_cam_m)
-    : intr_(intr), sensor_(sensor), t_cam_m_(t_cam_m) {
+Renderer::Renderer(const Intrinsics& intr, const SensorModel& sensor,
+                   const glm::dvec3& p_CameraViewpoint)
+    : intr_(intr), sensor_(sensor), p_CameraViewpoint_(p_CameraViewpoint) {
   check_render_inputs(intr, sensor);
 }
 
 Rendered Renderer::render(const Scene& scene, std::uint64_t frame_index) {
   const int w = intr_.width, h = intr_.height;
-  const PixelCaster caster(scene, intr_, t_cam_m_, sensor_);
+  const PixelCaster caster(scene, intr_, p_CameraViewpoint_, sensor_);
   std::optional<std::vector<int>> moved;
   if (previous_) moved = scene.moved_since(*previous_);
 
@@ -266,11 +268,11 @@ Rendered Renderer::render(const Scene& scene, std::uint64_t frame_index) {
   std::vector<PixelRect> camera_rects, projector_rects;
   bool full = !moved.has_value();
   if (!full) {
-    const glm::dvec3 projector = t_cam_m_ + glm::dvec3(sensor_.baseline_m, 0, 0);
+    const glm::dvec3 projector = p_CameraViewpoint_ + glm::dvec3(sensor_.baseline_m, 0, 0);
     for (const Scene* s : {static_cast<const Scene*>(&*previous_), &scene})
       for (const auto& b : s->finite_bounds()) {
         if (std::find(moved->begin(), moved->end(), b.id) == moved->end()) continue;
-        const auto rc = project_bound(b.corners, t_cam_m_, intr_);
+        const auto rc = project_bound(b.corners, p_CameraViewpoint_, intr_);
         const auto rp = project_bound(b.corners, projector, intr_);
         if (!rc || !rp) full = true;  // reaches behind a viewpoint: no bound, cast everything
         if (rc) camera_rects.push_back(*rc);

@@ -32,10 +32,10 @@ namespace {
 glm::dvec3 mirror(const glm::dvec3& v, bool left) { return left ? glm::dvec3{v.x, v.y, -v.z} : v; }
 }  // namespace
 
-HandPoints hand_forward(const HandModelConfig& config, const Pose& wrist_world,
+HandPoints hand_forward(const HandModelConfig& config, const Pose& X_WorldWrist,
                         std::span<const double, 5> bend) {
   HandPoints out;
-  out.wrist = wrist_world.p_m;
+  out.wrist = X_WorldWrist.p_m;
   for (int i = 0; i < 5; ++i) {
     const FingerGeometry& g = config.fingers[i];
     const glm::dvec3 dir0 = glm::normalize(mirror(g.dir_hand, config.left));
@@ -47,40 +47,40 @@ HandPoints hand_forward(const HandModelConfig& config, const Pose& wrist_world,
     glm::dvec3 p = mirror(g.base_hand_m, config.left);
     glm::dvec3 dir = dir0;
     double angle = 0.0;
-    out.joints[i][0] = wrist_world.p_m + wrist_world.q * p;
+    out.joints[i][0] = X_WorldWrist.p_m + X_WorldWrist.q * p;
     for (int s = 0; s < 3; ++s) {
       angle += b * g.max_angle_rad[s];
       dir = axis_len > 1e-9 ? glm::angleAxis(angle, axis) * dir0 : dir0;
       p += dir * g.segment_m[s];
-      out.joints[i][s + 1] = wrist_world.p_m + wrist_world.q * p;
+      out.joints[i][s + 1] = X_WorldWrist.p_m + X_WorldWrist.q * p;
     }
-    out.axis[i] = glm::normalize(wrist_world.q * dir);
+    out.axis[i] = glm::normalize(X_WorldWrist.q * dir);
   }
   return out;
 }
 
-glm::dvec3 world_to_camera(const HandModelConfig& config, const Pose& head_world,
-                           const glm::dvec3& p_world) {
-  const glm::dvec3 p_head = glm::inverse(head_world.q) * (p_world - head_world.p_m);
-  return config.R_camera_head * (p_head - config.camera_in_head_m);
+glm::dvec3 world_to_camera(const HandModelConfig& config, const Pose& X_WorldHead,
+                           const glm::dvec3& p_WorldQ) {
+  const glm::dvec3 p_head = glm::inverse(X_WorldHead.q) * (p_WorldQ - X_WorldHead.p_m);
+  return config.R_CameraHead * (p_head - config.p_HeadCamera);
 }
 
-glm::dvec3 world_dir_to_camera(const HandModelConfig& config, const Pose& head_world,
-                               const glm::dvec3& d_world) {
-  return config.R_camera_head * (glm::inverse(head_world.q) * d_world);
+glm::dvec3 world_dir_to_camera(const HandModelConfig& config, const Pose& X_WorldHead,
+                               const glm::dvec3& dir_World) {
+  return config.R_CameraHead * (glm::inverse(X_WorldHead.q) * dir_World);
 }
 
-void fill_hand_state(const HandModelConfig& config, const Pose& head_world, const HandPoints& hand,
+void fill_hand_state(const HandModelConfig& config, const Pose& X_WorldHead, const HandPoints& hand,
                      std::int64_t time_ns, HandState& out) {
   out.time_ns = time_ns;
-  out.wrist_camera = world_to_camera(config, head_world, hand.wrist);
+  out.wrist_camera = world_to_camera(config, X_WorldHead, hand.wrist);
   for (int i = 0; i < kFingerCount; ++i) {
     for (int j = 0; j < 4; ++j)
-      out.joints_camera[i][j] = world_to_camera(config, head_world, hand.joints[i][j]);
+      out.joints_camera[i][j] = world_to_camera(config, X_WorldHead, hand.joints[i][j]);
     Fingertip& tip = out.tips[i];
     tip.finger = i;
-    tip.p_camera_m = out.joints_camera[i][3];
-    tip.axis_camera = world_dir_to_camera(config, head_world, hand.axis[i]);
+    tip.p_CameraFingertip = out.joints_camera[i][3];
+    tip.axis_Camera = world_dir_to_camera(config, X_WorldHead, hand.axis[i]);
     tip.valid = true;
   }
   out.skeleton_valid = true;
@@ -91,9 +91,9 @@ void update_velocities(const HandState& previous, HandState& current) {
   for (int i = 0; i < kFingerCount; ++i) {
     Fingertip& tip = current.tips[i];
     const Fingertip& old = previous.tips[i];
-    tip.v_camera_mps = (tip.valid && old.valid && dt_s > 0.0)
-                           ? (tip.p_camera_m - old.p_camera_m) / dt_s
-                           : glm::dvec3{0.0};
+    tip.v_CameraFingertip = (tip.valid && old.valid && dt_s > 0.0)
+                                ? (tip.p_CameraFingertip - old.p_CameraFingertip) / dt_s
+                                : glm::dvec3{0.0};
   }
 }
 

@@ -18,11 +18,11 @@ constexpr int kIndex = 1;
 
 // Appends a key reached from the previous one at a constant speed.
 void move_to(std::vector<ScriptKey>& k, const glm::dvec3& p, double speed_mps) {
-  const double d = glm::length(p - k.back().p_camera_m);
+  const double d = glm::length(p - k.back().p_CameraFingertip);
   k.push_back({k.back().t_s + d / speed_mps, p});
 }
 void hold(std::vector<ScriptKey>& k, double dt_s) {
-  k.push_back({k.back().t_s + dt_s, k.back().p_camera_m});
+  k.push_back({k.back().t_s + dt_s, k.back().p_CameraFingertip});
 }
 
 std::vector<std::string_view> split_fields(std::string_view line) {
@@ -145,15 +145,15 @@ HandScript HandScript::load(const std::filesystem::path& path) {
 glm::dvec3 HandScript::position(int finger, double t_s) const {
   const auto& k = keys_[finger];
   if (k.empty()) return glm::dvec3{0.0};
-  if (t_s <= k.front().t_s) return k.front().p_camera_m;
-  if (t_s >= k.back().t_s) return k.back().p_camera_m;
+  if (t_s <= k.front().t_s) return k.front().p_CameraFingertip;
+  if (t_s >= k.back().t_s) return k.back().p_CameraFingertip;
   const auto it = std::upper_bound(k.begin(), k.end(), t_s,
                                    [](double t, const ScriptKey& key) { return t < key.t_s; });
   const ScriptKey& b = *it;
   const ScriptKey& a = *std::prev(it);
   const double span = b.t_s - a.t_s;
   const double u = span > 0.0 ? (t_s - a.t_s) / span : 1.0;
-  return a.p_camera_m + (b.p_camera_m - a.p_camera_m) * u;
+  return a.p_CameraFingertip + (b.p_CameraFingertip - a.p_CameraFingertip) * u;
 }
 
 void HandScript::sample(double t_s, HandState& out) const {
@@ -166,15 +166,15 @@ void HandScript::sample(double t_s, HandState& out) const {
     tip.valid = has_finger(i);
     // The finger points right and into the scene (a right hand reaching across): a stroke along
     // +x then has a component along the finger that a one-shear-direction display can render.
-    tip.axis_camera = glm::normalize(glm::dvec3{1.0, 0.0, 1.0});
+    tip.axis_Camera = glm::normalize(glm::dvec3{1.0, 0.0, 1.0});
     if (!tip.valid) {
-      tip.v_camera_mps = glm::dvec3{0.0};
+      tip.v_CameraFingertip = glm::dvec3{0.0};
       continue;
     }
-    tip.p_camera_m = position(i, t_s);
+    tip.p_CameraFingertip = position(i, t_s);
     // Backward difference, forward at the very start where there is no past.
     const double t0 = t_s - kH >= 0.0 ? t_s - kH : t_s;
-    tip.v_camera_mps = (position(i, t0 + kH) - position(i, t0)) / kH;
+    tip.v_CameraFingertip = (position(i, t0 + kH) - position(i, t0)) / kH;
   }
 }
 

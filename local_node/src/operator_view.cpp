@@ -65,23 +65,23 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
       }
     } else {
       // Only the fingertip is known: draw a straight finger back along its axis.
-      glm::dvec3 joint = tip.p_camera_m;
+      glm::dvec3 joint = tip.p_CameraFingertip;
       for (double len : kPhalanxM) {
-        const glm::dvec3 next = joint - tip.axis_camera * len;
+        const glm::dvec3 next = joint - tip.axis_Camera * len;
         auto a = project(k, joint), b = project(k, next);
         if (a && b) cv::line(img, *a, *b, bone, 3 * thick, cv::LINE_AA);
         if (b) cv::circle(img, *b, 2 * thick, bone, cv::FILLED, cv::LINE_AA);
         joint = next;
       }
     }
-    const auto p = project(k, tip.p_camera_m);
+    const auto p = project(k, tip.p_CameraFingertip);
     if (!p) continue;
     const auto& force = in.forces[static_cast<std::size_t>(f)];
-    const int radius = std::max(4, static_cast<int>(k.fx * 0.009 / tip.p_camera_m.z));
+    const int radius = std::max(4, static_cast<int>(k.fx * 0.009 / tip.p_CameraFingertip.z));
     // Force arrow: the force vector drawn in the scene from the fingertip, then projected.
     const double mag = glm::length(force.force_N);
     if (mag > 1e-3 && std::isfinite(mag)) {
-      const glm::dvec3 end = tip.p_camera_m + force.force_N * in.arrow_m_per_N;
+      const glm::dvec3 end = tip.p_CameraFingertip + force.force_N * in.arrow_m_per_N;
       auto q = project(k, end);
       if (q) {
         // Pressure points straight at the camera: keep the arrow visible with a minimum length.

@@ -21,11 +21,11 @@
 #include <vector>
 
 #include "telex/base/latest_slot.h"
-#include "telex/local/frame_assembler.h"
-#include "telex/local/operator_view.h"
 #include "telex/base/periodic.h"
 #include "telex/base/spsc_ring.h"
 #include "telex/base/triple_buffer.h"
+#include "telex/local/frame_assembler.h"
+#include "telex/local/operator_view.h"
 
 namespace telex::local {
 namespace {
@@ -40,7 +40,7 @@ struct TickSample {
   std::int64_t surface_capture_ns = 0;  // remote clock; 0 = no surface yet
   std::array<FingertipForce, kFingerCount> forces{};
   std::array<bool, kFingerCount> tracked{};
-  std::array<glm::dvec3, kFingerCount> p_camera{};
+  std::array<glm::dvec3, kFingerCount> p_CameraFingertip{};
 };
 
 // Median depth (m) of the valid pixels in the central tenth of the raw frame: where scripts aim.
@@ -407,7 +407,8 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     const bool fresh = now - hand.time_ns <= tracking_stale_ns;
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& tip = hand.tips[static_cast<std::size_t>(i)];
-      in[static_cast<std::size_t>(i)] = {tip.p_camera_m, tip.axis_camera, tip.valid && fresh};
+      in[static_cast<std::size_t>(i)] = {tip.p_CameraFingertip, tip.axis_Camera,
+                                         tip.valid && fresh};
     }
     model_.tick(now, newest, in, out);
     for (int i = 0; i < kFingerCount; ++i) {
@@ -423,7 +424,8 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     sample.forces = out;
     for (int i = 0; i < kFingerCount; ++i) {
       sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
-      sample.p_camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].p_camera;
+      sample.p_CameraFingertip[static_cast<std::size_t>(i)] =
+          in[static_cast<std::size_t>(i)].p_CameraFingertip;
     }
     samples_.push(sample);
     missed_.store(timer.missed(), std::memory_order_relaxed);
@@ -513,7 +515,7 @@ void Station::Run::drain() {
             !s.forces[static_cast<std::size_t>(i)].contact)
           continue;
         const auto& f = s.forces[static_cast<std::size_t>(i)];
-        const auto& p = s.p_camera[static_cast<std::size_t>(i)];
+        const auto& p = s.p_CameraFingertip[static_cast<std::size_t>(i)];
         char row[400];
         std::snprintf(row, sizeof row,
                       "%.6f,%s,%.6f,%.6f,%d,%.6f,%.6f,%.6f,%.6f,%s,%.6f,%.6f,%.6f,%llu,%lld\n", t,

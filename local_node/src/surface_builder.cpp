@@ -18,12 +18,13 @@ std::vector<cv::Rect> fingertip_windows(const HandState& hand, const cv::Mat1w& 
   const cv::Rect image(0, 0, depth_mm.cols, depth_mm.rows);
   for (const auto& tip : hand.tips) {
     if (!tip.valid) continue;
-    const glm::dvec3& p = tip.p_camera_m;
+    const glm::dvec3& p = tip.p_CameraFingertip;
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || p.z <= 0.05) continue;
     const double u = k.fx * p.x / p.z + k.cx;
     const double v = k.fy * p.y / p.z + k.cy;
-    const double speed =
-        std::isfinite(glm::length(tip.v_camera_mps)) ? glm::length(tip.v_camera_mps) : 0.0;
+    const double speed = std::isfinite(glm::length(tip.v_CameraFingertip))
+                             ? glm::length(tip.v_CameraFingertip)
+                             : 0.0;
     const double reach_m = o.roi_radius_m + speed * o.roi_lookahead_s;
     // A fingertip far in front of whatever lies under it needs no surface yet.
     const int ui = static_cast<int>(std::lround(u)), vi = static_cast<int>(std::lround(v));

@@ -79,7 +79,8 @@ class NatNetTracker final : public HandTracker {
     cur.body_count = 0;
     for (const auto& b : sample_.bodies) {
       if (!b.present || cur.body_count >= kMaxTrackedBodies) continue;
-      cur.bodies[static_cast<std::size_t>(cur.body_count++)] = {b.id, b.pose.p_m, b.pose.q, b.valid};
+      cur.bodies[static_cast<std::size_t>(cur.body_count++)] = {b.id, b.pose.p_m, b.pose.q,
+                                                                b.valid};
     }
     cur.bodies_fresh = mocap_fresh;
     previous_ = cur;
@@ -123,12 +124,12 @@ class GloveTracker final : public HandTracker {
     hand_cfg_ = cfg.hand;
     hand_cfg_.left = cfg.use_left_hand;
     // The tracking "world" is the camera frame itself.
-    hand_cfg_.camera_in_head_m = glm::dvec3{0.0};
-    hand_cfg_.R_camera_head = glm::dmat3(1.0);
+    hand_cfg_.p_HeadCamera = glm::dvec3{0.0};
+    hand_cfg_.R_CameraHead = glm::dmat3(1.0);
     // Hand x (fingers) -> camera +z, hand y (back of hand) -> camera -y (up), z = x cross y.
     const glm::dmat3 R{glm::dvec3{0, 0, 1}, glm::dvec3{0, -1, 0}, glm::dvec3{1, 0, 0}};
     wrist_.q = glm::quat_cast(R);
-    wrist_.p_m = cfg.glove_wrist_p_camera_m;
+    wrist_.p_m = cfg.p_CameraGloveWrist;
   }
   bool poll(std::int64_t now_ns, HandState& out) override {
     ++stats_.polls;

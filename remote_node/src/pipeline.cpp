@@ -81,7 +81,7 @@ FramePipeline::FramePipeline(PipelineConfig config)
       throw std::invalid_argument("registration eye intrinsics need fx, fy, width, height > 0");
     if (!(reg.nominal_depth_m > 0) || !std::isfinite(reg.nominal_depth_m))
       throw std::invalid_argument("registration nominal depth must be > 0 m");
-    const glm::dvec3& t = reg.eye_from_depth.translation_m;
+    const glm::dvec3& t = reg.X_EyeDepth.translation_m;
     if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z))
       throw std::invalid_argument("registration baseline must be finite");
   }
@@ -92,12 +92,12 @@ const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
   if (reg.mode == RegisterMode::None) return in;
   const Intrinsics eye = reg.eye.width == 0 ? in.intrinsics : reg.eye;
   if (reg.mode == RegisterMode::Full) {
-    registered_ = reproject_depth(in, eye, reg.eye_from_depth, /*fill_cracks=*/true);
+    registered_ = reproject_depth(in, eye, reg.X_EyeDepth, /*fill_cracks=*/true);
   } else {
     // Shift+scale models a translated camera: the rotation is ignored.
     if (shift_scale_for_ != in.intrinsics) {
-      shift_scale_ = shift_scale_from_calibration(
-          in.intrinsics, eye, reg.eye_from_depth.translation_m, reg.nominal_depth_m);
+      shift_scale_ = shift_scale_from_calibration(in.intrinsics, eye, reg.X_EyeDepth.translation_m,
+                                                  reg.nominal_depth_m);
       shift_scale_for_ = in.intrinsics;
     }
     registered_ = register_shift_scale(in, shift_scale_, eye);

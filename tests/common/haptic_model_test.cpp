@@ -50,12 +50,12 @@ constexpr double kForceTol = 1e-4;
 // One-fingertip driver.
 struct Rig {
   explicit Rig(const HapticParams& p) : model(p, 1) {}
-  FingertipForce step(const glm::dvec3& p_camera, std::shared_ptr<const Surface> s = nullptr,
-                      bool tracked = true) {
+  FingertipForce step(const glm::dvec3& p_CameraFingertip,
+                      std::shared_ptr<const Surface> s = nullptr, bool tracked = true) {
     if (s) surface = std::move(s);
     now_ns += kMs;
     FingertipInput in;
-    in.p_camera = p_camera;
+    in.p_CameraFingertip = p_CameraFingertip;
     in.tracked = tracked;
     FingertipForce out;
     last_status = model.tick(now_ns, surface, std::span(&in, 1), std::span(&out, 1));
@@ -430,7 +430,7 @@ TEST(HapticModel, StaleTrackingSampleFadesToZero) {
   std::int64_t now = 0;
   auto tick = [&](double z, std::int64_t sample_ns) {
     now += kMs;
-    in.p_camera = {0, 0, z};
+    in.p_CameraFingertip = {0, 0, z};
     in.sample_ns = sample_ns;
     model.tick(now, restamp(s, now, static_cast<std::uint64_t>(now / kMs) + 1), std::span(&in, 1),
                std::span(&out, 1));

@@ -20,7 +20,7 @@ const Intrinsics kDepthK = kinect_v1_intrinsics();
 const Intrinsics kEyeK{580.0, 580.0, 322.0, 236.0, 640, 480};
 const glm::dvec3 kEyeCentre_m(0.025, 0.0, 0.0);
 
-RigidTransform eye_from_depth() {
+RigidTransform X_EyeDepth() {
   RigidTransform x;
   x.translation_m = -kEyeCentre_m;
   return x;
@@ -82,7 +82,7 @@ TEST_P(RegistrationScene, FullReprojectionMatchesSecondViewpoint) {
   const synth::Rendered truth =
       synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
   for (bool fill : {false, true}) {
-    const DepthImage reg = reproject_depth(from_depth.depth, kEyeK, eye_from_depth(), fill);
+    const DepthImage reg = reproject_depth(from_depth.depth, kEyeK, X_EyeDepth(), fill);
     const test::DepthError e = test::compare_depth(reg.depth_mm, truth.true_depth_m);
     std::printf("[ reproject ] %-7s fill_cracks=%d median %.2f mm, p90 %.2f mm, coverage %.3f\n",
                 name, fill, e.median_mm, e.p90_mm, e.coverage);
@@ -109,7 +109,7 @@ TEST(Registration, ShiftScaleExactAtNominalDepthAndWorseAway) {
         synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
     const cv::Mat1w ss = register_shift_scale(from_depth.depth, p, kEyeK).depth_mm;
     const test::DepthError full = test::compare_depth(
-        reproject_depth(from_depth.depth, kEyeK, eye_from_depth()).depth_mm, truth.true_depth_m);
+        reproject_depth(from_depth.depth, kEyeK, X_EyeDepth()).depth_mm, truth.true_depth_m);
     std::vector<double> err, predicted, err_near_nominal;
     const cv::Mat1f& t = truth.true_depth_m;
     for (int v = 0; v < t.rows; ++v)
@@ -150,7 +150,7 @@ TEST(Registration, DeskShiftScaleVersusFull) {
   const synth::Rendered truth =
       synth::render_from(scene, kEyeK, kEyeCentre_m, synth::SensorModel::ideal());
   const test::DepthError full = test::compare_depth(
-      reproject_depth(from_depth.depth, kEyeK, eye_from_depth()).depth_mm, truth.true_depth_m);
+      reproject_depth(from_depth.depth, kEyeK, X_EyeDepth()).depth_mm, truth.true_depth_m);
   for (double nominal_m : {0.8, 1.2, 2.0}) {
     const ShiftScale p = shift_scale_from_calibration(kDepthK, kEyeK, -kEyeCentre_m, nominal_m);
     const test::DepthError ss = test::compare_depth(

@@ -87,17 +87,17 @@ TEST(HandModel, LeftHandMirrorsAcrossThePalmPlane) {
 TEST(HandModel, HeadPoseMapsWorldPointsIntoTheCamera) {
   HandModelConfig cfg;
   // Head at the origin, Motive axes: 0.5 m in front of the camera is -z in the head frame.
-  const glm::dvec3 ahead = cfg.camera_in_head_m + glm::dvec3{0, 0, -0.5};
+  const glm::dvec3 ahead = cfg.p_HeadCamera + glm::dvec3{0, 0, -0.5};
   expect_near(world_to_camera(cfg, Pose{}, ahead), {0, 0, 0.5});
   // Above the camera (world +y) is image-up, camera -y.
-  expect_near(world_to_camera(cfg, Pose{}, cfg.camera_in_head_m + glm::dvec3{0, 0.1, -0.5}),
+  expect_near(world_to_camera(cfg, Pose{}, cfg.p_HeadCamera + glm::dvec3{0, 0.1, -0.5}),
               {0, -0.1, 0.5});
   // Operator turned 90 deg left (about +y) and stepped to (1, 1.6, 2): the point ahead of the
   // turned head is at -x in the world.
   const Pose head{{1.0, 1.6, 2.0}, glm::angleAxis(glm::radians(90.0), glm::dvec3{0, 1, 0})};
-  const glm::dvec3 p_world = head.p_m + head.q * (cfg.camera_in_head_m + glm::dvec3{0, 0, -0.7});
-  EXPECT_LT(p_world.x, head.p_m.x);
-  expect_near(world_to_camera(cfg, head, p_world), {0, 0, 0.7});
+  const glm::dvec3 p_WorldQ = head.p_m + head.q * (cfg.p_HeadCamera + glm::dvec3{0, 0, -0.7});
+  EXPECT_LT(p_WorldQ.x, head.p_m.x);
+  expect_near(world_to_camera(cfg, head, p_WorldQ), {0, 0, 0.7});
   expect_near(world_dir_to_camera(cfg, head, head.q * glm::dvec3{1, 0, 0}), {1, 0, 0});
 }
 
@@ -113,13 +113,13 @@ TEST(HandModel, FillStateAndFiniteDifferenceVelocities) {
   for (int i = 0; i < 5; ++i) {
     EXPECT_TRUE(b.tips[i].valid);
     EXPECT_EQ(b.tips[i].finger, i);
-    expect_near(b.tips[i].v_camera_mps, {0, 0, 0.002 / 0.008333333}, 1e-6);
-    EXPECT_NEAR(glm::length(b.tips[i].axis_camera), 1.0, 1e-12);
+    expect_near(b.tips[i].v_CameraFingertip, {0, 0, 0.002 / 0.008333333}, 1e-6);
+    EXPECT_NEAR(glm::length(b.tips[i].axis_Camera), 1.0, 1e-12);
   }
   // A time step that is not positive gives no velocity rather than infinity.
   HandState c = b;
   update_velocities(b, c);
-  expect_near(c.tips[1].v_camera_mps, {0, 0, 0});
+  expect_near(c.tips[1].v_CameraFingertip, {0, 0, 0});
 }
 
 }  // namespace

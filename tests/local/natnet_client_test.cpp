@@ -201,13 +201,13 @@ TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
   const HandPoints h = hand_forward(cfg.hand, pose_of(2), cfg.default_bend);
   for (int f = 0; f < kFingerCount; ++f) {
     const glm::dvec3 want = world_to_camera(cfg.hand, pose_of(1), h.joints[f][3]);
-    EXPECT_NEAR(st.tips[f].p_camera_m.x, want.x, 1e-6);
-    EXPECT_NEAR(st.tips[f].p_camera_m.y, want.y, 1e-6);
-    EXPECT_NEAR(st.tips[f].p_camera_m.z, want.z, 1e-6);
-    EXPECT_NEAR(glm::length(st.tips[f].v_camera_mps), 0.0, 1e-9);  // the pose does not move
+    EXPECT_NEAR(st.tips[f].p_CameraFingertip.x, want.x, 1e-6);
+    EXPECT_NEAR(st.tips[f].p_CameraFingertip.y, want.y, 1e-6);
+    EXPECT_NEAR(st.tips[f].p_CameraFingertip.z, want.z, 1e-6);
+    EXPECT_NEAR(glm::length(st.tips[f].v_CameraFingertip), 0.0, 1e-9);  // the pose does not move
   }
   // The hand is in front of the camera (positive depth) and the shoulder was mapped too.
-  EXPECT_GT(st.tips[1].p_camera_m.z, 0.0);
+  EXPECT_GT(st.tips[1].p_CameraFingertip.z, 0.0);
   EXPECT_TRUE(st.shoulder_valid);
   EXPECT_TRUE(st.skeleton_valid);
   EXPECT_GE(tracker->stats().frames_in, 1u);

@@ -44,13 +44,13 @@ TEST(Script, PressMeetsTheSurfaceAtTheImageCentre) {
   EXPECT_TRUE(st.tips[1].valid);
   EXPECT_FALSE(st.tips[0].valid);
   EXPECT_FALSE(st.tips[2].valid);
-  EXPECT_NEAR(st.tips[1].v_camera_mps.z, 0.1, 1e-9);  // approach speed
+  EXPECT_NEAR(st.tips[1].v_CameraFingertip.z, 0.1, 1e-9);  // approach speed
   s.sample(3.6, st);
-  EXPECT_NEAR(glm::length(st.tips[1].v_camera_mps), 0.0, 1e-9);
+  EXPECT_NEAR(glm::length(st.tips[1].v_CameraFingertip), 0.0, 1e-9);
   s.sample(5.0, st);
-  EXPECT_NEAR(st.tips[1].v_camera_mps.z, -0.1, 1e-9);
+  EXPECT_NEAR(st.tips[1].v_CameraFingertip.z, -0.1, 1e-9);
   s.sample(0.0, st);  // forward difference at the start
-  EXPECT_NEAR(st.tips[1].v_camera_mps.z, 0.1, 1e-9);
+  EXPECT_NEAR(st.tips[1].v_CameraFingertip.z, 0.1, 1e-9);
 }
 
 TEST(Script, StrokeSlidesOneHundredMillimetresAtFiveMillimetresDepth) {
@@ -68,8 +68,8 @@ TEST(Script, StrokeSlidesOneHundredMillimetresAtFiveMillimetresDepth) {
   HandState st;
   const double t_slide = 3.05 + 0.2 + 1.0;  // middle of the outward slide
   s.sample(t_slide, st);
-  EXPECT_NEAR(st.tips[1].v_camera_mps.x, 0.05, 1e-9);
-  EXPECT_NEAR(st.tips[1].p_camera_m.x, 0.05, 1e-9);
+  EXPECT_NEAR(st.tips[1].v_CameraFingertip.x, 0.05, 1e-9);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.x, 0.05, 1e-9);
   EXPECT_NEAR(s.position(1, s.duration_s()).z, d - 0.3, 1e-12);
 }
 
@@ -139,14 +139,14 @@ TEST(Script, TrackerRunsOnceOrRepeats) {
   HandState st;
   const std::int64_t t0 = 5'000'000'000;
   ASSERT_TRUE(once.poll(t0, st));
-  EXPECT_NEAR(st.tips[1].p_camera_m.z, 0.5, 1e-12);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.5, 1e-12);
   EXPECT_EQ(st.time_ns, t0);
   EXPECT_FALSE(once.poll(t0, st)) << "no newer state at the same time";
   ASSERT_TRUE(once.poll(t0 + 1'000'000'000, st));
-  EXPECT_NEAR(st.tips[1].p_camera_m.z, 0.6, 1e-9);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.6, 1e-9);
   ASSERT_TRUE(once.poll(t0 + 9'000'000'000, st));  // past the end: final state once
   EXPECT_TRUE(once.finished());
-  EXPECT_NEAR(st.tips[1].p_camera_m.z, 0.5, 1e-12);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.5, 1e-12);
   EXPECT_FALSE(once.poll(t0 + 9'001'000'000, st));
   EXPECT_EQ(once.stats().polls, 5u);
   EXPECT_EQ(once.stats().updates, 3u);
@@ -154,7 +154,7 @@ TEST(Script, TrackerRunsOnceOrRepeats) {
   ScriptTracker loop(HandScript::builtin("press", 0.8), "script:press", true);
   ASSERT_TRUE(loop.poll(0, st));
   ASSERT_TRUE(loop.poll(7'200'000'000 + 1'000'000'000, st));  // one period + 1 s
-  EXPECT_NEAR(st.tips[1].p_camera_m.z, 0.6, 1e-9);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.6, 1e-9);
   EXPECT_FALSE(loop.finished());
 }
 
@@ -165,7 +165,7 @@ TEST(Script, MakeTrackerResolvesNamesAndFiles) {
   EXPECT_EQ(t->name(), "script:tap");
   HandState st;
   ASSERT_TRUE(t->poll(0, st));
-  EXPECT_NEAR(st.tips[1].p_camera_m.z, 0.6, 1e-12);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.6, 1e-12);
 
   const auto path = std::filesystem::temp_directory_path() /
                     ("telex_script_" + std::to_string(getpid()) + ".txt");
@@ -173,7 +173,7 @@ TEST(Script, MakeTrackerResolvesNamesAndFiles) {
   auto f = make_tracker("script:" + path.string(), cfg);
   ASSERT_TRUE(f->poll(0, st));
   EXPECT_TRUE(st.tips[2].valid);
-  EXPECT_NEAR(st.tips[2].p_camera_m.y, 0.02, 1e-12);
+  EXPECT_NEAR(st.tips[2].p_CameraFingertip.y, 0.02, 1e-12);
   std::filesystem::remove(path);
 
   try {

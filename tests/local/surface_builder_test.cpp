@@ -12,8 +12,8 @@
 #include <stdexcept>
 #include <thread>
 
-#include "telex/common/synthetic.h"
 #include "telex/base/triple_buffer.h"
+#include "telex/common/synthetic.h"
 
 namespace telex::local {
 namespace {
@@ -79,7 +79,7 @@ TEST(SurfaceBuilder, NoWindowComputesNothing) {
   const AssembledFrame f = desk_frame(1, 1);
   HandState far{};
   far.tips[1].valid = true;
-  far.tips[1].p_camera_m = {0.0, 0.0, 0.2};  // far in front of the desk
+  far.tips[1].p_CameraFingertip = {0.0, 0.0, 0.2};  // far in front of the desk
   const auto windows = fingertip_windows(far, f.depth_mm, f.intrinsics, roi_options());
   EXPECT_TRUE(windows.empty());
   SurfacePool pool(2);

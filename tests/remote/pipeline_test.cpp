@@ -236,13 +236,12 @@ TEST(PipelineRegistration, NoneIsBitExactAndBadSettingsAreNamed) {
 TEST(PipelineRegistration, ExtrinsicsFollowTheDocumentedConvention) {
   // Eye 2.5 cm to the right: a depth-frame point is 2.5 cm to the left in the eye's frame.
   const RegistrationConfig r = parse_registration("full", "0.025,0,0", "0,0,0", "", 1.0);
-  EXPECT_NEAR(r.eye_from_depth.translation_m.x, -0.025, 1e-12);
+  EXPECT_NEAR(r.X_EyeDepth.translation_m.x, -0.025, 1e-12);
   EXPECT_EQ(r.eye.width, 0);  // the source's own intrinsics
   // Eye turned 90 degrees about y (looking along the depth camera's +x): a point 1 m along +x
   // is 1 m in front of it.
   const RegistrationConfig t = parse_registration("full", "0,0,0", "0,90,0", "", 1.0);
-  const glm::dvec3 p =
-      t.eye_from_depth.rotation * glm::dvec3(1, 0, 0) + t.eye_from_depth.translation_m;
+  const glm::dvec3 p = t.X_EyeDepth.rotation * glm::dvec3(1, 0, 0) + t.X_EyeDepth.translation_m;
   EXPECT_NEAR(p.x, 0.0, 1e-12);
   EXPECT_NEAR(p.y, 0.0, 1e-12);
   EXPECT_NEAR(p.z, 1.0, 1e-12);

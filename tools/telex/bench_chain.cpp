@@ -34,8 +34,8 @@ Script make_script(const glm::dvec3& p0, const glm::dvec3& n_free) {
   for (int i = 0; i < 200; ++i) push(lerp(-0.005, 0.01, i, 200), 0.0);
   auto& tip = s.hand.tips[1];
   tip.finger = 1;
-  tip.p_camera_m = p0 + 0.01 * n_free;
-  tip.axis_camera = t;
+  tip.p_CameraFingertip = p0 + 0.01 * n_free;
+  tip.axis_Camera = t;
   tip.valid = true;
   return s;
 }
@@ -57,8 +57,8 @@ std::vector<glm::dvec3> run_script(const std::shared_ptr<const Surface>& surface
   std::vector<glm::dvec3> forces;
   forces.reserve(script.path_camera.size());
   for (std::size_t i = 0; i < script.path_camera.size(); ++i) {
-    in[0].p_camera = script.path_camera[i];
-    in[0].axis_camera = script.hand.tips[1].axis_camera;
+    in[0].p_CameraFingertip = script.path_camera[i];
+    in[0].axis_Camera = script.hand.tips[1].axis_Camera;
     model.tick(static_cast<std::int64_t>(i) * 1'000'000, surface, in, out);
     forces.push_back(out[0].force_N);
   }
@@ -364,7 +364,7 @@ RoiTiming measure_roi_timing(bool quick) {
       synthetic_frame(synth::render(synth::Scene::named("desk"), k, synth::SensorModel{}), 0);
   local::HandState far_hand;
   far_hand.tips[1].valid = true;
-  far_hand.tips[1].p_camera_m = {0.0, 0.0, 0.2};  // far in front of the desk
+  far_hand.tips[1].p_CameraFingertip = {0.0, 0.0, 0.2};  // far in front of the desk
   local::SurfaceOptions full, roi;
   full.clock_ms = roi.clock_ms = thread_cpu_ms;
   roi.roi = true;

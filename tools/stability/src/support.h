@@ -151,7 +151,7 @@ struct Driver {
     if (republish && surface && now_ns - surface->capture_ns >= kFrameNs)
       surface = restamp(surface, now_ns, ++frame_id);
     FingertipInput in;
-    in.p_camera = x;
+    in.p_CameraFingertip = x;
     in.tracked = tracked;
     FingertipForce out;
     model.tick(now_ns, surface, std::span(&in, 1), std::span(&out, 1));

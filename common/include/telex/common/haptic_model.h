@@ -49,9 +49,9 @@ struct HapticParams {
 };
 
 struct FingertipInput {
-  glm::dvec3 p_camera{0.0};
+  glm::dvec3 p_CameraFingertip{0.0};
   // Unit direction along the finger, for displays that render shear in one direction only.
-  glm::dvec3 axis_camera{0.0, -1.0, 0.0};
+  glm::dvec3 axis_Camera{0.0, -1.0, 0.0};
   bool tracked = true;  // false when the tracker says it lost this fingertip
   // When the tracker sampled this position. A sample older than stale_limit_s is tracking loss
   // (a tracker that stopped reporting keeps repeating its last pose). kUnknownTime: not checked.

@@ -14,7 +14,7 @@ namespace telex {
 // One received depth frame as the haptic loop sees it. Published once, then only read, so the
 // 1 kHz thread can query it without locks. Depth is z along the optical axis (camera frame:
 // x right, y down, z forward, metres); 0 marks a hole. Normals are unit vectors facing the camera
-// (n . p_camera < 0); a zero vector marks "no normal here" and the queries fall back to a plane
+// (n . p_CameraQ < 0); a zero vector marks "no normal here" and the queries fall back to a plane
 // fit.
 struct Surface {
   cv::Mat1f depth_m;
@@ -87,10 +87,10 @@ enum class SurfaceQuery : std::uint8_t {
 std::optional<double> depth_at(const Surface& s, double u, double v,
                                const StepTolerance& steps = {});
 
-// Local plane under `p_camera` (projected along its camera ray). The normal is the bilinear blend
+// Local plane under `p_CameraQ` (projected along its camera ray). The normal is the bilinear blend
 // of valid normals on the nearer surface; if none is valid, a least-squares plane fit over the
 // 5x5 neighbourhood on that surface; if that is degenerate (a lone pixel), the reversed view ray.
-SurfaceQuery local_plane(const Surface& s, const glm::dvec3& p_camera, LocalPlane& out,
+SurfaceQuery local_plane(const Surface& s, const glm::dvec3& p_CameraQ, LocalPlane& out,
                          const StepTolerance& steps = {});
 
 // Least-squares plane z = a + b x + c y through the valid pixels of the (2r+1)^2 window centred on

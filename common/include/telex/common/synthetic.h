@@ -18,7 +18,7 @@ namespace telex::synth {
 // A ray/surface intersection. `normal_camera` is the outward surface normal (unit).
 struct Hit {
   double t_m;
-  glm::dvec3 p_camera;
+  glm::dvec3 p_CameraHit;
   glm::dvec3 normal_camera;
   int object_id;
 };
@@ -144,10 +144,12 @@ struct Rendered {
 // deterministically. Throws std::invalid_argument on empty intrinsics or a bad sensor model.
 Rendered render(const Scene& scene, const Intrinsics& intr, const SensorModel& sensor,
                 std::uint64_t frame_index = 0);
-// Ray-casts from a camera displaced by t_cam_m (camera-frame translation, e.g. a right-eye
-// baseline); orientation unchanged. Depth, normals and ids are in the displaced camera's frame.
-Rendered render_from(const Scene& scene, const Intrinsics& intr, const glm::dvec3& t_cam_m,
-                     const SensorModel& sensor, std::uint64_t frame_index = 0);
+// Ray-casts from a camera displaced by p_CameraViewpoint (camera-frame translation, e.g. a
+// right-eye baseline); orientation unchanged. Depth, normals and ids are in the displaced camera's
+// frame.
+Rendered render_from(const Scene& scene, const Intrinsics& intr,
+                     const glm::dvec3& p_CameraViewpoint, const SensorModel& sensor,
+                     std::uint64_t frame_index = 0);
 
 // Renders successive frames of one scene for one camera, like render_from, but re-casts only the
 // pixels that the objects which moved since the previous frame can affect (their old and new
@@ -157,7 +159,7 @@ class Renderer {
  public:
   // Throws std::invalid_argument on bad intrinsics or sensor model (as render does).
   Renderer(const Intrinsics& intr, const SensorModel& sensor,
-           const glm::dvec3& t_cam_m = glm::dvec3(0.0));
+           const glm::dvec3& p_CameraViewpoint = glm::dvec3(0.0));
   Rendered render(const Scene& scene, std::uint64_t frame_index);
   // Pixels ray-cast by the last render() (all of them on the first call or a new scene).
   std::size_t last_recast_pixels() const { return last_recast_; }
@@ -173,7 +175,7 @@ class Renderer {
  private:
   Intrinsics intr_;
   SensorModel sensor_;
-  glm::dvec3 t_cam_m_;
+  glm::dvec3 p_CameraViewpoint_;
   std::optional<Scene> previous_;
   Geometry geometry_;
   std::size_t last_recast_ = 0;

@@ -13,7 +13,7 @@ namespace telex::local {
 
 struct HandState;
 
-// A rigid pose in the tracking system's world frame: p_world = q * p_body + p_m.
+// A rigid pose in the tracking system's world frame: p_WorldQ = q * p_body + p_m.
 struct Pose {
   glm::dvec3 p_m{0.0};
   glm::dquat q{1.0, 0.0, 0.0, 0.0};  // w, x, y, z
@@ -36,8 +36,8 @@ struct HandModelConfig {
   // Camera centre in the head rigid body's frame, and the rotation head -> camera. The default
   // head frame is Motive's (x right, y up, z backward), which a camera with y down, z forward sees
   // as diag(1, -1, -1); the centre sits at the right eye, 8 cm in front of the head body.
-  glm::dvec3 camera_in_head_m{0.032, 0.0, -0.08};
-  glm::dmat3 R_camera_head{1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0};
+  glm::dvec3 p_HeadCamera{0.032, 0.0, -0.08};
+  glm::dmat3 R_CameraHead{1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0};
 
   static std::array<FingerGeometry, 5> default_fingers();
 };
@@ -50,17 +50,17 @@ struct HandPoints {
 
 // Forward kinematics in the wrist pose's frame (world); bends are 0 (straight) .. 1 (fist),
 // clamped. Pure.
-HandPoints hand_forward(const HandModelConfig& config, const Pose& wrist_world,
+HandPoints hand_forward(const HandModelConfig& config, const Pose& X_WorldWrist,
                         std::span<const double, 5> bend);
 
-// p_camera = R_camera_head (R_head^T (p_world - t_head) - camera_in_head).
-glm::dvec3 world_to_camera(const HandModelConfig& config, const Pose& head_world,
-                           const glm::dvec3& p_world);
-glm::dvec3 world_dir_to_camera(const HandModelConfig& config, const Pose& head_world,
-                               const glm::dvec3& d_world);
+// p_CameraFingertip = R_CameraHead (R_WorldHead^T (p_WorldQ - t_head) - camera_in_head).
+glm::dvec3 world_to_camera(const HandModelConfig& config, const Pose& X_WorldHead,
+                           const glm::dvec3& p_WorldQ);
+glm::dvec3 world_dir_to_camera(const HandModelConfig& config, const Pose& X_WorldHead,
+                               const glm::dvec3& dir_World);
 
 // Maps world hand points into `out` (camera frame), marks every tip valid and the skeleton valid.
-void fill_hand_state(const HandModelConfig& config, const Pose& head_world, const HandPoints& hand,
+void fill_hand_state(const HandModelConfig& config, const Pose& X_WorldHead, const HandPoints& hand,
                      std::int64_t time_ns, HandState& out);
 
 // Fingertip velocities by finite differences against the previous state (same finger valid in

@@ -15,7 +15,7 @@ namespace telex::local {
 
 struct ScriptKey {
   double t_s = 0;
-  glm::dvec3 p_camera_m{0.0};
+  glm::dvec3 p_CameraFingertip{0.0};
 };
 
 // Piecewise-linear fingertip paths in the camera frame; pure (time comes in as an argument).
@@ -40,7 +40,8 @@ class HandScript {
   bool has_finger(int finger) const { return !keys_[finger].empty(); }
   glm::dvec3 position(int finger, double t_s) const;  // clamped to the finger's first/last key
   // Tips at t: positions, velocities by a 1 ms backward finite difference, axis (1,0,1)/sqrt2 (the
-  // finger points right and into the scene), valid for scripted fingers only. Sets out.time_ns only via caller.
+  // finger points right and into the scene), valid for scripted fingers only. Sets out.time_ns only
+  // via caller.
   void sample(double t_s, HandState& out) const;
 
  private:

@@ -12,9 +12,9 @@
 namespace telex::local {
 
 struct ViewInputs {
-  cv::Mat3b camera_bgr;            // right-eye image; empty = draw the colourised depth instead
+  cv::Mat3b camera_bgr;              // right-eye image; empty = draw the colourised depth instead
   const Surface* surface = nullptr;  // may be null before the first frame
-  cv::Mat1w depth_mm;              // raw depth for the colourised background
+  cv::Mat1w depth_mm;                // raw depth for the colourised background
   HandState hand;
   std::array<FingertipForce, kFingerCount> forces{};
   std::string status;
@@ -25,6 +25,6 @@ struct ViewInputs {
 cv::Mat3b render_operator_view(const ViewInputs& in);
 
 // Pixel of a camera-frame point, or nothing behind the camera.
-std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p_camera);
+std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p_CameraQ);
 
 }  // namespace telex::local

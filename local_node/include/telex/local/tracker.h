@@ -16,11 +16,11 @@ inline constexpr int kFingerCount = 5;  // 0 thumb, 1 index, 2 middle, 3 ring, 4
 
 struct Fingertip {
   int finger = 0;
-  glm::dvec3 p_camera_m{0.0};
-  glm::dvec3 v_camera_mps{0.0};
+  glm::dvec3 p_CameraFingertip{0.0};
+  glm::dvec3 v_CameraFingertip{0.0};
   // Unit vector along the distal phalanx, pointing out of the fingertip: shear "along the finger"
   // is measured against it.
-  glm::dvec3 axis_camera{0.0, 0.0, 1.0};
+  glm::dvec3 axis_Camera{0.0, 0.0, 1.0};
   bool valid = false;
 };
 
@@ -85,7 +85,7 @@ struct TrackerConfig {
   std::string glove_spec;
   std::string glove_calibration_path;  // JSON from docs/HARDWARE.md; empty = full sensor range
   // Wrist pose in the camera frame for a glove used without NatNet.
-  glm::dvec3 glove_wrist_p_camera_m{0.0, 0.05, 0.45};
+  glm::dvec3 p_CameraGloveWrist{0.0, 0.05, 0.45};
 };
 
 class HandTracker {

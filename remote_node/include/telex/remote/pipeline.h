@@ -40,7 +40,7 @@ struct RegistrationConfig {
   Intrinsics eye{0.0, 0.0, 0.0, 0.0, 0, 0};
   // Extrinsics: p_eye = rotation * p_depth + translation, metres. The default is an eye whose
   // centre sits 2.5 cm to the right of the depth camera (the Kinect v1 depth-to-RGB baseline).
-  RigidTransform eye_from_depth{glm::dmat3(1.0), glm::dvec3(-0.025, 0.0, 0.0)};
+  RigidTransform X_EyeDepth{glm::dmat3(1.0), glm::dvec3(-0.025, 0.0, 0.0)};
   double nominal_depth_m = 1.0;  // shift: the depth at which shift+scale is exact
 };
 
