@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Quick-start command 1: install what is missing, build, then run both nodes on loopback with the
-# built-in synthetic scene and a scripted hand, printing fingertip forces live. Ctrl-C stops both.
-# Extra arguments go to telex-local (e.g. --hand script:stroke, --view png:out/view).
+# built-in synthetic scene and a scripted hand, printing fingertip forces live and writing the
+# operator's view to demo_view/view.png once a second (TELEX_DEMO_VIEW=DIR elsewhere). Ctrl-C stops
+# both. Extra arguments go to telex-local (e.g. --hand script:stroke).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/tools/build.sh"
 bin="${TELEX_BUILD_DIR:-$root/build}/tools"
 duration="${TELEX_DEMO_SECONDS:-20}"
 port="${TELEX_DEMO_PORT:-7300}"
+view="${TELEX_DEMO_VIEW:-$root/demo_view}"
 
 "$bin/telex-remote" --listen "127.0.0.1:$port" --source synthetic:plane --duration $((duration + 5)) \
   --no-stats &
@@ -18,4 +20,5 @@ trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 # --roi: the station filters and builds normals only around the fingertips and the remote sends
 # those tiles first, the lowest-latency path (docs/BENCHMARKS.md, operator station).
 "$bin/telex-local" --connect "127.0.0.1:$port" --hand script:press --repeat --duration "$duration" \
-  --haptics sim --print-forces 10 --roi "$@"
+  --haptics sim --print-forces 10 --roi --view "png:$view" "$@"
+echo "demo: the operator's view is in $view/view.png"
