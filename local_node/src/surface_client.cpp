@@ -64,6 +64,8 @@ struct SurfaceClient::Impl {
   proto::StreamParser parser;
   proto::DatagramParser dgram;
   proto::Reassembler reassembler;
+  std::uint64_t udp_lost_counted = 0;  // of this reassembler's lost(), already in stats.udp_lost
+  std::array<std::uint64_t, 8> by_fragments_counted{};  // the same for messages_by_fragments
   std::array<std::uint8_t, 64 * 1024> tcp_buf{};
   std::array<std::uint8_t, 2048> udp_buf{};
   udp::endpoint udp_from;
@@ -149,6 +151,8 @@ struct SurfaceClient::Impl {
     dgram = proto::DatagramParser(cfg.limits);
     parser.set_key(cfg.psk);
     reassembler = proto::Reassembler();
+    udp_lost_counted = 0;
+    by_fragments_counted = {};
     session_id = 0;
     session_key.reset();
     conn_auth_failed = conn_unexpected_tag = 0;
@@ -246,7 +250,15 @@ struct SurfaceClient::Impl {
     }
     const auto now = static_cast<std::uint64_t>(monotonic_ns());
     const auto before = reassembler.counters().malformed;
-    if (auto whole = reassembler.push(d, now)) {
+    auto whole = reassembler.push(d, now);
+    stats.udp_lost.fetch_add(reassembler.counters().lost() - udp_lost_counted);
+    udp_lost_counted = reassembler.counters().lost();
+    for (std::size_t n = 0; n < by_fragments_counted.size(); ++n) {
+      const auto seen = reassembler.counters().messages_by_fragments[n];
+      stats.udp_messages_by_fragments[n].fetch_add(seen - by_fragments_counted[n]);
+      by_fragments_counted[n] = seen;
+    }
+    if (whole) {
       auto r = dgram.parse(*whole);
       if (!r.ok()) {
         count_drop(r, "UDP");

@@ -69,8 +69,27 @@ std::optional<FragmentHeader> parse_fragment_header(std::span<const std::uint8_t
 
 Reassembler::Reassembler(ReassemblerLimits limits) : limits_(limits) {}
 
+void Reassembler::note_message_id(std::uint32_t id, std::uint16_t count) {
+  const std::uint32_t ahead = id - next_message_id_;      // wraps
+  if (have_message_id_ && ahead == 0xFFFF'FFFFu) return;  // another fragment of the last message
+  ++counters_.messages_by_fragments[std::min<std::size_t>(count, 8) - 1];
+  if (!have_message_id_) {
+    have_message_id_ = true;
+    next_message_id_ = id + 1;
+    return;
+  }
+  if (ahead < 65536u) {
+    counters_.messages_unseen += ahead;
+    next_message_id_ = id + 1;
+    return;
+  }
+  if (next_message_id_ - id <= 65536u) return;  // a late message, already counted as lost
+  next_message_id_ = id + 1;                    // the sender restarted its sequence
+}
+
 void Reassembler::drop(std::map<std::uint32_t, Partial>::iterator it, std::uint64_t& counter) {
   buffered_bytes_ -= it->second.bytes.size();
+  counters_.fragments_missing += it->second.count - it->second.received;
   partial_.erase(it);
   ++counter;
 }
@@ -113,6 +132,7 @@ std::optional<std::vector<std::uint8_t>> Reassembler::push(std::span<const std::
   }
   const auto chunk = datagram.subspan(kFragmentHeaderSize);
   ++counters_.fragments;
+  note_message_id(h->message_id, h->count);
   std::vector<std::uint8_t> done;
   auto it = partial_.find(h->message_id);
   if (h->count == 1) {

@@ -3,6 +3,7 @@
 // clock-offset estimation, ROI requests, and reconnection with back-off when the remote goes away.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -45,6 +46,11 @@ struct ClientStats {
   std::atomic<std::uint64_t> messages{0};
   std::atomic<std::uint64_t> bytes_in{0};
   std::atomic<std::uint64_t> datagrams{0};
+  // Datagrams of the depth stream the reassembler knows were lost on the way
+  // (proto::ReassemblerCounters::lost(): missing fragments plus skipped message ids).
+  std::atomic<std::uint64_t> udp_lost{0};
+  // Depth-stream messages seen, by fragment count (ReassemblerCounters::messages_by_fragments).
+  std::array<std::atomic<std::uint64_t>, 8> udp_messages_by_fragments{};
   std::atomic<std::uint64_t> dropped_malformed{0};  // parser + reassembler rejections
   std::atomic<std::uint64_t> dropped_foreign{0};    // wrong session or source
   // Authentication drops (TCP messages and UDP datagrams): missing or wrong tag, a tag when no key

@@ -2,6 +2,7 @@
 // UDP fragmentation (no datagram above 1400 bytes) and a bounded, newest-frame-wins reassembler.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -55,6 +56,18 @@ struct ReassemblerCounters {
       0;                              // incomplete messages dropped because a newer frame completed
   std::uint64_t dropped_bound = 0;    // incomplete messages evicted to stay within the bounds
   std::uint64_t dropped_timeout = 0;  // incomplete messages that timed out
+  // Loss as the receiver sees it: the fragments missing from the incomplete messages dropped
+  // above, and the message ids skipped in the sender's sequence (message_id counts up by one per
+  // message), each counted once since nothing tells their size. Assumes in-order delivery (a
+  // message that arrives after a later one still counts as lost); a jump of 65536 or more ids,
+  // or backwards, restarts the sequence (a restarted sender) without counting.
+  std::uint64_t fragments_missing = 0;
+  std::uint64_t messages_unseen = 0;
+  std::uint64_t lost() const { return fragments_missing + messages_unseen; }
+  // Messages seen (at least one fragment), by their fragment count: [n - 1] for n = 1..7, [7] for
+  // 8 or more. With a known loss rate this tells how many whole messages of each size were lost,
+  // which the counts above see as one datagram each.
+  std::array<std::uint64_t, 8> messages_by_fragments{};
 };
 
 // Collects fragments into messages. Time comes in as an argument (any monotonic ns clock).
@@ -88,7 +101,10 @@ class Reassembler {
   ReassemblerLimits limits_;
   std::map<std::uint32_t, Partial> partial_;  // by message_id
   std::size_t buffered_bytes_ = 0;
+  void note_message_id(std::uint32_t id, std::uint16_t count);
   bool have_newest_ = false;
+  bool have_message_id_ = false;
+  std::uint32_t next_message_id_ = 0;
   std::uint32_t newest_completed_frame_ = 0;
   ReassemblerCounters counters_;
 };
