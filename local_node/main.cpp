@@ -203,6 +203,9 @@ int main(int argc, char** argv) {
                        {"period_median_us", s.period_median_us},
                        {"period_p99_jitter_us", s.period_p99_jitter_us},
                        {"missed_ticks", s.missed_ticks},
+                       {"nominal_rate_hz", s.nominal_rate_hz},
+                       {"haptic_span_s", s.haptic_span_s},
+                       {"log_origin_monotonic_ns", s.log_origin_monotonic_ns},
                        {"surfaces", s.surfaces},
                        {"frames", s.frames},
                        {"roi_parts", s.roi_parts},
@@ -217,7 +220,10 @@ int main(int argc, char** argv) {
                        {"auth_failed", s.auth_failed},
                        {"unexpected_tag", s.unexpected_tag},
                        {"replayed", s.replayed},
-                       {"dropped_malformed", s.dropped_malformed}};
+                       {"dropped_malformed", s.dropped_malformed},
+                       {"udp_datagrams", s.udp_datagrams},
+                       {"udp_lost", s.udp_lost},
+                       {"udp_messages_by_fragments", s.udp_messages_by_fragments}};
       std::cout << j.dump() << std::endl;
     }
     return 0;

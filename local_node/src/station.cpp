@@ -167,6 +167,7 @@ class Station::Run {
   std::vector<double> window_latency_;
   TickSample last_{};
   std::uint64_t tick_index_ = 0;
+  std::int64_t first_tick_ns_ = 0;
   std::uint64_t last_latency_frame_ = 0;
   std::int64_t last_latency_capture_ = 0;
   std::int64_t next_print_ns_ = 0;
@@ -480,7 +481,7 @@ void Station::Run::drain() {
       cfg_.print_forces_hz > 0 ? static_cast<std::int64_t>(1e9 / cfg_.print_forces_hz) : 0;
   TickSample s{};
   while (samples_.pop(s)) {
-    ++tick_index_;
+    if (++tick_index_ == 1) first_tick_ns_ = s.t_ns;
     last_ = s;
     if (tick_index_ > 1) {
       period_us_.add(static_cast<double>(s.period_ns) / 1e3);
@@ -632,6 +633,9 @@ StationSummary Station::Run::summarize() {
   s.period_p99_jitter_us = jitter_us_.quantile(0.99);
   s.period_median_us = period_us_.quantile(0.5);
   s.missed_ticks = missed_.load();
+  s.nominal_rate_hz = cfg_.rate_hz;
+  s.haptic_span_s = tick_index_ ? static_cast<double>(last_.t_ns - first_tick_ns_) / 1e9 : 0.0;
+  s.log_origin_monotonic_ns = t_start_ns_;
   s.surfaces = surfaces_built_.load();
   s.frames = assembler_.counters().frames;  // the network thread has stopped
   s.roi_parts = assembler_.counters().roi_parts;
@@ -644,6 +648,10 @@ StationSummary Station::Run::summarize() {
   s.unexpected_tag = client_->stats().unexpected_tag.load();
   s.replayed = client_->stats().replayed.load();
   s.dropped_malformed = client_->stats().dropped_malformed.load();
+  s.udp_datagrams = client_->stats().datagrams.load();
+  s.udp_lost = client_->stats().udp_lost.load();
+  for (std::size_t n = 0; n < s.udp_messages_by_fragments.size(); ++n)
+    s.udp_messages_by_fragments[n] = client_->stats().udp_messages_by_fragments[n].load();
   return s;
 }
 

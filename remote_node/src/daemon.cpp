@@ -50,7 +50,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
       "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
       "timeouts {}) | ended{} | "
-      "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {}",
+      "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
+      "frames-sent {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -67,7 +68,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
       now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
       now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
-      now.udp_ignored);
+      now.udp_ignored, now.frames_sent);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)

@@ -3,6 +3,7 @@
 // operator view, wired together. telex-local is a thin main around it.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -52,6 +53,13 @@ struct StationSummary {
   double period_p99_jitter_us = 0;
   double period_median_us = 0;
   std::uint64_t missed_ticks = 0;
+  // The haptic loop's nominal rate and the time from its first tick to its last: over that span
+  // a loop that kept its rate has ticks + missed_ticks = span * rate + 1.
+  double nominal_rate_hz = 0;
+  double haptic_span_s = 0;
+  // CLOCK_MONOTONIC (ns) at the logs' time 0: the time_s of --log-forces and --log-tracking rows
+  // is (monotonic - this) / 1e9, so other processes' events can be put on the same time base.
+  std::int64_t log_origin_monotonic_ns = 0;
   std::uint64_t surfaces = 0;
   std::uint64_t frames = 0;      // depth frames assembled (closing manifests)
   std::uint64_t roi_parts = 0;   // frames whose ROI part was published before the rest
@@ -66,6 +74,9 @@ struct StationSummary {
   std::string scheduling;
   // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
+  // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
+  std::uint64_t udp_datagrams = 0, udp_lost = 0;
+  std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
 };
 
 class Station {
