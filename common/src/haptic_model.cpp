@@ -415,6 +415,7 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
         std::abs(fin.p_CameraFingertip.y) < 1e3 && std::abs(fin.p_CameraFingertip.z) < 1e3;
 
     const double target = (tracked && fresh) ? 1.0 : 0.0;
+    const double gain_before = f.gain;
     if (target > f.gain) {
       f.gain = std::min(target, f.gain + up_rate * dt_s);
     } else if (target < f.gain) {
@@ -424,8 +425,12 @@ TickStatus HapticModel::tick(std::int64_t now_ns, const std::shared_ptr<const Su
     glm::dvec3 velocity(0.0);
     bool has_velocity = false;
     if (!tracked) {
-      // Hold the last force and let the gain fade it; start afresh once tracking returns since
-      // the finger may be anywhere by then.
+      // Hold the force last felt and let the gain fade it; start afresh once tracking returns
+      // since the finger may be anywhere by then. Held is the output (the rate limiter may still
+      // have been rising towards the contact force): holding that target instead would let the
+      // force grow after tracking was lost.
+      if (f.status != FingertipStatus::TrackingLost)
+        f.raw_force = gain_before > 0.0 ? f.out_force / gain_before : glm::dvec3(0.0);
       f.status = FingertipStatus::TrackingLost;
       f.has_proxy = false;
       f.has_prev_p = false;
