@@ -5,7 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <glm/geometric.hpp>
 #include <set>
+#include <stdexcept>
 
 namespace telex {
 namespace {
@@ -77,6 +82,130 @@ TEST(HapticStability, ExtremeInputsMeetTheirCriteria) {
         "teleport-1m", "tracker-nan-inf", "outside-image", "surfaces-out-of-order", "stale-surface",
         "time-backwards", "gap-1s", "random-combinations"})
     EXPECT_TRUE(names.count(want)) << want;
+}
+
+// The same cases checked here from their ticks, not from the suite's verdict: each case's claim
+// recomputed from what the model was given and what it answered.
+const StabilityCaseResult& find_case(const std::vector<StabilityCaseResult>& all,
+                                     const std::string& name) {
+  for (const auto& r : all)
+    if (r.name == name) return r;
+  throw std::runtime_error("no case " + name);
+}
+
+bool finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+TEST(HapticStability, ExtremeCasesHoldTheirPropertiesCheckedFromTheirTicks) {
+  const HapticParams p;  // every extreme case runs the defaults
+  const std::vector<StabilityCaseResult> all = extreme_cases(20'000, 3, /*with_trace=*/true);
+  // Every case: finite outputs, |F| within the clamp, |dF| within the rate limit per tick.
+  for (const auto& r : all) {
+    ASSERT_GT(r.trace.size(), 10u) << r.name;
+    glm::dvec3 prev(0.0);
+    for (std::size_t i = 0; i < r.trace.size(); ++i) {
+      const auto& o = r.trace[i].out;
+      ASSERT_TRUE(finite(o.force_N) && finite(o.proxy_camera) && std::isfinite(o.normal_force_N))
+          << r.name << " tick " << i;
+      ASSERT_LE(glm::length(o.force_N), p.max_force_N + 1e-9) << r.name << " tick " << i;
+      ASSERT_LE(glm::length(o.force_N - prev), p.max_force_step_N + 1e-9)
+          << r.name << " tick " << i;
+      prev = o.force_N;
+    }
+  }
+  const auto never_touched = [](const StabilityCaseResult& r) {
+    for (const auto& t : r.trace)
+      if (t.out.contact || glm::length(t.out.force_N) != 0.0) return false;
+    return true;
+  };
+  EXPECT_TRUE(never_touched(find_case(all, "all-holes")));
+  EXPECT_TRUE(never_touched(find_case(all, "outside-image")));
+  {
+    // A late frame at 0.6 m would put the fingertip (0.7 m) 10 cm inside it: never felt.
+    EXPECT_TRUE(never_touched(find_case(all, "surfaces-out-of-order")));
+  }
+  {
+    // One valid pixel at 0.8 m, pressed 2 cm into along its ray. A lone sample has no
+    // neighbours for a normal, so it is a fronto-parallel plane patch: Hooke's force
+    // k x 0.02 m = 8 N at the default k = 400 N/m, clamped to max_force_N, pointing back along
+    // the ray, at the end of the press (before the slide).
+    const auto& r = find_case(all, "one-valid-pixel");
+    std::size_t end = 0;
+    while (end < r.trace.size() && r.trace[end].p_CameraFingertip.z < 0.82 - 1e-9) ++end;
+    ASSERT_LT(end, r.trace.size());
+    const glm::dvec3 x = r.trace[end].p_CameraFingertip;
+    const glm::dvec3 f = r.trace[end].out.force_N;
+    const double hooke = std::min(p.stiffness_N_per_m * 0.02, p.max_force_N);
+    EXPECT_NEAR(glm::length(f), hooke, 1e-6);
+    EXPECT_GT(glm::dot(glm::normalize(f), -glm::normalize(x)), std::cos(1.0 * M_PI / 180.0))
+        << "the force points back along the pixel's ray";
+  }
+  {
+    // Over a 1 m step edge and back in contact: the proxy never crosses to the near side.
+    const auto& r = find_case(all, "step-edge-1m");
+    EXPECT_GT(r.trace.back().out.proxy_camera.z, 1.0);
+  }
+  {
+    // A 1 m jump into a wall at 0.8 m: the proxy stays in front of it while the finger is inside.
+    const auto& r = find_case(all, "teleport-1m");
+    int inside = 0;
+    for (const auto& t : r.trace)
+      if (t.p_CameraFingertip.z > 1.7) {
+        ++inside;
+        EXPECT_LT(t.out.proxy_camera.z, 0.8 + 1e-6);
+      }
+    EXPECT_GT(inside, 200);
+    EXPECT_FALSE(r.trace.back().out.contact);
+  }
+  {
+    // NaN/Inf from the tracker mid-contact: the force falls at the fade rate and is zero within
+    // fade_out_s of the first bad sample, never rising meanwhile.
+    const auto& r = find_case(all, "tracker-nan-inf");
+    std::size_t bad = 0;
+    while (bad < r.trace.size() && finite(r.trace[bad].p_CameraFingertip)) ++bad;
+    ASSERT_LT(bad, r.trace.size());
+    const double at_bad = bad ? glm::length(r.trace[bad - 1].out.force_N) : 0.0;
+    EXPECT_GT(at_bad, 0.5) << "the case must be in contact when tracking breaks";
+    const auto fade_ticks = static_cast<std::size_t>(std::ceil(p.fade_out_s / 1e-3)) + 1;
+    for (std::size_t i = bad; i < r.trace.size(); ++i) {
+      const double f = glm::length(r.trace[i].out.force_N);
+      EXPECT_LE(f, glm::length(r.trace[i - 1].out.force_N) + 1e-12) << "tick " << i;
+      if (i >= bad + fade_ticks) {
+        EXPECT_EQ(f, 0.0) << "tick " << i;
+      }
+    }
+  }
+  {
+    // The stream stops mid-contact: zero within fade_out_s of the last fresh tick
+    // (stale_limit_s after the last frame).
+    const auto& r = find_case(all, "stale-surface");
+    std::int64_t last_fresh_ns = 0;
+    for (const auto& t : r.trace)
+      if (t.out.status != FingertipStatus::StaleSurface) last_fresh_ns = t.t_ns;
+    bool pressed = false;
+    for (const auto& t : r.trace) {
+      pressed |= glm::length(t.out.force_N) > 1.0;
+      if (t.t_ns > last_fresh_ns + static_cast<std::int64_t>((p.fade_out_s + 2e-3) * 1e9)) {
+        EXPECT_EQ(glm::length(t.out.force_N), 0.0) << t.t_ns;
+      }
+    }
+    EXPECT_TRUE(pressed);
+  }
+  {
+    // Time going backwards: ten backwards steps were given; outputs stay finite (above).
+    const auto& r = find_case(all, "time-backwards");
+    EXPECT_EQ(
+        std::count_if(r.trace.begin(), r.trace.end(), [](const auto& t) { return t.dt_ns < 0; }),
+        10);
+  }
+  {
+    const auto& r = find_case(all, "gap-1s");
+    EXPECT_EQ(std::count_if(r.trace.begin(), r.trace.end(),
+                            [](const auto& t) { return t.dt_ns >= 1'000'000'000; }),
+              1);
+  }
+  EXPECT_EQ(find_case(all, "random-combinations").trace.size(), 20'000u);
 }
 
 TEST(HapticStability, AnalyticPlaneAndSphereWithinFivePercent) {

@@ -15,7 +15,7 @@ struct Extreme {
   Extreme() : drv(params) {}
 };
 
-StabilityCaseResult finish(const char* name, const Driver& drv, bool extra_ok,
+StabilityCaseResult finish(const char* name, Driver& drv, bool extra_ok,
                            const std::string& extra_criteria, const std::string& note) {
   StabilityCaseResult r = make_result(name, "extreme");
   drv.mon.fill(r);
@@ -23,6 +23,7 @@ StabilityCaseResult finish(const char* name, const Driver& drv, bool extra_ok,
   r.criteria = base_criteria(drv.model.params()) +
                (extra_criteria.empty() ? std::string() : "; " + extra_criteria);
   r.note = note;
+  r.trace = std::move(drv.trace);
   return r;
 }
 
@@ -32,7 +33,8 @@ glm::dvec3 on_ray(double u, double v, double z) { return back_project(kExtremeK,
 
 }  // namespace
 
-std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::uint64_t seed) {
+std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::uint64_t seed,
+                                               bool with_trace) {
   std::vector<StabilityCaseResult> out;
   const Intrinsics& kin = kExtremeK;
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -40,6 +42,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
 
   {  // All holes: nothing to touch anywhere.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.0f), kin);
     drv.warm_up(on_ray(160, 120, 0.5));
     bool any_contact = false;
@@ -50,6 +53,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // One valid pixel: a lone depth value with no neighbours for a normal.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     cv::Mat1f depth(kin.height, kin.width, 0.0f);
     depth(120, 160) = 0.8f;
     drv.publish(depth, kin);
@@ -61,6 +65,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // Depth 0 and the largest representable values (and NaN/Inf/negative in the raw map).
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     cv::Mat1f depth(kin.height, kin.width, 65.535f);  // uint16 max in mm
     for (int v = 0; v < kin.height; ++v)
       for (int u = 0; u < kin.width; ++u) {
@@ -79,6 +84,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // 1 m step edge: stroke in contact from the near side over the edge and back.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     cv::Mat1f depth(kin.height, kin.width, 1.5f);
     depth(cv::Rect(0, 0, 160, kin.height)) = 0.5f;
     drv.publish(depth, kin);
@@ -94,6 +100,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // 89-degree surface: a plane almost edge-on to the camera.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     const double a = 89.0 * M_PI / 180.0;
     const glm::dvec3 n(std::sin(a), 0.0, -std::cos(a));
     drv.publish(plane_depth(kin, n, glm::dot(n, glm::dvec3(0, 0, 1.0))), kin);
@@ -104,6 +111,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // 1 m teleport in one tick, into the surface and back out.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.805), 100);
@@ -120,6 +128,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   {  // NaN and Inf from the tracker mid-contact.
     HapticParams p;
     Driver drv(p);
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.81), 200);
@@ -139,6 +148,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // Fingertip outside the image.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     // Leave the image in front of the wall, then go deeper than the wall outside the image.
@@ -152,6 +162,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // Surfaces arriving out of order: older frames must be ignored.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.republish = false;
     const cv::Mat1f near(kin.height, kin.width, 0.6f), far(kin.height, kin.width, 0.8f);
     drv.surface = snapshot(far, kin, 0, 100);
@@ -175,6 +186,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   {  // Stale surface: the stream stops; forces must ramp to zero.
     HapticParams p;
     Driver drv(p);
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.81), 100);
@@ -195,6 +207,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // Timestamps going backwards mid-contact.
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.81), 100);
@@ -207,6 +220,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
   }
   {  // A 1 s gap between two ticks while in contact (the surface is re-sent during the gap).
     Driver drv{HapticParams{}};
+    drv.record = with_trace;
     drv.publish(cv::Mat1f(kin.height, kin.width, 0.8f), kin);
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.81), 100);
@@ -220,6 +234,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
     HapticParams p;
     p.startup_ramp_s = 0.2;  // keep most of the run at full gain
     Driver drv(p);
+    drv.record = with_trace;
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     std::normal_distribution<double> step(0.0, 0.002);

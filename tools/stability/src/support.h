@@ -142,6 +142,8 @@ struct Driver {
   std::uint64_t frame_id = 1;
   bool republish = true;
   Monitor mon;
+  bool record = false;  // keep every tick in `trace`
+  std::vector<StabilityTick> trace;
 
   void publish(const cv::Mat1f& depth, const Intrinsics& k) {
     surface = snapshot(depth, k, now_ns, ++frame_id);
@@ -156,6 +158,7 @@ struct Driver {
     FingertipForce out;
     model.tick(now_ns, surface, std::span(&in, 1), std::span(&out, 1));
     mon.add(out);
+    if (record) trace.push_back({now_ns, dt_ns, x, tracked, out});
     return out;
   }
   // Lets the start-up ramp finish with the fingertip in free space.

@@ -12,6 +12,16 @@
 
 namespace telex {
 
+// One haptic tick of a case as the model saw and answered it (recorded on request, so a test can
+// check each case's property without trusting the suite's verdict).
+struct StabilityTick {
+  std::int64_t t_ns = 0;
+  std::int64_t dt_ns = 0;
+  glm::dvec3 p_CameraFingertip{0.0};
+  bool tracked = false;
+  FingertipForce out;
+};
+
 struct StabilityCaseResult {
   std::string name;
   std::string group;  // stiffness-cutaneous | stiffness-grounded | passivity | extreme | accuracy
@@ -24,6 +34,7 @@ struct StabilityCaseResult {
   std::string criteria;  // what "pass" means for this case, printed with the result
   std::string note;      // what happened
   std::vector<std::pair<std::string, double>> metrics;  // case-specific figures
+  std::vector<StabilityTick> trace;                     // every tick, when asked for
 };
 
 // A grounded haptic device: a mass-damper pushed into the wall by the operator's hand.
@@ -54,7 +65,9 @@ StabilityCaseResult cutaneous_case(double k_N_per_m);
 
 // Extreme inputs, each checked against the common criteria (no NaN/Inf, |F| <= clamp, per-tick
 // change <= rate limit) plus its own. `random_ticks` sets the size of the randomised case.
-std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::uint64_t seed = 1);
+// With `with_trace`, each result carries its ticks.
+std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::uint64_t seed = 1,
+                                               bool with_trace = false);
 
 // RMS force error against the analytic force for a press and a stroke on the synthetic "tilted"
 // plane and "sphere" scenes: on the exact (noise-free) ray-cast depth the error must stay within
