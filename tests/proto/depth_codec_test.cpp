@@ -88,6 +88,26 @@ TEST_P(CodecRoundTrip, EdgeCaseFrames) {
   for (const auto& f : edge_case_frames(97, 53)) expect_round_trip(f, GetParam());
 }
 
+// rvl-ref against the bytes of the paper's own algorithm (Wilson 2017, CompressRVL/EncodeVLE:
+// 3-bit groups, low first, with a continue bit; nibbles packed most significant first into 32-bit
+// words, written here little-endian as on the paper's x86 host), worked out by hand:
+//   0 0 1000 1001 / 999 0 0 5
+//   zeros 2 -> 2; nonzeros 3 -> 3; 1000: delta 1000, zigzag 2000 = 0b11'111'010'000 -> 8 A F 3;
+//   1001: zigzag 2 -> 2; 999: delta -2, zigzag 3 -> 3; zeros 2 -> 2; nonzeros 1 -> 1;
+//   5: delta -994, zigzag 1987 = 0b11'111'000'011 -> B 8 F 3.
+//   Words 0x238AF323 and 0x21B8F3 << 8 = 0x21B8F300.
+//   All zeros (3x3): zeros 9 -> 9 1; nonzeros 0 -> 0; word 0x910 << 20 = 0x91000000.
+TEST(DepthCodec, RvlReferenceWritesThePapersBytes) {
+  cv::Mat1w a = (cv::Mat1w(2, 4) << 0, 0, 1000, 1001, 999, 0, 0, 5);
+  const std::vector<std::uint8_t> want_a{0x23, 0xF3, 0x8A, 0x23, 0x00, 0xF3, 0xB8, 0x21};
+  EXPECT_EQ(rvl_ref_encode(a), want_a);
+  const std::vector<std::uint8_t> want_zeros{0x00, 0x00, 0x00, 0x91};
+  EXPECT_EQ(rvl_ref_encode(cv::Mat1w(3, 3, std::uint16_t{0})), want_zeros);
+  cv::Mat1w back;
+  ASSERT_EQ(rvl_ref_decode(want_a, 4, 2, back), DecodeStatus::Ok);
+  EXPECT_EQ(cv::norm(a, back, cv::NORM_INF), 0.0);
+}
+
 TEST(DepthCodec, RvlReferenceRoundTripsEdgeCaseFrames) {
   const int w = 97, h = 53;  // odd sizes exercise the edges of every loop
   for (const auto& f : edge_case_frames(w, h)) {
