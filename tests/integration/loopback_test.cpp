@@ -51,6 +51,30 @@ std::vector<ForceRow> read_forces(const std::filesystem::path& csv) {
   return rows;
 }
 
+// Capture-to-force latency on the synthetic plane as docs/BENCHMARKS.md reports it ("Operator
+// station", idle machine: full-frame surfaces median 18.05 ms / p99 21.45 ms over all surfaces,
+// ROI first in contact median 1.85 ms / p99 4.65 ms), with room for a loaded 2-core machine: the
+// loaded rounds there reach 4-9x the idle median. A bound that a stalled stage (a frame held a
+// second, a surface built twice over) breaks, not "under a second".
+struct LatencyBound {
+  const char* what;
+  const char* median_key;
+  double median_ms;
+  const char* p99_key;
+  double p99_ms;
+};
+constexpr LatencyBound kFullFrameLatency{"full-frame surfaces", "latency_median_ms", 8 * 18.05,
+                                         "latency_p99_ms", 12 * 21.45};
+constexpr LatencyBound kRoiPartsLatency{"ROI part, in contact", "contact_latency_median_ms",
+                                        10 * 1.85, "contact_latency_p99_ms", 25 * 4.65};
+
+void expect_latency_within_bench(const nlohmann::json& j, const LatencyBound& b) {
+  const double median = j[b.median_key].get<double>(), p99 = j[b.p99_key].get<double>();
+  EXPECT_GT(median, 0.0) << b.what;
+  EXPECT_LE(median, b.median_ms) << b.what << ": median " << median << " ms";
+  EXPECT_LE(p99, b.p99_ms) << b.what << ": p99 " << p99 << " ms";
+}
+
 TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   const auto dir = scratch_dir("loopback_press");
   RemoteProcess remote(dir, {"--source", "synthetic:plane"});
@@ -62,8 +86,7 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
   ASSERT_EQ(*rc, 0) << local.stderr_text() << remote.proc.stderr_text();
   const auto rows = read_forces(dir / "forces.csv");
-  // The log covers the whole run (a loaded machine may run the unprivileged loop below 1 kHz, so
-  // the row count is not the measure).
+  // The log covers the whole run; the loop's rate is checked on the summary below.
   ASSERT_GT(rows.size(), 1000u);
   ASSERT_GT(rows.back().t - rows.front().t, 6.5);
   double peak = 0;
@@ -85,13 +108,12 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
     EXPECT_EQ(rows[i].pressure, 0.0) << rows[i].t;
   const auto j = summary_of(local);
   ASSERT_TRUE(j.is_object()) << local.stdout_text();
-  EXPECT_GT(j["surfaces"].get<int>(), 30);
-  // The press touched the plane, so some new surfaces were first rendered in contact; their
-  // latency is a subset of the whole distribution (loopback: positive and under a second).
-  EXPECT_GT(j["contact_latency_samples"].get<int>(), 0);
-  EXPECT_GT(j["contact_latency_median_ms"].get<double>(), 0.0);
-  EXPECT_LT(j["contact_latency_p99_ms"].get<double>(), 1000.0);
-  EXPECT_GT(j["latency_median_ms"].get<double>(), 0.0);
+  EXPECT_EQ(haptic_rate_problem(j, 7.5), "");
+  // 30 Hz for the ~6.5 s after the first surface, less what a loaded machine skips.
+  EXPECT_GT(j["surfaces"].get<int>(), 100);
+  // The press touched the plane, so some new surfaces were first rendered in contact.
+  EXPECT_GT(j["contact_latency_samples"].get<int>(), 30);
+  expect_latency_within_bench(j, kFullFrameLatency);
 }
 
 // ROI first end to end: with --roi the remote sends each frame's fingertip tiles as an ROI part
@@ -114,7 +136,9 @@ TEST(Loopback, RoiFramePartsGiveTheSamePress) {
     EXPECT_NEAR(peak, 5.0, 0.5) << "k 500 N/m x 10 mm, parts " << parts;
     const auto j = summary_of(local);
     ASSERT_TRUE(j.is_object()) << local.stdout_text();
-    EXPECT_GT(j["frames"].get<int>(), 30) << parts;
+    EXPECT_EQ(haptic_rate_problem(j, 7.5), "") << parts;
+    EXPECT_GT(j["frames"].get<int>(), 100) << parts;
+    expect_latency_within_bench(j, parts ? kRoiPartsLatency : kFullFrameLatency);
     if (parts) {
       // Frames whose rest was due (every 2nd, key frames) came in two parts.
       EXPECT_GT(j["roi_parts"].get<int>(), 0);
@@ -135,6 +159,7 @@ TEST(Loopback, StrokeShearOpposesSliding) {
   const auto rc = local.wait(30s);
   ASSERT_TRUE(rc.has_value());
   ASSERT_EQ(*rc, 0) << local.stderr_text();
+  EXPECT_EQ(haptic_rate_problem(summary_of(local), 9.5), "");
   const auto rows = read_forces(dir / "forces.csv");
   int opposing = 0, agreeing = 0, axis_opposing = 0;
   for (std::size_t i = 10; i < rows.size(); ++i) {
