@@ -1,9 +1,30 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
-# Quick-start command 2: install what is missing, build, run the whole test suite (ctest).
+# Quick-start command 2: install what is missing, build, run the whole test suite (ctest), then say
+# how many tests skipped and why (a clone without ../shared skips the real-frame tests; CI runs
+# with TELEX_NO_SKIPS=1, which turns any skip into a failure).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$root/tools/build.sh"
 build="${TELEX_BUILD_DIR:-$root/build}"
 cd "$build"
-ctest --output-on-failure -j "${TELEX_JOBS:-$(nproc)}" --timeout 600
+set +e
+ctest --output-on-failure -j "${TELEX_JOBS:-$(nproc)}" --timeout 600 2>&1 | tee ctest.out
+rc=${PIPESTATUS[0]}
+set -e
+skipped="$(grep -E '^ +[0-9]+ - .* \(Skipped\)$' ctest.out | sed -E 's/^ +[0-9]+ - (.*) \(Skipped\)$/\1/' || true)"
+count=0
+[ -n "$skipped" ] && count="$(printf '%s\n' "$skipped" | wc -l)"
+echo "test.sh: ${count} test(s) skipped${TELEX_NO_SKIPS:+ (TELEX_NO_SKIPS is set: a skip fails instead)}"
+if [ "$count" -gt 0 ]; then
+  # The reason is the line gtest prints after "Skipped" in the test's output.
+  while IFS= read -r name; do
+    reason="$(awk -v t="Testing: $name" '
+      index($0, t) { on = 1; next }
+      on && /Testing: / { exit }
+      on && seen { print; exit }
+      on && /: Skipped$/ { seen = 1 }' Testing/Temporary/LastTest.log)"
+    echo "  skipped: $name: ${reason:-reason not found in Testing/Temporary/LastTest.log}"
+  done <<< "$skipped"
+fi
+exit "$rc"

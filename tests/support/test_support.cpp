@@ -2,6 +2,8 @@
 // Test helpers: where the shared real frames are, and where built binaries live.
 #include "test_support.h"
 
+#include <cstdlib>
+
 namespace telex::test {
 
 std::filesystem::path real_data_dir() {
@@ -9,6 +11,11 @@ std::filesystem::path real_data_dir() {
   std::error_code ec;
   if (std::filesystem::is_directory(p, ec)) return p;
   return {};
+}
+
+bool skips_forbidden() {
+  const char* v = std::getenv("TELEX_NO_SKIPS");
+  return v && *v && std::string(v) != "0";
 }
 
 std::filesystem::path built_binary(const std::string& name) {

@@ -17,10 +17,19 @@ std::filesystem::path built_binary(const std::string& name);
 // The names among `names` that this tree has not built, comma-separated ("" when all are).
 std::string missing_binaries(std::initializer_list<const char*> names);
 
-// The one way a test skips: with the reason it gives, when `condition` does not hold.
-#define TELEX_SKIP_UNLESS(condition, reason)  \
-  do {                                        \
-    if (!(condition)) GTEST_SKIP() << reason; \
+// Whether skipping is forbidden: TELEX_NO_SKIPS=1 in the environment (.ci/run sets it, since CI
+// has everything a test needs, so a skip there hides a broken setup).
+bool skips_forbidden();
+
+// The one way a test skips: with the reason it gives, when `condition` does not hold; a failure
+// with that reason instead where skips are forbidden.
+#define TELEX_SKIP_UNLESS(condition, reason)                           \
+  do {                                                                 \
+    if (!(condition)) {                                                \
+      if (::telex::test::skips_forbidden())                            \
+        FAIL() << "would skip, and TELEX_NO_SKIPS is set: " << reason; \
+      GTEST_SKIP() << reason;                                          \
+    }                                                                  \
   } while (0)
 
 // Skips when the shared real frames are absent (present in CI beside the clone, absent in a
