@@ -1,0 +1,162 @@
+// SPDX-License-Identifier: MIT
+// Writes valid seed inputs for each fuzz target (in each target's own input layout) into
+// OUT/<target>/, so the fuzzers start deep inside the formats. Built with TELEX_FUZZ; the kept
+// corpus in corpus/ is these seeds after fuzzing, minimised with -merge=1 (docs/BENCHMARKS.md).
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stream_fixtures.h"
+#include "telex/local/natnet.h"
+#include "telex/proto/depth_codec.h"
+#include "telex/proto/fragment.h"
+#include "telex/proto/messages.h"
+
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+namespace fs = std::filesystem;
+
+int g_written = 0;
+
+void write(const fs::path& dir, const std::string& name, const Bytes& b) {
+  fs::create_directories(dir);
+  std::ofstream(dir / name, std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  ++g_written;
+}
+
+Bytes cat(std::initializer_list<Bytes> parts) {
+  Bytes out;
+  for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
+cv::Mat1w tile(int w, int h, int seed, bool holes) {
+  cv::Mat1w t(h, w);
+  cv::RNG rng(static_cast<std::uint64_t>(seed));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      t(y, x) = holes && rng.uniform(0, 5) == 0
+                    ? 0
+                    : static_cast<std::uint16_t>(800 + 3 * x + 2 * y + rng.uniform(0, 4));
+  return t;
+}
+
+std::vector<telex::proto::Message> messages() {
+  using namespace telex::proto;
+  std::vector<Message> m;
+  m.push_back(Hello{});
+  m.push_back(Heartbeat{1, 2, 3, 4});
+  m.push_back(telex::test::stream_config_2x2());
+  for (const Codec c : {Codec::Raw, Codec::Zip, Codec::Fast}) {
+    const cv::Mat1w t = tile(16, 12, static_cast<int>(c), true);
+    m.push_back(DepthTile{3, 80, 60, 16, 12, c, encode_depth(t, c)});
+  }
+  FrameManifest fm;
+  fm.frame_id = 7;
+  fm.tile_count = 64;
+  fm.changed_tiles = {0, 3, 9, 63};
+  m.push_back(fm);
+  fm.key_frame = true;
+  fm.changed_tiles.clear();
+  m.push_back(fm);
+  m.push_back(Bye{});
+  return m;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s OUT_DIR\n", argv[0]);
+    return 2;
+  }
+  using namespace telex::proto;
+  const fs::path out = argv[1];
+  const auto msgs = messages();
+
+  // parser_fuzz: byte 0 = flags (bit 0 frame size, bit 1 key, chunk size), then a TCP stream.
+  for (std::size_t i = 0; i < msgs.size(); ++i) {
+    Header h;
+    h.seq = static_cast<std::uint32_t>(i);
+    h.frame_id = 7;
+    write(out / "parser_fuzz", "msg" + std::to_string(i),
+          cat({{static_cast<std::uint8_t>(1 + 4 * i)}, encode_stream(h, msgs[i])}));
+  }
+  Bytes stream{0x11};
+  for (std::size_t i = 0; i < msgs.size(); ++i) stream = cat({stream, encode_stream({}, msgs[i])});
+  write(out / "parser_fuzz", "all", stream);
+
+  // datagram_fuzz: one whole datagram message.
+  for (std::size_t i = 0; i < msgs.size(); ++i)
+    write(out / "datagram_fuzz", "msg" + std::to_string(i), encode({}, msgs[i]));
+
+  // reassembler_fuzz: records of u16 length, u8 time step, datagram.
+  {
+    Bytes seq;
+    const Bytes big = encode({}, DepthTile{1, 0, 0, 40, 30, Codec::Raw,
+                                           encode_depth(tile(40, 30, 1, false), Codec::Raw)});
+    const auto frags = fragment_message(big, 5, 9);
+    for (const auto& f : frags)
+      seq = cat({seq,
+                 {static_cast<std::uint8_t>(f.size()), static_cast<std::uint8_t>(f.size() >> 8), 1},
+                 f});
+    write(out / "reassembler_fuzz", "fragments", seq);
+    const auto one = fragment_message(encode({}, msgs[1]), 6, 9);
+    write(out / "reassembler_fuzz", "single",
+          cat({{static_cast<std::uint8_t>(one[0].size()), 0, 2}, one[0]}));
+  }
+
+  // depth_decode_fuzz: bytes w - 1, h - 1, codec (0 raw, 1 zip, 2 fast, 3 rvl-ref), bitstream.
+  for (int k = 0; k < 12; ++k) {
+    const int w = 4 + 7 * k % 36, h = 3 + 5 * k % 28;
+    const cv::Mat1w t = tile(w, h, k, k % 2 == 0);
+    for (int c = 0; c < 4; ++c) {
+      const Bytes bits = c == 3 ? rvl_ref_encode(t) : encode_depth(t, static_cast<Codec>(c));
+      if (bits.size() > 500) continue;
+      write(out / "depth_decode_fuzz", "t" + std::to_string(k) + "c" + std::to_string(c),
+            cat({{static_cast<std::uint8_t>(w - 1), static_cast<std::uint8_t>(h - 1),
+                  static_cast<std::uint8_t>(c)},
+                 bits}));
+    }
+  }
+
+  // natnet_fuzz: byte 0 picks the version (index into 2.0 2.5 2.7 2.9 2.11 3.0 3.1 4.0 4.1),
+  // then a datagram.
+  {
+    using namespace telex::local::natnet;
+    const Version versions[] = {{2, 0}, {2, 5}, {2, 7}, {2, 9}, {2, 11},
+                                {3, 0}, {3, 1}, {4, 0}, {4, 1}};
+    Frame f;
+    f.frame_number = 42;
+    f.marker_sets.push_back({"hand", {{0.1f, 0.2f, 0.3f}}});
+    f.unlabeled_markers.push_back({1, 2, 3});
+    RigidBody b;
+    b.id = 2;
+    b.p_m = {0.1f, 1.2f, 0.4f};
+    b.markers.push_back({0.1f, 1.2f, 0.4f});
+    f.rigid_bodies.push_back(b);
+    f.skeletons.push_back({7, {b}});
+    f.labeled_markers.push_back({65537, {0.5f, 0.5f, 0.5f}, 0.01f, 1, 0.001f});
+    f.force_plates.push_back({1, {{1.0f, 2.0f}}});
+    f.devices.push_back({2, {{3.0f}}});
+    for (std::uint8_t i = 0; i < 9; ++i) {
+      write(out / "natnet_fuzz",
+            "frame_v" + std::to_string(versions[i].major) + "_" + std::to_string(versions[i].minor),
+            cat({{i}, encode_frame(f, versions[i])}));
+    }
+    ServerInfo info;
+    info.app_name = "Motive";
+    info.natnet_version = {4, 1};
+    info.natnet_version_bytes = {4, 1, 0, 0};
+    write(out / "natnet_fuzz", "server_info", cat({{8}, make_server_info(info)}));
+    write(out / "natnet_fuzz", "ping", cat({{8}, make_ping("telex")}));
+  }
+  std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
+  return 0;
+}
