@@ -8,11 +8,11 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "test_client.h"
 #include "daemons.h"
 #include "process.h"
 #include "telex/remote/openni_record.h"
 #include "telex/remote/sources.h"
+#include "test_client.h"
 #include "test_support.h"
 
 namespace telex::test {

@@ -167,8 +167,11 @@ TEST_P(SameKey, ForcesAreThoseOfAnUnkeyedRunAndNothingIsDropped) {
   }
   const double s_keyed = keyed.summary["surfaces"].get<double>();
   const double s_plain = plain.summary["surfaces"].get<double>();
-  EXPECT_GT(s_plain, 100);
-  EXPECT_NEAR(s_keyed, s_plain, 0.1 * s_plain) << "surfaces keyed vs unkeyed";
+  EXPECT_GT(s_plain, 100 / kSanitizerSlowdown);
+  // Sanitizer builds: the keyed run's extra hashing costs more there, and the starved station
+  // builds fewer of the frames it gets.
+  EXPECT_NEAR(s_keyed, s_plain, (kSanitizerSlowdown > 1 ? 0.25 : 0.1) * s_plain)
+      << "surfaces keyed vs unkeyed";
   // The force curves on script time: the same press, sample by sample, over the whole script.
   ASSERT_FALSE(keyed.curve.empty());
   ASSERT_FALSE(plain.curve.empty());

@@ -35,8 +35,8 @@ nlohmann::json summary_of(const Process& p);
 
 // Checks telex-local's summary `j` for a haptic loop that kept its rate over a run of
 // `duration_s`: it ticked for most of the run, every deadline of that span was either a tick or a
-// counted miss (ticks + missed_ticks = span x nominal rate + 1, to the two ticks at the ends and
-// the fraction each realignment after a miss drops), and the measured rate is at least 0.9 x the
+// counted miss (ticks + missed_ticks = span x nominal rate + 1, to three ticks at the ends and the
+// fraction each realignment after a miss drops), and the measured rate is at least 0.9 x the
 // nominal rate (0.8 x where SCHED_FIFO was refused). Returns a description of the first failure,
 // empty when all hold.
 std::string haptic_rate_problem(const nlohmann::json& j, double duration_s);
