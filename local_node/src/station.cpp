@@ -35,6 +35,7 @@ using std::chrono::milliseconds;
 // What the haptic thread reports per tick; trivially copyable so the ring never allocates.
 struct TickSample {
   std::int64_t t_ns = 0;
+  std::int64_t deadline_ns = 0;  // the timer's deadline this tick waited for
   std::int64_t period_ns = 0;
   std::uint64_t surface_frame = 0;
   std::int64_t surface_capture_ns = 0;  // remote clock; 0 = no surface yet
@@ -167,7 +168,7 @@ class Station::Run {
   std::vector<double> window_latency_;
   TickSample last_{};
   std::uint64_t tick_index_ = 0;
-  std::int64_t first_tick_ns_ = 0;
+  std::int64_t first_deadline_ns_ = 0;
   std::uint64_t last_latency_frame_ = 0;
   std::int64_t last_latency_capture_ = 0;
   std::int64_t next_print_ns_ = 0;
@@ -418,6 +419,7 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     }
     display_->write(now, shown);
     sample.t_ns = now;
+    sample.deadline_ns = timer.deadline_ns();
     sample.period_ns = prev ? now - prev : period_ns_;
     prev = now;
     sample.surface_frame = newest ? newest->frame_id : 0;
@@ -481,7 +483,7 @@ void Station::Run::drain() {
       cfg_.print_forces_hz > 0 ? static_cast<std::int64_t>(1e9 / cfg_.print_forces_hz) : 0;
   TickSample s{};
   while (samples_.pop(s)) {
-    if (++tick_index_ == 1) first_tick_ns_ = s.t_ns;
+    if (++tick_index_ == 1) first_deadline_ns_ = s.deadline_ns;
     last_ = s;
     if (tick_index_ > 1) {
       period_us_.add(static_cast<double>(s.period_ns) / 1e3);
@@ -634,7 +636,8 @@ StationSummary Station::Run::summarize() {
   s.period_median_us = period_us_.quantile(0.5);
   s.missed_ticks = missed_.load();
   s.nominal_rate_hz = cfg_.rate_hz;
-  s.haptic_span_s = tick_index_ ? static_cast<double>(last_.t_ns - first_tick_ns_) / 1e9 : 0.0;
+  s.haptic_span_s =
+      tick_index_ ? static_cast<double>(last_.deadline_ns - first_deadline_ns_) / 1e9 : 0.0;
   s.log_origin_monotonic_ns = t_start_ns_;
   s.surfaces = surfaces_built_.load();
   s.frames = assembler_.counters().frames;  // the network thread has stopped

@@ -52,9 +52,12 @@ std::int64_t PeriodicTimer::wait_next() {
   if (next_ns_ == 0) next_ns_ = now;
   next_ns_ += period_ns_;
   if (now - next_ns_ > period_ns_) {
-    // Overran by more than a period: realign rather than fire a burst of late ticks.
-    missed_ += static_cast<std::uint64_t>((now - next_ns_) / period_ns_);
-    next_ns_ = now + period_ns_;
+    // Overran by more than a period: skip the deadlines that are a whole period or more in the
+    // past (counted as missed) and tick at the latest one that has passed, staying on the grid.
+    // No burst, and every deadline is either ticked or missed: ticks + missed = deadlines.
+    const std::int64_t skipped = (now - next_ns_) / period_ns_;
+    missed_ += static_cast<std::uint64_t>(skipped);
+    next_ns_ += skipped * period_ns_;
   }
   clock_.sleep_until_ns(next_ns_);
   return clock_.now_ns();

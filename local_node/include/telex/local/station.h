@@ -53,8 +53,8 @@ struct StationSummary {
   double period_p99_jitter_us = 0;
   double period_median_us = 0;
   std::uint64_t missed_ticks = 0;
-  // The haptic loop's nominal rate and the time from its first tick to its last: over that span
-  // a loop that kept its rate has ticks + missed_ticks = span * rate + 1.
+  // The haptic loop's nominal rate and the time from its first deadline to its last: every
+  // deadline is ticked or missed, so ticks + missed_ticks = span * rate + 1 (PeriodicTimer).
   double nominal_rate_hz = 0;
   double haptic_span_s = 0;
   // CLOCK_MONOTONIC (ns) at the logs' time 0: the time_s of --log-forces and --log-tracking rows

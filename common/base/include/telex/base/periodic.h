@@ -22,13 +22,16 @@ class TimerClock {
 TimerClock& monotonic_clock();
 
 // Sleeps until absolute deadlines spaced by period_ns. A tick that overran by more than a whole
-// period skips ahead instead of bursting to catch up (counted as missed).
+// period skips the deadlines it overran (counted as missed) instead of bursting to catch up, and
+// stays on the grid: from the first deadline to deadline(), ticks + missed() = deadlines.
 class PeriodicTimer {
  public:
   explicit PeriodicTimer(std::int64_t period_ns, TimerClock& clock = monotonic_clock());
   // Waits for the next deadline; returns the actual wake-up time.
   std::int64_t wait_next();
   std::uint64_t missed() const { return missed_; }
+  // The deadline the last wait_next() waited for (0 before the first).
+  std::int64_t deadline_ns() const { return next_ns_; }
   std::int64_t period_ns() const { return period_ns_; }
 
  private:
