@@ -116,6 +116,14 @@ int main(int argc, char** argv) {
   app.add_option("--log-forces", cfg.log_forces_csv, "CSV of forces, one row per finger per tick");
   app.add_option("--log-tracking", cfg.log_tracking_csv,
                  "CSV of every rigid body as the tracker reported it (tracker frame)");
+  app.add_option("--record", cfg.record_bag,
+                 "record the session to a ROS 1 bag FILE.bag: depth as received, tracked bodies, "
+                 "fingertips, forces and display commands (docs/RECORDING.md)");
+  app.add_option("--record-rate", cfg.record_rate_hz,
+                 "rate of the recorded forces, display commands and fingertip frames, Hz "
+                 "(the model's inputs are recorded every tick)")
+      ->check(CLI::Range(0.1, 10000.0))
+      ->capture_default_str();
   app.add_option("--log-every", cfg.log_every, "log one tick in N")
       ->check(CLI::Range(1, 1000000))
       ->capture_default_str();
@@ -197,6 +205,17 @@ int main(int argc, char** argv) {
                  s.contact_latency_median_ms, s.contact_latency_p99_ms,
                  static_cast<unsigned long long>(s.contact_latency_samples), s.peak_pressure_N,
                  s.peak_shear_N);
+    if (!cfg.record_bag.empty())
+      std::fprintf(stderr,
+                   "telex-local: recorded %s: %llu ticks, %llu surfaces, %llu body frames; "
+                   "dropped %llu ticks, %llu surfaces, %llu body frames%s%s\n",
+                   cfg.record_bag.c_str(), static_cast<unsigned long long>(s.record_ticks),
+                   static_cast<unsigned long long>(s.record_surfaces),
+                   static_cast<unsigned long long>(s.record_body_frames),
+                   static_cast<unsigned long long>(s.record_dropped_ticks),
+                   static_cast<unsigned long long>(s.record_dropped_surfaces),
+                   static_cast<unsigned long long>(s.record_dropped_bodies),
+                   s.record_error.empty() ? "" : "; RECORDING FAILED: ", s.record_error.c_str());
     if (json_summary) {
       nlohmann::json j{{"ticks", s.ticks},
                        {"haptic_rate_hz", s.haptic_rate_hz},
@@ -224,9 +243,18 @@ int main(int argc, char** argv) {
                        {"udp_datagrams", s.udp_datagrams},
                        {"udp_lost", s.udp_lost},
                        {"udp_messages_by_fragments", s.udp_messages_by_fragments}};
+      if (!cfg.record_bag.empty())
+        j["record"] = {{"file", cfg.record_bag.string()},
+                       {"ticks", s.record_ticks},
+                       {"surfaces", s.record_surfaces},
+                       {"body_frames", s.record_body_frames},
+                       {"dropped_ticks", s.record_dropped_ticks},
+                       {"dropped_surfaces", s.record_dropped_surfaces},
+                       {"dropped_bodies", s.record_dropped_bodies},
+                       {"error", s.record_error}};
       std::cout << j.dump() << std::endl;
     }
-    return 0;
+    return s.record_error.empty() ? 0 : 1;
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "telex-local: error: %s\n", e.what());
     return 2;

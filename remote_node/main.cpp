@@ -87,11 +87,13 @@ int main(int argc, char** argv) {
   app.add_option("--source", cfg.depth_source,
                  "Depth source: openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
                  "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
+                 "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] (ROS 1 bag, "
+                 "16UC1 or 32FC1; colour=T is the eye view) | "
                  "synthetic[:SCENE][,animate][,noise=on|off]");
   app.add_option("--stereo", cfg.stereo_source,
                  "Stereo video source (empty = none): "
                  "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg] | "
-                 "files:LEFT,RIGHT | synthetic[:SCENE]");
+                 "files:LEFT,RIGHT | bag:FILE,colour=T | synthetic[:SCENE]");
   app.add_option("--listen", listen, "TCP control endpoint HOST:PORT");
   app.add_option("--transport", transport,
                  "Depth/video transport when the client offers UDP: udp | tcp")

@@ -16,8 +16,8 @@
 #include <thread>
 #include <vector>
 
-#include "telex/local/gravity_grabber.h"
 #include "telex/base/periodic.h"
+#include "telex/local/gravity_grabber.h"
 #include "telex/local/udp_sink.h"
 
 namespace telex::local {

@@ -42,6 +42,7 @@ struct TickSample {
   std::array<FingertipForce, kFingerCount> forces{};
   std::array<bool, kFingerCount> tracked{};
   std::array<glm::dvec3, kFingerCount> p_CameraFingertip{};
+  std::array<glm::dvec3, kFingerCount> axis_Camera{};
 };
 
 // Median depth (m) of the valid pixels in the central tenth of the raw frame: where scripts aim.
@@ -129,6 +130,7 @@ class Station::Run {
   ZeroForceOnExit display_zero_;
   std::ofstream forces_csv_;
   std::ofstream tracking_csv_;
+  std::unique_ptr<SessionRecorder> recorder_;  // --record; finished after the threads stop
   const std::string view_dir_;
   const bool view_window_;
 
@@ -194,6 +196,25 @@ std::ofstream open_csv(const std::filesystem::path& path, const char* flag, cons
   return out;
 }
 
+std::unique_ptr<SessionRecorder> open_recorder(const StationConfig& cfg) {
+  if (cfg.record_bag.empty()) return nullptr;
+  RecorderConfig rc;
+  rc.path = cfg.record_bag.string();
+  rc.force_rate_hz = cfg.record_rate_hz;
+  rc.tick_rate_hz = cfg.rate_hz;
+  rc.monotonic_to_bag_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count() -
+                           monotonic_ns();
+  auto j = session_config_json(cfg.haptic, cfg.surface, cfg.rate_hz);
+  j["station"] = {{"hand", cfg.hand_spec},
+                  {"haptics", cfg.haptics_spec},
+                  {"remote", cfg.client.host + ":" + std::to_string(cfg.client.port)},
+                  {"max_tile_age_s", cfg.max_tile_age_s}};
+  rc.config_json = j.dump();
+  return std::make_unique<SessionRecorder>(std::move(rc));
+}
+
 }  // namespace
 
 Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
@@ -207,12 +228,13 @@ Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
                            "status,x_m,y_m,z_m,surface_frame,surface_capture_ns\n")),
       tracking_csv_(open_csv(cfg.log_tracking_csv, "--log-tracking",
                              "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n")),
+      recorder_(open_recorder(cfg)),
       view_dir_(view_dir_of(cfg.view_spec)),
       view_window_(cfg.view_spec == "window"),
       assembler_(static_cast<std::int64_t>(cfg.max_tile_age_s * 1e9)),
       model_(cfg.haptic, kFingerCount),
       samples_(1 << 14),
-      tracking_(tracking_csv_.is_open() ? 1024 : 1) {
+      tracking_(tracking_csv_.is_open() || recorder_ ? 1024 : 1) {
   if (!view_dir_.empty()) std::filesystem::create_directories(view_dir_);
 }
 
@@ -304,10 +326,14 @@ void Station::Run::surface_loop(std::stop_token stop) {
       if (cfg_.surface.roi)
         windows = fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
       SurfaceBuildStats st;
+      const std::int64_t built_ns = monotonic_ns();
       std::shared_ptr<const Surface> s = build_surface(*frame, cfg_.surface, windows, &st, &pool);
       build_ms_.store(st.snapshot_ms + st.filter_ms + st.normals_ms);
       if (surfaces_built_.load() == 0) first_centre_depth_m_.store(centre_depth_m(frame->depth_mm));
       surfaces_.publish(s);
+      if (recorder_)
+        recorder_->add_surface(
+            {surface_seq, built_ns, frame->capture_ns, frame->depth_mm.clone(), frame->intrinsics});
       retired.push_back(s);
       if (retired.size() > 8) retired.pop_front();
       surfaces_built_.fetch_add(1);
@@ -429,6 +455,7 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
       sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
       sample.p_CameraFingertip[static_cast<std::size_t>(i)] =
           in[static_cast<std::size_t>(i)].p_CameraFingertip;
+      sample.axis_Camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].axis_Camera;
     }
     samples_.push(sample);
     missed_.store(timer.missed(), std::memory_order_relaxed);
@@ -476,6 +503,7 @@ void Station::Run::stop_threads() {
   if (surface_thread_.joinable()) surface_thread_.join();
   client_->stop();
   if (forces_csv_.is_open()) forces_csv_.flush();
+  if (recorder_) recorder_->finish();  // everything queued is written and the bag closed
 }
 
 void Station::Run::drain() {
@@ -485,6 +513,15 @@ void Station::Run::drain() {
   while (samples_.pop(s)) {
     if (++tick_index_ == 1) first_deadline_ns_ = s.deadline_ns;
     last_ = s;
+    if (recorder_) {
+      RecordedTick t;
+      t.t_ns = s.t_ns;
+      t.surface_seq = s.surface_frame;
+      for (std::size_t i = 0; i < kFingerCount; ++i)
+        t.in[i] = {s.p_CameraFingertip[i], s.axis_Camera[i], s.tracked[i]};
+      t.out = s.forces;
+      recorder_->add_tick(t);
+    }
     if (tick_index_ > 1) {
       period_us_.add(static_cast<double>(s.period_ns) / 1e3);
       jitter_us_.add(std::abs(static_cast<double>(s.period_ns - period_ns_)) / 1e3);
@@ -551,6 +588,7 @@ void Station::Run::drain() {
 void Station::Run::drain_tracking() {
   HandState state{};
   while (tracking_.pop(state)) {
+    if (recorder_) recorder_->add_bodies(state);
     if (!tracking_csv_.is_open()) continue;
     const double t = static_cast<double>(state.time_ns - t_start_ns_) / 1e9;
     for (int b = 0; b < state.body_count; ++b) {
@@ -639,6 +677,16 @@ StationSummary Station::Run::summarize() {
   s.haptic_span_s =
       tick_index_ ? static_cast<double>(last_.deadline_ns - first_deadline_ns_) / 1e9 : 0.0;
   s.log_origin_monotonic_ns = t_start_ns_;
+  if (recorder_) {
+    const RecorderStats r = recorder_->finish();
+    s.record_ticks = r.ticks;
+    s.record_surfaces = r.surfaces;
+    s.record_body_frames = r.body_frames;
+    s.record_dropped_ticks = r.dropped_ticks;
+    s.record_dropped_surfaces = r.dropped_surfaces;
+    s.record_dropped_bodies = r.dropped_bodies;
+    s.record_error = r.error;
+  }
   s.surfaces = surfaces_built_.load();
   s.frames = assembler_.counters().frames;  // the network thread has stopped
   s.roi_parts = assembler_.counters().roi_parts;

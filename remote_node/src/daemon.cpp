@@ -77,6 +77,9 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
   depth_ = make_depth_source(config_.depth_source, config_.source_options);
   if (!config_.stereo_source.empty())
     stereo_ = make_stereo_source(config_.stereo_source, config_.source_options);
+  else if (const auto spec = parse_source_spec(config_.depth_source);
+           spec.kind == "bag" && spec.has("colour"))
+    stereo_ = make_stereo_source(config_.depth_source, config_.source_options);  // the eye view
   config_.server.video_available = stereo_ != nullptr;
   config_.server.codec = config_.pipeline.codec;
 }

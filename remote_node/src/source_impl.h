@@ -13,6 +13,10 @@ std::unique_ptr<DepthSource> make_openni_source(const SourceSpec& spec,
 std::unique_ptr<DepthSource> make_oni_source(const SourceSpec& spec, const SourceOptions& options);
 std::unique_ptr<DepthSource> make_files_depth_source(const SourceSpec& spec,
                                                      const SourceOptions& options);
+std::unique_ptr<DepthSource> make_bag_depth_source(const SourceSpec& spec,
+                                                   const SourceOptions& options);
+std::unique_ptr<StereoSource> make_bag_colour_source(const SourceSpec& spec,
+                                                     const SourceOptions& options);
 std::unique_ptr<DepthSource> make_synthetic_depth_source(const SourceSpec& spec,
                                                          const SourceOptions& options);
 std::unique_ptr<StereoSource> make_v4l2_stereo_source(const SourceSpec& spec,

@@ -14,11 +14,12 @@ namespace {
 constexpr std::string_view kDepthForms =
     "openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
     "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
+    "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | "
     "synthetic[:SCENE][,animate][,noise=on|off]";
 constexpr std::string_view kStereoForms =
     "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg] | "
     "files:LEFT_PATTERN,RIGHT_PATTERN[,fps=F][,loop] | "
-    "synthetic[:SCENE][,animate]";
+    "bag:FILE,colour=T[,loop][,rate=R|fast] | synthetic[:SCENE][,animate]";
 }  // namespace
 
 std::int64_t steady_now_ns() {
@@ -85,6 +86,7 @@ std::unique_ptr<DepthSource> make_depth_source(std::string_view spec_text,
   if (spec.kind == "openni") return detail::make_openni_source(spec, options);
   if (spec.kind == "oni") return detail::make_oni_source(spec, options);
   if (spec.kind == "files") return detail::make_files_depth_source(spec, options);
+  if (spec.kind == "bag") return detail::make_bag_depth_source(spec, options);
   if (spec.kind == "synthetic") return detail::make_synthetic_depth_source(spec, options);
   throw std::invalid_argument(fmt::format("unknown depth source '{}' in '{}'; valid: {}", spec.kind,
                                           spec_text, kDepthForms));
@@ -95,6 +97,7 @@ std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec_text,
   const SourceSpec spec = parse_source_spec(spec_text);
   if (spec.kind == "v4l2") return detail::make_v4l2_stereo_source(spec, options);
   if (spec.kind == "files") return detail::make_files_stereo_source(spec, options);
+  if (spec.kind == "bag") return detail::make_bag_colour_source(spec, options);
   if (spec.kind == "synthetic") return detail::make_synthetic_stereo_source(spec, options);
   throw std::invalid_argument(fmt::format("unknown stereo source '{}' in '{}'; valid: {}",
                                           spec.kind, spec_text, kStereoForms));

@@ -46,10 +46,17 @@ std::vector<std::string> local_args(std::uint16_t port, const std::filesystem::p
 }
 
 nlohmann::json summary_of(const Process& p) {
+  // The last line that opens an object (the summary may hold nested objects).
   const std::string out = p.stdout_text();
-  const auto brace = out.rfind('{');
-  if (brace == std::string::npos) return {};
-  return nlohmann::json::parse(out.substr(brace), nullptr, false);
+  std::size_t at = std::string::npos;
+  for (std::size_t pos = 0; pos < out.size();) {
+    const std::size_t end = out.find('\n', pos);
+    if (out[pos] == '{') at = pos;
+    if (end == std::string::npos) break;
+    pos = end + 1;
+  }
+  if (at == std::string::npos) return {};
+  return nlohmann::json::parse(out.substr(at, out.find('\n', at) - at), nullptr, false);
 }
 
 std::string haptic_rate_problem(const nlohmann::json& j, double duration_s) {

@@ -12,6 +12,7 @@
 
 #include "telex/common/haptic_model.h"
 #include "telex/local/haptic_display.h"
+#include "telex/local/recorder.h"
 #include "telex/local/surface_builder.h"
 #include "telex/local/surface_client.h"
 #include "telex/local/tracker.h"
@@ -37,6 +38,9 @@ struct StationConfig {
   std::filesystem::path log_forces_csv;    // empty = off
   int log_every = 1;                       // one row per finger every N ticks
   std::filesystem::path log_tracking_csv;  // empty = off
+  // ROS 1 bag of the session (docs/RECORDING.md); empty = off. Forces at record_rate_hz.
+  std::filesystem::path record_bag;
+  double record_rate_hz = 100.0;
   std::string view_spec = "none";          // none | png:DIR | window
   double print_forces_hz = 0.0;            // live force lines on stdout (0 = off)
   bool status_line = true;                 // one status line per second on stderr
@@ -77,6 +81,10 @@ struct StationSummary {
   // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
   std::uint64_t udp_datagrams = 0, udp_lost = 0;
   std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
+  // --record: what was written and what the queues dropped; record_error when writing failed.
+  std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
+  std::uint64_t record_dropped_ticks = 0, record_dropped_surfaces = 0, record_dropped_bodies = 0;
+  std::string record_error;
 };
 
 class Station {

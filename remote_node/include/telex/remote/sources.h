@@ -73,7 +73,7 @@ class StereoSource {
 // "kind:ARG[,opt][,key=value]..." split into its parts. ARG may itself hold commas only for the
 // v4l2 stereo spec, which takes two device paths.
 struct SourceSpec {
-  std::string kind;                            // openni | oni | files | synthetic | v4l2
+  std::string kind;                            // openni | oni | files | bag | synthetic | v4l2
   std::string arg;                             // URI, path, glob pattern or scene name
   std::map<std::string, std::string> options;  // flags map to "" (e.g. "loop"), key=value otherwise
   std::vector<std::string> flags;  // value-less tokens in order (the right-eye path of v4l2)
@@ -93,12 +93,14 @@ struct SourceOptions {
 };
 
 // Valid depth specs: openni[:URI] | oni:PATH[,loop][,realtime|fast] |
-// files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | synthetic[:SCENE][,animate].
+// files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] |
+// bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | synthetic[:SCENE][,animate].
+// A bag source with colour=T also gives the eye view when no stereo source is set.
 std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
                                                const SourceOptions& options = {});
 
 // Valid stereo specs: v4l2:/dev/videoL,/dev/videoR[,WxH][,mjpeg|yuyv] | files:LEFT_GLOB,RIGHT_GLOB
-// | synthetic[:SCENE][,animate].
+// | bag:FILE,colour=T[,loop][,rate=R|fast] (both eyes) | synthetic[:SCENE][,animate].
 std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec,
                                                  const SourceOptions& options = {});
 
