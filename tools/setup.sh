@@ -18,6 +18,7 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   librosbag-storage-dev libsensor-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev
   pluginlib-dev libclass-loader-dev librcpputils-dev librcutils-dev libament-index-cpp-dev
+  python3-rosbag
   iproute2 procps
 )
 

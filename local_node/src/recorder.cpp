@@ -334,6 +334,55 @@ void read_session_config(const std::string& bag_path, HapticParams& haptic, Surf
   apply_session_config(j, haptic, surface, rate_hz);
 }
 
+std::vector<RecordedSurface> read_session_depth(const std::string& bag_path,
+                                                std::size_t max_frames) {
+  bag::Reader r(bag_path);
+  std::uint64_t total = 0;
+  for (const auto& t : r.topics())
+    if (t.topic == kDepthTopic) total = t.messages;
+  if (total == 0)
+    throw std::runtime_error(fmt::format("bag {} holds no {} (it holds {})", bag_path, kDepthTopic,
+                                         r.describe_topics()));
+  const std::uint64_t want = std::min<std::uint64_t>(std::max<std::size_t>(max_frames, 1), total);
+  r.select({kDepthTopic, kDepthInfoTopic});
+  std::map<std::uint32_t, bag::CameraIntrinsics> infos;
+  std::vector<RecordedSurface> out;
+  std::vector<bag::Message> images;
+  bag::Message m;
+  std::uint64_t index = 0, next_pick = 0, picked = 0;
+  while (picked < want && r.next(m)) {
+    if (m.kind == bag::Message::Kind::CameraInfo) {
+      infos[m.seq] = m.camera;
+    } else if (m.kind == bag::Message::Kind::Image && m.image.type() == CV_16UC1) {
+      // Evenly spread: image i is taken when it reaches the next of want picks over total.
+      if (index++ == next_pick) {
+        images.push_back(m);
+        ++picked;
+        next_pick = picked * total / want;
+      }
+    }
+  }
+  for (auto& im : images) {
+    // Its CameraInfo may follow it at the same bag time: read on until every one is known.
+    while (!infos.count(im.seq) && r.next(m))
+      if (m.kind == bag::Message::Kind::CameraInfo) infos[m.seq] = m.camera;
+    const auto it = infos.find(im.seq);
+    if (it == infos.end())
+      throw std::runtime_error(fmt::format("bag {}: depth image {} has no CameraInfo on {}",
+                                           bag_path, im.seq, kDepthInfoTopic));
+    RecordedSurface s;
+    s.seq = im.seq;
+    s.built_ns = im.bag_time_ns;
+    s.capture_ns = im.stamp_ns;
+    s.depth_mm = im.image;
+    s.intrinsics = {it->second.fx, it->second.fy,    it->second.cx,
+                    it->second.cy, it->second.width, it->second.height};
+    out.push_back(std::move(s));
+    if (out.size() == want) break;
+  }
+  return out;
+}
+
 namespace {
 
 // The recorded surfaces in sequence order, each with the intrinsics of the CameraInfo written

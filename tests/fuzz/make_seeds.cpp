@@ -6,11 +6,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
 #include "stream_fixtures.h"
+#include "telex/bag/bag.h"
 #include "telex/local/natnet.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/fragment.h"
@@ -156,6 +158,57 @@ int main(int argc, char** argv) {
     info.natnet_version_bytes = {4, 1, 0, 0};
     write(out / "natnet_fuzz", "server_info", cat({{8}, make_server_info(info)}));
     write(out / "natnet_fuzz", "ping", cat({{8}, make_ping("telex")}));
+  }
+  // bag_fuzz: small bags of every message type the adapter decodes, uncompressed (so mutations
+  // reach the message fields: an image's width, height, step and encoding) and LZ4.
+  for (const auto compression : {telex::bag::Compression::None, telex::bag::Compression::Lz4}) {
+    const bool lz4 = compression == telex::bag::Compression::Lz4;
+    fs::create_directories(out / "bag_fuzz");
+    const fs::path file = out / "bag_fuzz" / (lz4 ? "session_lz4.bag" : "session.bag");
+    {
+      telex::bag::Writer w(file.string(), compression);
+      const std::int64_t t0 = 1'700'000'000'000'000'000;
+      const telex::bag::CameraIntrinsics k{5.0, 5.0, 1.5, 1.0, 4, 3};
+      cv::Mat1w mm(3, 4);
+      for (int i = 0; i < 12; ++i) mm(i / 4, i % 4) = static_cast<std::uint16_t>(400 + 37 * i);
+      w.depth_mm("/d", "/camera_info", t0, 1, "c", mm, k);
+      cv::Mat1f m(3, 4, 0.8f);
+      m(1, 1) = std::numeric_limits<float>::quiet_NaN();
+      w.depth_m("/f", "/f_info", t0 + 1, 2, "c", m, k);
+      w.colour("/rgb", t0 + 2, "c", cv::Mat3b(3, 4, cv::Vec3b(1, 2, 3)));
+      w.tf(t0 + 3, {{"a", "b", {{0.1, 0.2, 0.3}, {0, 0, 0, 1}}}});
+      w.poses("/p", t0 + 4, 3, "c", {{{1, 2, 3}, {0, 0, 0, 1}}, {{4, 5, 6}, {0, 0, 0, 0}}});
+      w.wrench("/w", t0 + 5, "c", {1, 2, 3}, {0, 0, 0});
+      w.text("/s", t0 + 6, "{\"rate_hz\": 1000}");
+    }
+    ++g_written;
+  }
+  // One small uncompressed bag per message type: a mutation costs less to run.
+  {
+    const std::int64_t t0 = 1'700'000'000'000'000'000;
+    auto one = [&](const char* name, auto&& write_into) {
+      telex::bag::Writer w((out / "bag_fuzz" / name).string(), telex::bag::Compression::None);
+      write_into(w);
+      ++g_written;
+    };
+    one("image_16uc1.bag", [&](telex::bag::Writer& w) {
+      w.depth_mm("/d", "", t0, 1, "c", cv::Mat1w(2, 3, std::uint16_t(900)), {});
+    });
+    one("image_32fc1.bag",
+        [&](telex::bag::Writer& w) { w.depth_m("/d", "", t0, 1, "c", cv::Mat1f(2, 3, 0.9f), {}); });
+    one("image_bgr8.bag", [&](telex::bag::Writer& w) {
+      w.colour("/rgb", t0, "c", cv::Mat3b(2, 3, cv::Vec3b(1, 2, 3)));
+    });
+    one("wrench.bag", [&](telex::bag::Writer& w) {
+      w.wrench("/w", t0, "c", {1, 2, 3}, {4, 5, 6});
+    });
+    one("poses.bag", [&](telex::bag::Writer& w) {
+      w.poses("/p", t0, 2, "c", {{{1, 2, 3}, {0, 0, 0, 1}}});
+    });
+    one("tf.bag", [&](telex::bag::Writer& w) {
+      w.tf(t0, {{"a", "b", {{1, 2, 3}, {0, 0, 0, 1}}}});
+    });
+    one("text.bag", [&](telex::bag::Writer& w) { w.text("/s", t0, "{}"); });
   }
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "telex/local/recorder.h"
 #include "test_support.h"
 
 namespace {
@@ -121,11 +122,43 @@ TEST(BenchTool, QuickRunWritesFiniteCsvMarkdownAndPlots) {
   fs::remove_all(out);
 }
 
-TEST(BenchTool, QuickRunOnRealDeskFramesReportsFillRate) {
+// The real desk frames, and the same frames as a recorded session (telex-local --record's
+// format, written here by its recorder): the session's rows are the desk's, number for number.
+TEST(BenchTool, QuickRunOnRealDeskFramesAndARecordedSessionReportsFillRate) {
   TELEX_REQUIRE_REAL_DATA();
+  const fs::path desk = telex::test::real_data_dir() / "desk";
+  const fs::path session = fs::temp_directory_path() / "telex_bench_desk_session.bag";
+  {
+    telex::local::RecorderConfig rc;
+    rc.path = session.string();
+    rc.monotonic_to_bag_ns = 1'700'000'000'000'000'000;
+    telex::local::SessionRecorder recorder(rc);
+    for (int i = 0; i < 3; ++i) {
+      const cv::Mat depth = cv::imread(
+          (desk / ("desk_" + std::to_string(i) + "_depth_mm.png")).string(), cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(depth.type(), CV_16UC1);
+      // The bench's intrinsics and spacing for the desk frames (250 ms apart).
+      ASSERT_TRUE(recorder.add_surface({static_cast<std::uint64_t>(i + 1),
+                                        1'000'000'000 + i * 250'000'000LL,
+                                        1'000'000'000 + i * 250'000'000LL, depth,
+                                        telex::Intrinsics{525.0, 525.0, 320.0, 240.0, 640, 480}}));
+    }
+    ASSERT_EQ(recorder.finish().surfaces, 3u);
+  }
   const fs::path out =
-      run_quick("real", "--real " + (telex::test::real_data_dir() / "desk").string());
+      run_quick("real", "--real " + desk.string() + " --session " + session.string());
   const Csv csv = read_csv(out / "bench.csv");
+  for (const char* config : {"default", "fill_off", "roi"}) {
+    const auto* d = find(csv, config, "real_desk");
+    const auto* s = find(csv, config, "session:telex_bench_desk_session");
+    ASSERT_TRUE(d && s) << config;
+    for (const char* m : {"fill_rate", "range_ok", "bytes_per_frame"})
+      EXPECT_EQ(number(*s, m), number(*d, m)) << config << " " << m;
+  }
+  std::ifstream md(out / "bench.md");
+  std::stringstream text;
+  text << md.rdbuf();
+  EXPECT_NE(text.str().find("| session:telex_bench_desk_session | default |"), std::string::npos);
   const auto* real = find(csv, "default", "real_desk");
   ASSERT_NE(real, nullptr);
   EXPECT_GT(number(*real, "fill_rate"), 0.5);

@@ -109,6 +109,28 @@ TEST(Recording, APressSessionHoldsEveryTopicItsLoggedPeakAndReplaysToItsForces) 
   while (r.next(m)) pressure = std::max(pressure, m.force_N[2]);
   EXPECT_NEAR(pressure, j["peak_pressure_N"].get<double>(), 1e-9);
 
+  // ROS's own reference reader (python3-rosbag) sees the same topics, counts and peaks.
+  {
+    Process py({"/usr/bin/python3",
+                std::string(TELEX_SOURCE_DIR) + "/tests/integration/rosbag_reference.py",
+                bag_path.string()},
+               dir / "reference.out", dir / "reference.err");
+    const auto py_rc = py.wait(120s);
+    ASSERT_TRUE(py_rc.has_value() && *py_rc == 0) << py.stderr_text();
+    const auto ref = summary_of(py);
+    ASSERT_TRUE(ref.is_object()) << py.stdout_text();
+    for (const auto& [name, t] : topics) {
+      EXPECT_EQ(ref["topics"][name]["type"], t.type) << name;
+      EXPECT_EQ(ref["topics"][name]["messages"], t.messages) << name;
+    }
+    EXPECT_EQ(ref["topics"].size(), topics.size());
+    for (const auto& [finger, peak] : logged)
+      EXPECT_NEAR(ref["peak_force_N"][finger].get<double>(), peak, 2e-6) << finger;
+    EXPECT_EQ(ref["depth"]["encoding"], "16UC1");
+    EXPECT_EQ(ref["depth"]["bytes"],
+              ref["depth"]["step"].get<int>() * ref["depth"]["height"].get<int>());
+  }
+
   // Replayed with the recorded parameters: the same forces; with half the stiffness, half of them.
   const auto same = run_replay(dir, bag_path, {}, "replay_same");
   ASSERT_TRUE(same.is_object());
@@ -161,6 +183,63 @@ TEST(Recording, ABagOfMetreDepthServedByTheRemoteIsPressedLikeTheSceneItHolds) {
                             "/camera/depth/camera_info, recorded pace, loop"),
             std::string::npos)
       << remote_log;
+}
+
+TEST(Recording, EveryTrackedBodyIsOnTfAsTheTrackerReportedIt) {
+  TELEX_REQUIRE_BINARIES("telex-local", "telex-remote", "telex-sim-natnet");
+  const auto dir = scratch_dir("recording_natnet");
+  const auto bag_path = dir / "natnet.bag";
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
+  const std::uint16_t cmd_port = free_port();
+  Process sim({built_binary("telex-sim-natnet").string(), "--command-port",
+               std::to_string(cmd_port), "--duration", "20", "--natnet-version", "4.1"},
+              dir / "sim.out", dir / "sim.err");
+  Process local(
+      local_args(remote.port, dir,
+                 {"--hand", "natnet:127.0.0.1,unicast", "--natnet-cmd-port",
+                  std::to_string(cmd_port), "--log-tracking", (dir / "tracking.csv").string(),
+                  "--duration", "4", "--record", bag_path.string()}),
+      dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
+  sim.signal(SIGINT);
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.is_object() && j.contains("record")) << local.stdout_text();
+  EXPECT_EQ(j["record"]["dropped_bodies"], 0);
+
+  // The tracking log's valid rows, per body, in order.
+  std::map<int, std::vector<std::array<double, 7>>> logged;
+  std::istringstream in(read_text(dir / "tracking.csv"));
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    ASSERT_EQ(f.size(), 10u) << line;
+    if (f[9] != "1") continue;
+    std::array<double, 7> pose{};
+    for (int k = 0; k < 7; ++k) pose[static_cast<std::size_t>(k)] = std::stod(f[2 + k]);
+    logged[std::stoi(f[1])].push_back(pose);
+  }
+  std::map<int, std::vector<std::array<double, 7>>> recorded;
+  bag::Reader r(bag_path.string());
+  r.select({"/tf"});
+  bag::Message m;
+  while (r.next(m))
+    for (const auto& t : m.transforms) {
+      if (t.child.rfind("optitrack_body_", 0) != 0) continue;
+      EXPECT_EQ(t.parent, "optitrack");
+      recorded[std::stoi(t.child.substr(15))].push_back({t.pose.p[0], t.pose.p[1], t.pose.p[2],
+                                                         t.pose.q[0], t.pose.q[1], t.pose.q[2],
+                                                         t.pose.q[3]});
+    }
+  for (int id : {1, 2, 3}) {
+    ASSERT_GT(logged[id].size(), 100u) << "body " << id;
+    ASSERT_EQ(recorded[id].size(), logged[id].size()) << "body " << id;
+    for (std::size_t i = 0; i < logged[id].size(); ++i)
+      for (std::size_t k = 0; k < 7; ++k)
+        ASSERT_NEAR(recorded[id][i][k], logged[id][i][k], 1e-6) << "body " << id << " row " << i;
+  }
 }
 
 }  // namespace

@@ -109,17 +109,20 @@ void write_markdown(const fs::path& file, const Results& res) {
        << fmt(v[kDecodeMs], 2) << " | " << fmt(v[kSurfaceMs], 2) << " | " << fmt(v[kTotalMs], 2)
        << " |\n";
   }
-  os << "\n### Real desk frames (" << real_note << ")\n\n";
+  os << "\n### Real desk frames (" << real_note << ") and recorded sessions\n\n";
   bool any_real = false;
-  for (const auto& r : rows) any_real |= r.dataset == "real_desk";
+  auto is_real = [](const std::string& d) {
+    return d == "real_desk" || d.rfind("session:", 0) == 0;
+  };
+  for (const auto& r : rows) any_real |= is_real(r.dataset);
   if (any_real) {
-    os << "| config | fill rate % | in local range % | bytes/frame | total ms |\n"
-          "|---|---|---|---|---|\n";
+    os << "| frames | config | fill rate % | in local range % | bytes/frame | total ms |\n"
+          "|---|---|---|---|---|---|\n";
     for (const auto& r : rows) {
-      if (r.dataset != "real_desk") continue;
-      os << "| " << r.config->name << " | " << fmt(100.0 * r.value[kFillRate], 2) << " | "
-         << fmt(100.0 * r.value[kRangeOk], 2) << " | " << fmt(r.value[kBytes], 0) << " | "
-         << fmt(r.value[kTotalMs], 2) << " |\n";
+      if (!is_real(r.dataset)) continue;
+      os << "| " << r.dataset << " | " << r.config->name << " | "
+         << fmt(100.0 * r.value[kFillRate], 2) << " | " << fmt(100.0 * r.value[kRangeOk], 2)
+         << " | " << fmt(r.value[kBytes], 0) << " | " << fmt(r.value[kTotalMs], 2) << " |\n";
     }
   }
   os << "\n### Region of interest against full frame (one fingertip near the surface)\n\n"

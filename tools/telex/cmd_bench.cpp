@@ -15,6 +15,7 @@
 #include "bench.h"
 #include "command.h"
 #include "telex/common/depth_io.h"
+#include "telex/local/recorder.h"
 
 namespace telex::tool {
 namespace {
@@ -26,6 +27,7 @@ struct Options {
   bool json = false;
   std::string out = "bench_out";
   std::string real;
+  std::vector<std::string> sessions;
 };
 
 std::vector<cv::Mat1w> load_real(const std::string& dir, std::string& note) {
@@ -60,6 +62,15 @@ int run(const Options& o) {
   std::string real_note;
   const std::vector<cv::Mat1w> real = load_real(o.real, real_note);
   if (!o.json) std::cerr << "telex bench: real desk frames " << real_note << "\n";
+  // Recorded sessions (telex-local --record): their depth as received, frames spread evenly.
+  std::vector<std::pair<std::string, std::vector<local::RecordedSurface>>> sessions;
+  for (const auto& path : o.sessions) {
+    sessions.emplace_back("session:" + fs::path(path).stem().string(),
+                          local::read_session_depth(path, o.quick ? 4 : 12));
+    if (!o.json)
+      std::cerr << "telex bench: " << sessions.back().first << ": " << sessions.back().second.size()
+                << " frames from " << path << "\n";
+  }
 
   // samples[config index][dataset]
   std::vector<std::map<std::string, std::vector<Sample>>> samples(grid.size());
@@ -97,6 +108,17 @@ int run(const Options& o) {
       }
       sequences.emplace_back("real_desk", std::move(seq));
     }
+    for (const auto& [name, frames] : sessions) {
+      std::vector<Frame> seq;
+      for (std::size_t i = 0; i < frames.size(); ++i) {
+        cv::Mat1w d;
+        cv::resize(frames[i].depth_mm, d, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
+        seq.push_back(
+            real_frame(d, frames[i].intrinsics.scaled(w, h), static_cast<std::uint32_t>(i),
+                       static_cast<double>(frames[i].built_ns - frames[0].built_ns) / 1e6));
+      }
+      sequences.emplace_back(name, std::move(seq));
+    }
     for (std::size_t ci = 0; ci < grid.size(); ++ci) {
       const Config& c = grid[ci];
       if (c.width != w || c.height != h) continue;
@@ -118,9 +140,11 @@ int run(const Options& o) {
     for (const auto& name : scenes) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
     if (samples[ci].count("real_desk"))
       rows.push_back(aggregate(grid[ci], "real_desk", samples[ci]["real_desk"]));
+    for (const auto& [name, frames] : sessions)
+      if (samples[ci].count(name)) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
   }
   for (const auto& r : rows)
-    if (r.dataset != "real_desk")
+    if (r.dataset != "real_desk" && r.dataset.rfind("session:", 0) != 0)
       for (int m : {kDepthRmse, kNormalMean, kForceErr, kTotalMs, kBytes})
         if (!std::isfinite(r.value[m]))
           throw std::logic_error("config " + r.config->name + " on " + r.dataset + ": " +
@@ -173,6 +197,10 @@ const RegisterCommand kRegister{
       app.add_option("--real", o->real,
                      "directory with desk_{0,1,2}_depth_mm.png (default: $TELEX_REAL_DESK_DIR); "
                      "skipped with a note when absent");
+      app.add_option("--session", o->sessions,
+                     "a recorded session FILE.bag (telex-local --record) whose depth joins the "
+                     "real-frame rows; repeatable")
+          ->check(CLI::ExistingFile);
       return [o]() { return run(*o); };
     }};
 

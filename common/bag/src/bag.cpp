@@ -85,7 +85,7 @@ Pose from_msg(const geometry_msgs::Pose& p) {
 
 // The image's pixels as OpenCV holds them, or an empty Mat for an encoding this project does not
 // read. Throws when the declared size and step disagree with the data.
-cv::Mat decode_image(const sensor_msgs::Image& im, const std::string& where) {
+cv::Mat decode_image(const sensor_msgs::Image& im) {
   int type = -1, channels = 1;
   std::size_t elem = 1;
   const std::string& e = im.encoding;
@@ -111,7 +111,7 @@ cv::Mat decode_image(const sensor_msgs::Image& im, const std::string& where) {
   const std::size_t row_bytes = elem * im.width;
   if (im.width == 0 || im.height == 0 || im.step < row_bytes ||
       im.data.size() < static_cast<std::size_t>(im.step) * im.height)
-    throw std::runtime_error(where + ": image " + std::to_string(im.width) + "x" +
+    throw std::runtime_error("image " + std::to_string(im.width) + "x" +
                              std::to_string(im.height) + " " + e + " with step " +
                              std::to_string(im.step) + " holds " + std::to_string(im.data.size()) +
                              " bytes: truncated or inconsistent");
@@ -274,6 +274,7 @@ struct Reader::Impl {
 
 Reader::Reader(const std::string& path) : impl_(new Impl) {
   impl_->path = path;
+  check_bag_file(path);
   try {
     impl_->bag.open(path, rosbag::bagmode::Read);
     rosbag::View all(impl_->bag);
@@ -340,7 +341,7 @@ bool Reader::next(Message& out) {
       out.seq = im->header.seq;
       out.frame_id = im->header.frame_id;
       out.encoding = im->encoding;
-      out.image = decode_image(*im, where);
+      out.image = decode_image(*im);
     } else if (auto ci = m.instantiate<sensor_msgs::CameraInfo>()) {
       out.kind = Message::Kind::CameraInfo;
       out.stamp_ns = from_ros(ci->header.stamp);
@@ -382,8 +383,6 @@ bool Reader::next(Message& out) {
       out.kind = Message::Kind::Text;
       out.text = s->data;
     }
-  } catch (const std::runtime_error&) {
-    throw;
   } catch (const std::exception& e) {
     throw std::runtime_error("cannot decode a message of " + where + ": " + e.what());
   }

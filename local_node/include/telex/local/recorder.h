@@ -133,6 +133,12 @@ struct ReplayResult {
   double recorded_peak_N = 0;  // largest recorded |F|
 };
 
+// Up to `max_frames` of a recorded session's depth frames (as received), spread evenly over the
+// session, with their intrinsics; seq is the station's surface sequence number and built_ns the
+// bag time. Throws std::runtime_error naming the file when it holds no session depth.
+std::vector<RecordedSurface> read_session_depth(const std::string& bag_path,
+                                                std::size_t max_frames);
+
 // The recorded session's parameters (its /telex/config), for a replay to start from. Throws
 // std::runtime_error naming the file when the bag is not a telex session.
 void read_session_config(const std::string& bag_path, HapticParams& haptic, SurfaceOptions& surface,

@@ -131,6 +131,12 @@ class Reader {
   std::unique_ptr<Impl> impl_;
 };
 
+// Checks the framing of a bag file (every length, position and count rosbag_storage will follow,
+// the chunks unpacked) before the library reads it: Debian's rosbag_storage trusts them and
+// overflows its heap on a corrupt file. Throws std::runtime_error naming the file and the first
+// inconsistency. Reader calls it; it reads the whole file once.
+void check_bag_file(const std::string& path);
+
 // ROS time of a nanosecond count (sec, nsec) and back; the count must be positive.
 std::int64_t ros_ns(std::uint32_t sec, std::uint32_t nsec);
 
