@@ -118,6 +118,51 @@ TEST(BagCheck, PositionsAndSizesThatPointNowhereAreNamed) {
   EXPECT_NE(read_error(b, "v12.bag").find("not a ROS bag of format 2.0"), std::string::npos);
 }
 
+// Overwrites the 32-bit length that follows the n-th occurrence of `text` plus `gap` bytes.
+void set_length_after(std::vector<char>& b, const std::string& text, int n, std::size_t gap,
+                      std::uint32_t value) {
+  auto it = b.begin();
+  for (int i = 0; i <= n; ++i) {
+    if (i > 0) ++it;
+    it = std::search(it, b.end(), text.begin(), text.end());
+    ASSERT_NE(it, b.end()) << text << " #" << n;
+  }
+  std::memcpy(&*(it + static_cast<std::ptrdiff_t>(text.size() + gap)), &value, 4);
+}
+
+TEST(BagCheck, AnArrayLongerThanItsMessageIsAnErrorNotAnAllocation) {
+  // ROS's deserialiser resizes to the claimed length first: 2.4 G doubles would be 19.7 GB.
+  auto b = good_bag(Compression::None);
+  set_length_after(b, std::string("\x09\0\0\0plumb_bob", 13), 1, 0,
+                   0x92E0'0000u);  // the second CameraInfo's D
+  std::string e = read_error(b, "distortion.bag");
+  EXPECT_NE(e.find("cannot decode a message of " + temp("distortion.bag").string() +
+                   " /camera_info: D claims 2464153600 elements of 8 bytes"),
+            std::string::npos)
+      << e;
+
+  b = good_bag(Compression::None);
+  set_length_after(b,
+                   std::string("\x05\0\0\0"
+                               "16UC1",
+                               9),
+                   2, 5, 0xFFFF'FFF0u);  // the third image's data, after the step
+  e = read_error(b, "data.bag");
+  EXPECT_NE(e.find(" /d: data claims 4294967280 elements of 1 bytes, the message has 24 left"),
+            std::string::npos)
+      << e;
+
+  b = good_bag(Compression::None);
+  set_length_after(b,
+                   std::string("\x05\0\0\0"
+                               "16UC1",
+                               9),
+                   0, 5, 0xFFFF'FFF0u);  // the first image: read when the bag opens
+  e = read_error(b, "first.bag");
+  EXPECT_NE(e.find("cannot read bag " + temp("first.bag").string()), std::string::npos) << e;
+  EXPECT_NE(e.find("data claims"), std::string::npos) << e;
+}
+
 TEST(BagCheck, EveryByteFlippedReadsOrFailsCleanly) {
   const auto b = good_bag(Compression::None);
   int failed = 0;

@@ -22,6 +22,104 @@ namespace telex::bag {
 
 namespace {
 
+// ROS 1 deserialisers resize a vector to the length the bytes claim before they check that the
+// bytes hold it (ros/serialization.h VectorSerializer::read): a corrupt CameraInfo asked for
+// 19.7 GB (libFuzzer). So each message's bytes are walked first, every length checked against
+// what is left, and the message is then deserialised from those same bytes.
+class Layout {
+ public:
+  Layout(const std::uint8_t* p, std::size_t n) : p_(p), left_(n) {}
+  void skip(std::size_t n, const char* what) {
+    if (n > left_)
+      throw std::runtime_error(std::string(what) + " needs " + std::to_string(n) +
+                               " bytes, the message has " + std::to_string(left_) + " left");
+    p_ += n;
+    left_ -= n;
+  }
+  std::uint32_t u32(const char* what) {
+    const std::uint8_t* at = p_;
+    skip(4, what);
+    return static_cast<std::uint32_t>(at[0]) | static_cast<std::uint32_t>(at[1]) << 8 |
+           static_cast<std::uint32_t>(at[2]) << 16 | static_cast<std::uint32_t>(at[3]) << 24;
+  }
+  void bytes(const char* what, std::size_t elem) {  // u32 count, then count * elem bytes
+    const std::uint64_t count = u32(what);
+    if (count > left_ / elem)
+      throw std::runtime_error(std::string(what) + " claims " + std::to_string(count) +
+                               " elements of " + std::to_string(elem) + " bytes, the message has " +
+                               std::to_string(left_) + " left");
+    skip(static_cast<std::size_t>(count) * elem, what);
+  }
+  void header() {
+    skip(12, "header");  // seq, stamp
+    bytes("header.frame_id", 1);
+  }
+  std::size_t left() const { return left_; }
+
+ private:
+  const std::uint8_t* p_;
+  std::size_t left_;
+};
+
+// Walks the types the reader decodes (their fields in order, from the .msg files).
+void check_layout(const std::string& type, const std::vector<std::uint8_t>& raw) {
+  Layout l(raw.data(), raw.size());
+  if (type == "sensor_msgs/Image") {
+    l.header();
+    l.skip(8, "height, width");
+    l.bytes("encoding", 1);
+    l.skip(5, "is_bigendian, step");
+    l.bytes("data", 1);
+  } else if (type == "sensor_msgs/CameraInfo") {
+    l.header();
+    l.skip(8, "height, width");
+    l.bytes("distortion_model", 1);
+    l.bytes("D", 8);
+    l.skip((9 + 9 + 12) * 8 + 8 + 17, "K, R, P, binning, roi");
+  } else if (type == "geometry_msgs/WrenchStamped") {
+    l.header();
+    l.skip(6 * 8, "wrench");
+  } else if (type == "geometry_msgs/PoseArray") {
+    l.header();
+    l.bytes("poses", 7 * 8);
+  } else if (type == "tf2_msgs/TFMessage") {
+    const std::uint32_t n = l.u32("transforms");
+    constexpr std::size_t kMinTransform = 12 + 4 + 4 + 7 * 8;
+    if (n > l.left() / kMinTransform)
+      throw std::runtime_error("transforms claims " + std::to_string(n) +
+                               " elements, the message has " + std::to_string(l.left()) +
+                               " bytes left");
+    for (std::uint32_t i = 0; i < n; ++i) {
+      l.header();
+      l.bytes("child_frame_id", 1);
+      l.skip(7 * 8, "transform");
+    }
+  } else if (type == "std_msgs/String") {
+    l.bytes("data", 1);
+  }
+}
+
+// rosbag's MessageInstance::instantiate, from bytes already checked: same type and MD5 test.
+template <class T>
+std::optional<T> decode(const rosbag::MessageInstance& m, std::vector<std::uint8_t>& raw) {
+  if (m.getDataType() != ros::message_traits::datatype<T>() ||
+      (m.getMD5Sum() != "*" && m.getMD5Sum() != ros::message_traits::md5sum<T>()))
+    return std::nullopt;
+  T msg;
+  ros::serialization::IStream in(raw.data(), static_cast<std::uint32_t>(raw.size()));
+  ros::serialization::deserialize(in, msg);
+  return msg;
+}
+
+// The message's bytes, checked for its type.
+std::vector<std::uint8_t> message_bytes(const rosbag::MessageInstance& m) {
+  std::vector<std::uint8_t> raw(m.size());
+  ros::serialization::OStream out(raw.data(), static_cast<std::uint32_t>(raw.size()));
+  m.write(out);
+  check_layout(m.getDataType(), raw);
+  return raw;
+}
+
 ros::Time to_ros(std::int64_t ns) {
   if (ns <= 0) throw std::invalid_argument("bag time must be positive, got " + std::to_string(ns));
   return ros::Time(static_cast<std::uint32_t>(ns / 1'000'000'000),
@@ -111,10 +209,9 @@ cv::Mat decode_image(const sensor_msgs::Image& im) {
   const std::size_t row_bytes = elem * im.width;
   if (im.width == 0 || im.height == 0 || im.step < row_bytes ||
       im.data.size() < static_cast<std::size_t>(im.step) * im.height)
-    throw std::runtime_error("image " + std::to_string(im.width) + "x" +
-                             std::to_string(im.height) + " " + e + " with step " +
-                             std::to_string(im.step) + " holds " + std::to_string(im.data.size()) +
-                             " bytes: truncated or inconsistent");
+    throw std::runtime_error("image " + std::to_string(im.width) + "x" + std::to_string(im.height) +
+                             " " + e + " with step " + std::to_string(im.step) + " holds " +
+                             std::to_string(im.data.size()) + " bytes: truncated or inconsistent");
   cv::Mat out(static_cast<int>(im.height), static_cast<int>(im.width), type);
   for (std::uint32_t r = 0; r < im.height; ++r)
     std::memcpy(out.ptr(static_cast<int>(r)),
@@ -291,8 +388,12 @@ Reader::Reader(const std::string& path) : impl_(new Impl) {
         t.begin_ns = from_ros(one.getBeginTime());
         t.end_ns = from_ros(one.getEndTime());
       }
-      if (t.type == "sensor_msgs/Image" && one.size() > 0)
-        if (auto im = one.begin()->instantiate<sensor_msgs::Image>()) t.encoding = im->encoding;
+      if (t.type == "sensor_msgs/Image" && one.size() > 0) {
+        const auto it = one.begin();  // the instance lives in the iterator
+        const rosbag::MessageInstance& first = *it;
+        auto raw = message_bytes(first);
+        if (auto im = decode<sensor_msgs::Image>(first, raw)) t.encoding = im->encoding;
+      }
       impl_->topics.push_back(t);
     }
   } catch (const std::exception& e) {
@@ -335,14 +436,15 @@ bool Reader::next(Message& out) {
   out.bag_time_ns = from_ros(m.getTime());
   out.stamp_ns = out.bag_time_ns;
   try {
-    if (auto im = m.instantiate<sensor_msgs::Image>()) {
+    auto raw = message_bytes(m);
+    if (auto im = decode<sensor_msgs::Image>(m, raw)) {
       out.kind = Message::Kind::Image;
       out.stamp_ns = from_ros(im->header.stamp);
       out.seq = im->header.seq;
       out.frame_id = im->header.frame_id;
       out.encoding = im->encoding;
       out.image = decode_image(*im);
-    } else if (auto ci = m.instantiate<sensor_msgs::CameraInfo>()) {
+    } else if (auto ci = decode<sensor_msgs::CameraInfo>(m, raw)) {
       out.kind = Message::Kind::CameraInfo;
       out.stamp_ns = from_ros(ci->header.stamp);
       out.seq = ci->header.seq;
@@ -353,20 +455,20 @@ bool Reader::next(Message& out) {
                     ci->K[5],
                     static_cast<int>(ci->width),
                     static_cast<int>(ci->height)};
-    } else if (auto w = m.instantiate<geometry_msgs::WrenchStamped>()) {
+    } else if (auto w = decode<geometry_msgs::WrenchStamped>(m, raw)) {
       out.kind = Message::Kind::Wrench;
       out.stamp_ns = from_ros(w->header.stamp);
       out.seq = w->header.seq;
       out.frame_id = w->header.frame_id;
       out.force_N = {w->wrench.force.x, w->wrench.force.y, w->wrench.force.z};
       out.torque_Nm = {w->wrench.torque.x, w->wrench.torque.y, w->wrench.torque.z};
-    } else if (auto pa = m.instantiate<geometry_msgs::PoseArray>()) {
+    } else if (auto pa = decode<geometry_msgs::PoseArray>(m, raw)) {
       out.kind = Message::Kind::PoseArray;
       out.stamp_ns = from_ros(pa->header.stamp);
       out.seq = pa->header.seq;
       out.frame_id = pa->header.frame_id;
       for (const auto& p : pa->poses) out.poses.push_back(from_msg(p));
-    } else if (auto tf = m.instantiate<tf2_msgs::TFMessage>()) {
+    } else if (auto tf = decode<tf2_msgs::TFMessage>(m, raw)) {
       out.kind = Message::Kind::Tf;
       for (const auto& ts : tf->transforms) {
         Transform t;
@@ -379,7 +481,7 @@ bool Reader::next(Message& out) {
         out.transforms.push_back(t);
       }
       if (!tf->transforms.empty()) out.stamp_ns = from_ros(tf->transforms.front().header.stamp);
-    } else if (auto s = m.instantiate<std_msgs::String>()) {
+    } else if (auto s = decode<std_msgs::String>(m, raw)) {
       out.kind = Message::Kind::Text;
       out.text = s->data;
     }
