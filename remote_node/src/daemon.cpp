@@ -75,11 +75,7 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
     : config_(std::move(config)), pipeline_(config_.pipeline) {
   validate(config_);
   depth_ = make_depth_source(config_.depth_source, config_.source_options);
-  if (!config_.stereo_source.empty())
-    stereo_ = make_stereo_source(config_.stereo_source, config_.source_options);
-  else if (const auto spec = parse_source_spec(config_.depth_source);
-           spec.kind == "bag" && spec.has("colour"))
-    stereo_ = make_stereo_source(config_.depth_source, config_.source_options);  // the eye view
+  stereo_ = make_eye_source(config_.depth_source, config_.stereo_source, config_.source_options);
   config_.server.video_available = stereo_ != nullptr;
   config_.server.codec = config_.pipeline.codec;
 }

@@ -103,4 +103,13 @@ std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec_text,
                                           spec.kind, spec_text, kStereoForms));
 }
 
+std::unique_ptr<StereoSource> make_eye_source(std::string_view depth_spec,
+                                              std::string_view stereo_spec,
+                                              const SourceOptions& options) {
+  if (!stereo_spec.empty()) return make_stereo_source(stereo_spec, options);
+  if (const auto spec = parse_source_spec(depth_spec); spec.kind == "bag" && spec.has("colour"))
+    return make_stereo_source(depth_spec, options);
+  return nullptr;
+}
+
 }  // namespace telex::remote

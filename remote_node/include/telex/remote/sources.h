@@ -104,6 +104,12 @@ std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
 std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec,
                                                  const SourceOptions& options = {});
 
+// The eye view of a run: the stereo spec when one is given, else the colour topic of a bag depth
+// spec (`bag:FILE,colour=T`), else none (nullptr). The daemon and `telex capture` both use it.
+std::unique_ptr<StereoSource> make_eye_source(std::string_view depth_spec,
+                                              std::string_view stereo_spec,
+                                              const SourceOptions& options = {});
+
 // Host steady clock in ns: the single time base of the remote node.
 std::int64_t steady_now_ns();
 

@@ -1,0 +1,186 @@
+// SPDX-License-Identifier: MIT
+// `telex capture` as a process: frames from each source kind written as the source delivered them
+// (bit-exact against the files and the bag they came from), eye images when the run has an eye
+// view, and clear errors for a bad spec, a source that ends early and an unwritable directory.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "daemons.h"
+#include "process.h"
+#include "telex/bag/bag.h"
+#include "test_support.h"
+
+namespace telex::test {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+struct CaptureRun {
+  int rc = -1;
+  std::string out, err;
+};
+
+CaptureRun capture(const fs::path& dir, std::vector<std::string> args, const std::string& name) {
+  std::vector<std::string> argv{built_binary("telex").string(), "capture"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Process p(argv, dir / (name + ".out"), dir / (name + ".err"));
+  const auto rc = p.wait(60s);
+  EXPECT_TRUE(rc.has_value()) << "telex capture did not finish";
+  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
+}
+
+nlohmann::json capture_json(const fs::path& out) {
+  std::ifstream is(out / "capture.json");
+  return nlohmann::json::parse(is);
+}
+
+cv::Mat read_png(const fs::path& p) { return cv::imread(p.string(), cv::IMREAD_UNCHANGED); }
+
+bool same(const cv::Mat& a, const cv::Mat& b) {
+  return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0;
+}
+
+TEST(Capture, SyntheticFramesAndEyesEveryKthFrame) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto dir = scratch_dir("capture_synthetic");
+  const auto out = dir / "out";
+  const CaptureRun r = capture(dir,
+                               {"--source", "synthetic:sphere", "--stereo", "synthetic:sphere",
+                                "--frames", "3", "--every", "2", "--out", out.string(), "--json"},
+                               "run");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = capture_json(out);
+  EXPECT_EQ(j["frames"], 3);
+  EXPECT_EQ(j["frames_read"], 5);  // frames 0, 2 and 4 of those read
+  EXPECT_EQ(j["eye_frames"], 3);
+  EXPECT_EQ(j["intrinsics"]["width"], 640);
+  ASSERT_EQ(j["files"].size(), 3u);
+  std::uint64_t last_id = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto& f = j["files"][i];
+    const cv::Mat depth = read_png(out / f["file"].get<std::string>());
+    ASSERT_EQ(depth.type(), CV_16UC1) << f["file"];
+    EXPECT_EQ(depth.cols, 640);
+    EXPECT_GT(cv::countNonZero(depth), 640 * 480 / 2) << "a sphere scene is mostly surface";
+    const cv::Mat left = read_png(out / f["left"].get<std::string>());
+    EXPECT_EQ(left.type(), CV_8UC3);
+    EXPECT_FALSE(read_png(out / f["right"].get<std::string>()).empty());
+    if (i > 0) {
+      EXPECT_EQ(f["frame_id"].get<std::uint64_t>(), last_id + 2) << "every second frame";
+    }
+    last_id = f["frame_id"];
+  }
+  EXPECT_FALSE(fs::exists(out / "depth_000003_mm.png"));
+}
+
+TEST(Capture, FilesComeBackBitExact) {
+  TELEX_REQUIRE_BINARIES("telex");
+  TELEX_REQUIRE_REAL_DATA();
+  const auto desk = real_data_dir() / "desk";
+  const auto dir = scratch_dir("capture_files");
+  const auto out = dir / "out";
+  const CaptureRun r = capture(dir,
+                               {"--source", "files:" + (desk / "desk_*_depth_mm.png").string(),
+                                "--frames", "3", "--out", out.string()},
+                               "run");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("3 depth frames (0 with eye images)"), std::string::npos) << r.out;
+  for (int i = 0; i < 3; ++i) {
+    const auto want = read_png(desk / ("desk_" + std::to_string(i) + "_depth_mm.png"));
+    char name[32];
+    std::snprintf(name, sizeof name, "depth_%06d_mm.png", i);
+    EXPECT_TRUE(same(read_png(out / name), want)) << name;
+  }
+}
+
+TEST(Capture, ABagsDepthAndColourComeBackAsRecorded) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto dir = scratch_dir("capture_bag");
+  const auto bag_path = dir / "in.bag";
+  std::vector<cv::Mat1w> depth;
+  std::vector<cv::Mat3b> colour;
+  {
+    bag::Writer w(bag_path.string());
+    cv::RNG rng(7);
+    for (int i = 0; i < 4; ++i) {
+      cv::Mat1w d(48, 64);
+      rng.fill(d, cv::RNG::UNIFORM, 0, 65536);
+      cv::Mat3b c(48, 64);
+      rng.fill(c, cv::RNG::UNIFORM, 0, 256);
+      const std::int64_t t = 1'700'000'000'000'000'000 + i * 33'333'333;
+      w.depth_mm("/cam/depth", "/cam/camera_info", t, static_cast<std::uint32_t>(i), "cam", d,
+                 {60, 60, 31.5, 23.5, 64, 48});
+      w.colour("/cam/rgb", t, "cam", c);
+      depth.push_back(d);
+      colour.push_back(c);
+    }
+  }
+  const auto out = dir / "out";
+  const CaptureRun r = capture(dir,
+                               {"--source", "bag:" + bag_path.string() + ",colour=/cam/rgb,fast",
+                                "--frames", "4", "--out", out.string(), "--json"},
+                               "run");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = capture_json(out);
+  EXPECT_EQ(j["intrinsics"]["fx"], 60.0);
+  EXPECT_EQ(j["eye_frames"], 4);
+  for (int i = 0; i < 4; ++i) {
+    const auto& f = j["files"][i];
+    EXPECT_TRUE(same(read_png(out / f["file"].get<std::string>()), depth[i])) << i;
+    EXPECT_TRUE(same(read_png(out / f["left"].get<std::string>()), colour[i])) << i;
+    EXPECT_TRUE(same(read_png(out / f["right"].get<std::string>()), colour[i])) << i;
+  }
+}
+
+TEST(Capture, BadSpecEarlyEndAndUnwritableDirectoryAreNamed) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto dir = scratch_dir("capture_errors");
+  CaptureRun r = capture(dir, {"--source", "kinect:0", "--out", (dir / "a").string()}, "spec");
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_NE(r.err.find("unknown depth source 'kinect'"), std::string::npos) << r.err;
+
+  r = capture(dir, {"--source", "synthetic:plane", "--frames", "0", "--out", (dir / "b").string()},
+              "frames");
+  EXPECT_EQ(r.rc, 2) << "a flag out of range is a usage error";
+
+  const auto bag_path = dir / "two.bag";
+  {
+    bag::Writer w(bag_path.string());
+    for (int i = 0; i < 2; ++i)
+      w.depth_mm("/d", "/camera_info", 1'700'000'000'000'000'000 + i * 1000,
+                 static_cast<std::uint32_t>(i), "c", cv::Mat1w(4, 4, std::uint16_t(800)),
+                 {5, 5, 1.5, 1.5, 4, 4});
+  }
+  r = capture(dir,
+              {"--source", "bag:" + bag_path.string() + ",fast", "--frames", "5", "--out",
+               (dir / "c").string()},
+              "short");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("ended after 2 frames (2 kept of 5 asked)"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "c" / "depth_000001_mm.png")) << "what was read is kept";
+
+  std::ofstream(dir / "file") << "x";
+  r = capture(dir, {"--source", "synthetic:plane", "--out", (dir / "file" / "sub").string()},
+              "unwritable");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("cannot create " + (dir / "file" / "sub").string()), std::string::npos)
+      << r.err;
+
+  r = capture(dir,
+              {"--source", "bag:" + (dir / "none.bag").string(), "--out", (dir / "d").string()},
+              "missing");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find((dir / "none.bag").string()), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace telex::test

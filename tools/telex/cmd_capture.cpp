@@ -1,0 +1,179 @@
+// SPDX-License-Identifier: MIT
+// `telex capture`: N depth frames from any depth source as 16-bit millimetre PNGs, with the eye
+// images when the run has an eye view, and a capture.json of what was written (as librealsense's
+// rs-save-to-disk does for its cameras). The sources are the daemon's own (make_depth_source,
+// make_eye_source), so a capture holds exactly what telex-remote would have read.
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include "command.h"
+#include "telex/common/depth_io.h"
+#include "telex/remote/sources.h"
+
+namespace telex::tool {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CaptureArgs {
+  std::string source;
+  std::string stereo;
+  std::string out;
+  int frames = 1;
+  int every = 1;
+  double timeout_s = 5.0;
+  bool json = false;
+};
+
+// The output directory exists and takes a file, or an error names it and why.
+void prepare_out(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot create {}: {}", dir.string(), ec.message()));
+  const fs::path probe = dir / ".telex_capture_probe";
+  if (!std::ofstream(probe))
+    throw std::runtime_error(fmt::format("cannot write in {}", dir.string()));
+  fs::remove(probe, ec);
+}
+
+void write_png(const fs::path& file, const cv::Mat& image) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(file.string(), image);
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error(fmt::format("cannot write {}: {}", file.string(), e.what()));
+  }
+  if (!ok) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
+}
+
+int run_capture(const CaptureArgs& a) {
+  const fs::path out = a.out;
+  // A spec that does not parse is a usage error (exit 2); a source that cannot open is exit 1.
+  std::unique_ptr<remote::DepthSource> depth;
+  std::unique_ptr<remote::StereoSource> eyes;
+  try {
+    depth = remote::make_depth_source(a.source);
+    eyes = remote::make_eye_source(a.source, a.stereo);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "telex capture: " << e.what() << "\n";
+    return 2;
+  }
+  prepare_out(out);
+  depth->start();
+  if (eyes) eyes->start();
+  const std::string name = depth->describe();
+
+  nlohmann::json frames = nlohmann::json::array();
+  const auto timeout = std::chrono::milliseconds(static_cast<long>(a.timeout_s * 1000.0));
+  const auto per_read = std::min(timeout, std::chrono::milliseconds(100));
+  int read = 0, kept = 0, eye_frames = 0;
+  auto waiting_since = std::chrono::steady_clock::now();
+  while (kept < a.frames) {
+    auto r = depth->read(per_read);
+    if (r.status == remote::ReadStatus::Error)
+      throw std::runtime_error(fmt::format("source {}: {}", name, r.error));
+    if (r.status == remote::ReadStatus::EndOfStream)
+      throw std::runtime_error(fmt::format("source {} ended after {} frames ({} kept of {} asked)",
+                                           name, read, kept, a.frames));
+    if (r.status == remote::ReadStatus::Timeout) {
+      if (std::chrono::steady_clock::now() - waiting_since > timeout)
+        throw std::runtime_error(
+            fmt::format("source {} gave no frame in {} s ({} kept of {} asked)", name, a.timeout_s,
+                        kept, a.frames));
+      continue;
+    }
+    waiting_since = std::chrono::steady_clock::now();
+    if (read++ % a.every != 0) continue;
+    const auto& f = r.frame;
+    const std::string file = fmt::format("depth_{:06d}_mm.png", kept);
+    save_depth_png(out / file, f.image.depth_mm);
+    nlohmann::json row{{"file", file},
+                       {"frame_id", f.frame_id},
+                       {"capture_ns", f.capture_ns},
+                       {"scene_time_s", f.scene_time_s}};
+    if (eyes) {
+      auto e = eyes->read(timeout);
+      if (e.status == remote::ReadStatus::Error)
+        throw std::runtime_error(fmt::format("eye source {}: {}", eyes->describe(), e.error));
+      if (e.status == remote::ReadStatus::Frame) {
+        const std::string left = fmt::format("left_{:06d}.png", kept);
+        const std::string right = fmt::format("right_{:06d}.png", kept);
+        write_png(out / left, e.frame.left_bgr);
+        write_png(out / right, e.frame.right_bgr);
+        row["left"] = left;
+        row["right"] = right;
+        row["eye_capture_ns"] = e.frame.capture_ns;
+        ++eye_frames;
+      }
+    }
+    frames.push_back(row);
+    ++kept;
+  }
+  const Intrinsics k = depth->intrinsics();
+  const nlohmann::json summary{{"source", name},
+                               {"eye_source", eyes ? eyes->describe() : ""},
+                               {"frames", kept},
+                               {"frames_read", read},
+                               {"eye_frames", eye_frames},
+                               {"every", a.every},
+                               {"out", out.string()},
+                               {"intrinsics",
+                                {{"fx", k.fx},
+                                 {"fy", k.fy},
+                                 {"cx", k.cx},
+                                 {"cy", k.cy},
+                                 {"width", k.width},
+                                 {"height", k.height}}},
+                               {"nominal_fps", depth->nominal_fps()},
+                               {"files", frames}};
+  depth->stop();
+  if (eyes) eyes->stop();
+  {
+    std::ofstream os(out / "capture.json");
+    os << summary.dump(2) << "\n";
+    if (!os.flush())
+      throw std::runtime_error(fmt::format("cannot write {}", (out / "capture.json").string()));
+  }
+  if (a.json) {
+    nlohmann::json brief = summary;
+    brief.erase("files");
+    std::cout << brief.dump() << "\n";
+  } else {
+    std::cout << fmt::format("{} depth frames ({} with eye images) from {} in {}\n", kept,
+                             eye_frames, name, out.string());
+  }
+  return 0;
+}
+
+const RegisterCommand kRegister{
+    "capture", "save N depth frames (16-bit mm PNG) and eye images from any source",
+    [](CLI::App& app) -> std::function<int()> {
+      auto a = std::make_shared<CaptureArgs>();
+      app.add_option("--source", a->source,
+                     "depth source spec, as telex-remote --source (synthetic, files, oni, "
+                     "openni, bag)")
+          ->required();
+      app.add_option("--stereo", a->stereo,
+                     "eye view spec, as telex-remote --stereo (default: a bag source's colour=)");
+      app.add_option("--frames", a->frames, "frames to save")->check(CLI::Range(1, 1'000'000));
+      app.add_option("--out", a->out, "output directory (created)")->required();
+      app.add_option("--every", a->every, "keep every K-th frame read")
+          ->check(CLI::Range(1, 1'000'000));
+      app.add_option("--timeout", a->timeout_s, "seconds to wait for a frame before giving up")
+          ->check(CLI::Range(0.1, 3600.0));
+      app.add_flag("--json", a->json, "print a JSON summary instead of the text line");
+      return [a] { return run_capture(*a); };
+    }};
+
+}  // namespace
+}  // namespace telex::tool
