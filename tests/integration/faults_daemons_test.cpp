@@ -157,13 +157,8 @@ struct Row {
 
 std::vector<Row> index_rows(const std::filesystem::path& csv) {
   std::vector<Row> rows;
-  std::istringstream in(read_text(csv));
-  std::string line;
-  std::getline(in, line);
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  const CsvFile table = read_csv_file(csv);
+  for (const auto& f : table.rows) {
     if (f.size() < 10 || f[1] != "index") continue;
     rows.push_back({std::stod(f[0]), std::stod(f[2]), f[9]});
   }

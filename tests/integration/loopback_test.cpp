@@ -27,14 +27,9 @@ struct ForceRow {
 
 std::vector<ForceRow> read_forces(const std::filesystem::path& csv) {
   std::vector<ForceRow> rows;
-  std::istringstream in(read_text(csv));
-  std::string line;
-  std::getline(in, line);
-  EXPECT_EQ(line.rfind("time_s,finger,pressure_N,shear_N,contact", 0), 0u) << line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  const CsvFile table = read_csv_file(csv);
+  EXPECT_EQ(table.header.rfind("time_s,finger,pressure_N,shear_N,contact", 0), 0u) << table.header;
+  for (const auto& f : table.rows) {
     if (f.size() < 13) continue;
     ForceRow r;
     r.t = std::stod(f[0]);
@@ -223,16 +218,11 @@ TEST(Loopback, NatNetSimulatorDrivesTheFingertips) {
   ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
   sim.signal(SIGINT);
   // Every rigid body as reported: head 1, hand 2, shoulder 3, tracked.
-  std::istringstream in(read_text(dir / "tracking.csv"));
-  std::string line;
-  std::getline(in, line);
-  EXPECT_EQ(line, "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid");
+  const CsvFile table = read_csv_file(dir / "tracking.csv");
+  EXPECT_EQ(table.header, "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid");
   std::map<int, int> valid_rows;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    ASSERT_EQ(f.size(), 10u) << line;
+  for (const auto& f : table.rows) {
+    ASSERT_EQ(f.size(), 10u) << testing::PrintToString(f);
     if (f[9] == "1") valid_rows[std::stoi(f[1])]++;
   }
   for (int id : {1, 2, 3}) EXPECT_GT(valid_rows[id], 100) << "body " << id;

@@ -71,14 +71,9 @@ std::string key_bytes(std::uint32_t seed) {
 
 // Peak index-finger pressure in a --log-forces CSV (column 2).
 double peak_index_pressure(const std::filesystem::path& csv) {
-  std::istringstream in(read_text(csv));
-  std::string line;
-  std::getline(in, line);
+  const CsvFile table = read_csv_file(csv);
   double peak = 0;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  for (const auto& f : table.rows) {
     if (f.size() > 2 && f[1] == "index") peak = std::max(peak, std::stod(f[2]));
   }
   return peak;
@@ -87,15 +82,10 @@ double peak_index_pressure(const std::filesystem::path& csv) {
 // Index-finger pressure against script time (the script starts at the first haptic tick, the
 // log's first row), from a --log-forces CSV.
 std::vector<std::pair<double, double>> index_pressure_curve(const std::filesystem::path& csv) {
-  std::istringstream in(read_text(csv));
-  std::string line;
-  std::getline(in, line);
+  const CsvFile table = read_csv_file(csv);
   std::vector<std::pair<double, double>> curve;
   double t0 = -1;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  for (const auto& f : table.rows) {
     if (f.size() < 3) continue;
     if (t0 < 0) t0 = std::stod(f[0]);
     if (f[1] == "index") curve.emplace_back(std::stod(f[0]) - t0, std::stod(f[2]));

@@ -22,13 +22,8 @@ using namespace std::chrono_literals;
 // Peak |(fx, fy, fz)| per finger in telex-local's --log-forces CSV (every tick).
 std::map<std::string, double> csv_peaks(const std::filesystem::path& csv) {
   std::map<std::string, double> peak;
-  std::istringstream in(read_text(csv));
-  std::string line;
-  std::getline(in, line);
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  const CsvFile table = read_csv_file(csv);
+  for (const auto& f : table.rows) {
     if (f.size() < 8) continue;
     const double n = std::hypot(std::stod(f[5]), std::stod(f[6]), std::stod(f[7]));
     peak[f[1]] = std::max(peak[f[1]], n);
@@ -208,14 +203,9 @@ TEST(Recording, EveryTrackedBodyIsOnTfAsTheTrackerReportedIt) {
 
   // The tracking log's valid rows, per body, in order.
   std::map<int, std::vector<std::array<double, 7>>> logged;
-  std::istringstream in(read_text(dir / "tracking.csv"));
-  std::string line;
-  std::getline(in, line);
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    ASSERT_EQ(f.size(), 10u) << line;
+  const CsvFile table = read_csv_file(dir / "tracking.csv");
+  for (const auto& f : table.rows) {
+    ASSERT_EQ(f.size(), 10u) << testing::PrintToString(f);
     if (f[9] != "1") continue;
     std::array<double, 7> pose{};
     for (int k = 0; k < 7; ++k) pose[static_cast<std::size_t>(k)] = std::stod(f[2 + k]);

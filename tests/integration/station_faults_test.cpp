@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "process.h"
 #include "telex/base/periodic.h"
 #include "telex/local/station.h"
 #include "telex/remote/daemon.h"
@@ -26,15 +27,10 @@ struct DisplayRow {
 };
 
 std::vector<DisplayRow> read_display_csv(const std::filesystem::path& path) {
-  std::ifstream in(path);
+  const test::CsvFile table = test::read_csv_file(path);
   std::vector<DisplayRow> rows;
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::stringstream ss(line);
-    std::vector<std::string> f;
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    if (f.size() != 16) ADD_FAILURE() << "malformed display row: " << line;
+  for (const auto& f : table.rows) {
+    if (f.size() != 16) ADD_FAILURE() << "malformed display row: " << testing::PrintToString(f);
     if (f.size() != 16) continue;
     DisplayRow r;
     for (int finger = 0; finger < 5; ++finger) {

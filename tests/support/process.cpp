@@ -143,4 +143,16 @@ bool eventually(std::chrono::milliseconds timeout, const std::function<bool()>& 
   return pred();
 }
 
+CsvFile read_csv_file(const std::filesystem::path& p) {
+  CsvFile csv;
+  std::istringstream in(read_text(p));
+  std::getline(in, csv.header);
+  for (std::string line; std::getline(in, line);) {
+    auto& f = csv.rows.emplace_back();
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  }
+  return csv;
+}
+
 }  // namespace telex::test

@@ -43,6 +43,14 @@ std::filesystem::path scratch_dir(const std::string& name);
 // A port nobody listens on right now (bound once with port 0, then released).
 std::uint16_t free_port();
 std::string read_text(const std::filesystem::path& p);
+
+// A daemon's CSV log (--log-forces, --log-tracking, display CSVs): the header line and each later
+// line split at commas (the logs hold no quoted fields). A missing file reads as empty.
+struct CsvFile {
+  std::string header;
+  std::vector<std::vector<std::string>> rows;
+};
+CsvFile read_csv_file(const std::filesystem::path& p);
 // Hostile-peer helpers: connect to 127.0.0.1:port over TCP, write `bytes`, close (failures are
 // ignored: a daemon may reset a hostile peer); or send one UDP datagram there.
 void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
