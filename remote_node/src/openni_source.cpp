@@ -45,13 +45,10 @@ void let_driver_thread_exit(double fps) {
 }
 
 std::string list_devices() {
-  openni::Array<openni::DeviceInfo> devices;
-  openni::OpenNI::enumerateDevices(&devices);
-  if (devices.getSize() == 0) return "no devices found";
+  const auto devices = list_openni_devices();
+  if (devices.empty()) return "no devices found";
   std::string out = "devices found:";
-  for (int i = 0; i < devices.getSize(); ++i)
-    out += fmt::format(" '{}' ({} {})", devices[i].getUri(), devices[i].getVendor(),
-                       devices[i].getName());
+  for (const auto& d : devices) out += fmt::format(" '{}' ({} {})", d.uri, d.vendor, d.name);
   return out;
 }
 
@@ -314,6 +311,17 @@ class OpenNiDepthSource final : public DepthSource {
 };
 
 }  // namespace
+
+std::vector<OpenNiDeviceInfo> list_openni_devices() {
+  ensure_openni();
+  openni::Array<openni::DeviceInfo> devices;
+  openni::OpenNI::enumerateDevices(&devices);
+  std::vector<OpenNiDeviceInfo> out;
+  for (int i = 0; i < devices.getSize(); ++i)
+    out.push_back({devices[i].getUri(), devices[i].getVendor(), devices[i].getName(),
+                   devices[i].getUsbVendorId(), devices[i].getUsbProductId()});
+  return out;
+}
 
 namespace detail {
 

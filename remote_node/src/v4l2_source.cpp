@@ -8,8 +8,10 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <stdexcept>
 #include <vector>
 
@@ -232,5 +234,59 @@ std::unique_ptr<StereoSource> make_v4l2_stereo_source(const SourceSpec& spec,
 }
 
 }  // namespace detail
+
+std::vector<V4l2DeviceInfo> list_v4l2_devices(const std::string& dev_dir) {
+  std::vector<std::filesystem::path> paths;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dev_dir, ec))
+    if (e.path().filename().string().rfind("video", 0) == 0) paths.push_back(e.path());
+  std::sort(paths.begin(), paths.end());
+  std::vector<V4l2DeviceInfo> out;
+  for (const auto& p : paths) {
+    V4l2DeviceInfo info;
+    info.path = p.string();
+    const int fd = v4l2_open(info.path.c_str(), O_RDWR | O_NONBLOCK);
+    if (fd < 0) {
+      info.error = fmt::format("cannot open as a video device: {}", std::strerror(errno));
+      out.push_back(info);
+      continue;
+    }
+    v4l2_capability cap{};
+    if (xioctl(fd, VIDIOC_QUERYCAP, &cap) != 0) {
+      info.error = fmt::format("VIDIOC_QUERYCAP: {}", std::strerror(errno));
+    } else {
+      info.card = reinterpret_cast<const char*>(cap.card);
+      info.driver = reinterpret_cast<const char*>(cap.driver);
+      info.bus = reinterpret_cast<const char*>(cap.bus_info);
+      const std::uint32_t caps =
+          (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
+      info.capture = (caps & V4L2_CAP_VIDEO_CAPTURE) != 0;
+      for (std::uint32_t i = 0; info.capture; ++i) {
+        v4l2_fmtdesc fmt{};
+        fmt.index = i;
+        fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+        if (xioctl(fd, VIDIOC_ENUM_FMT, &fmt) != 0) break;
+        std::string line;
+        for (int b = 0; b < 4; ++b) line += static_cast<char>((fmt.pixelformat >> (8 * b)) & 0xFF);
+        for (std::uint32_t k = 0;; ++k) {
+          v4l2_frmsizeenum size{};
+          size.index = k;
+          size.pixel_format = fmt.pixelformat;
+          if (xioctl(fd, VIDIOC_ENUM_FRAMESIZES, &size) != 0) break;
+          if (size.type == V4L2_FRMSIZE_TYPE_DISCRETE)
+            line += fmt::format(" {}x{}", size.discrete.width, size.discrete.height);
+          else
+            line += fmt::format(" {}x{}..{}x{}", size.stepwise.min_width, size.stepwise.min_height,
+                                size.stepwise.max_width, size.stepwise.max_height);
+          if (size.type != V4L2_FRMSIZE_TYPE_DISCRETE) break;
+        }
+        info.formats.push_back(line);
+      }
+    }
+    v4l2_close(fd);
+    out.push_back(info);
+  }
+  return out;
+}
 
 }  // namespace telex::remote

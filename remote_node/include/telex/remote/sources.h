@@ -110,6 +110,26 @@ std::unique_ptr<StereoSource> make_eye_source(std::string_view depth_spec,
                                               std::string_view stereo_spec,
                                               const SourceOptions& options = {});
 
+// What `telex devices` lists of the remote's devices.
+struct OpenNiDeviceInfo {
+  std::string uri;  // e.g. "1d27/0601@3/2" (USB vendor/product@bus/address) or "Dummy"
+  std::string vendor, name;
+  std::uint16_t usb_vendor_id = 0, usb_product_id = 0;
+};
+// OpenNI2's device list (every driver it loads, the Dummy device among them). Throws
+// std::runtime_error when OpenNI2 cannot initialise.
+std::vector<OpenNiDeviceInfo> list_openni_devices();
+
+struct V4l2DeviceInfo {
+  std::string path;                  // /dev/videoN
+  std::string card, driver, bus;     // VIDIOC_QUERYCAP
+  bool capture = false;              // V4L2_CAP_VIDEO_CAPTURE
+  std::vector<std::string> formats;  // "YUYV 640x480 1280x720", "MJPG ..." (discrete sizes)
+  std::string error;                 // why it could not be opened or queried
+};
+// The video devices under `dev_dir` (video0, video1, ...) with what they capture.
+std::vector<V4l2DeviceInfo> list_v4l2_devices(const std::string& dev_dir = "/dev");
+
 // Host steady clock in ns: the single time base of the remote node.
 std::int64_t steady_now_ns();
 
