@@ -21,6 +21,7 @@ void Frame::clear() {
   labeled_markers.clear();
   force_plates.clear();
   devices.clear();
+  software_latency_s = 0;
   timecode = timecode_sub = 0;
   timestamp_s = 0;
   stamp_mid_exposure = stamp_data_received = stamp_transmit = 0;
@@ -249,10 +250,15 @@ ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version v, Frame&
   if (v.at_least(2, 11))
     if (auto s = read_analog(r, out.devices, v, "truncated device count"); !s.ok()) return s;
 
-  TELEX_NN_NEED(r.get(out.timecode) && r.get(out.timecode_sub), "truncated timecode");
+  // The frame's tail. SDK 2.5's PacketClient: latency, timecode (2.3+, its change log), end. SDK
+  // 2.6 added the timestamp and the frame params; 2.7 widened the timestamp to f64; 3.0 removed the
+  // latency and added three u64 stamps; 4.1 (not 4.0) added the precision timestamp.
+  if (v.major < 3) TELEX_NN_NEED(r.get(out.software_latency_s), "truncated software latency");
+  if (v.at_least(2, 3))
+    TELEX_NN_NEED(r.get(out.timecode) && r.get(out.timecode_sub), "truncated timecode");
   if (v.at_least(2, 7)) {
     TELEX_NN_NEED(r.get(out.timestamp_s), "truncated timestamp");
-  } else {
+  } else if (v.at_least(2, 6)) {
     float ts = 0;
     TELEX_NN_NEED(r.get(ts), "truncated timestamp");
     out.timestamp_s = ts;
@@ -261,13 +267,16 @@ ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version v, Frame&
     TELEX_NN_NEED(r.get(out.stamp_mid_exposure) && r.get(out.stamp_data_received) &&
                       r.get(out.stamp_transmit),
                   "truncated high-resolution stamps");
-  if (v.major >= 4)
+  if (v.at_least(4, 1))
     TELEX_NN_NEED(r.get(out.precision_s) && r.get(out.precision_frac),
                   "truncated precision timestamp");
-  TELEX_NN_NEED(r.get(out.params), "truncated frame params");
+  if (v.at_least(2, 6)) TELEX_NN_NEED(r.get(out.params), "truncated frame params");
   std::uint32_t eod = 0;
   TELEX_NN_NEED(r.get(eod), "missing end-of-data marker");
   TELEX_NN_NEED(eod == 0, "end-of-data marker is not zero");
+  // Up to 4.1 the layout is known to the byte, so anything after the marker means the frame was
+  // read in another version's layout; a later 4.x may append fields, which are left unread.
+  if (!v.at_least(4, 2)) TELEX_NN_NEED(r.left() == 0, "bytes after the end-of-data marker");
   return {};
 }
 
@@ -428,22 +437,25 @@ std::vector<std::uint8_t> encode_frame(const Frame& f, Version v) {
   }
   if (v.at_least(2, 9)) write_analog(w, f.force_plates, v);
   if (v.at_least(2, 11)) write_analog(w, f.devices, v);
-  w.put(f.timecode);
-  w.put(f.timecode_sub);
+  if (v.major < 3) w.put(f.software_latency_s);
+  if (v.at_least(2, 3)) {
+    w.put(f.timecode);
+    w.put(f.timecode_sub);
+  }
   if (v.at_least(2, 7))
     w.put(f.timestamp_s);
-  else
+  else if (v.at_least(2, 6))
     w.put(static_cast<float>(f.timestamp_s));
   if (v.major >= 3) {
     w.put(f.stamp_mid_exposure);
     w.put(f.stamp_data_received);
     w.put(f.stamp_transmit);
   }
-  if (v.major >= 4) {
+  if (v.at_least(4, 1)) {
     w.put(f.precision_s);
     w.put(f.precision_frac);
   }
-  w.put(f.params);
+  if (v.at_least(2, 6)) w.put(f.params);
   w.put(std::uint32_t{0});
   return with_header(kFrameOfData, std::move(w.b));
 }

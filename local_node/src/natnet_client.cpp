@@ -174,10 +174,12 @@ struct NatNetClient::Impl {
     ++frames;
     NatNetSample s;
     s.frame_number = frame.frame_number;
-    s.timestamp_s = frame.timestamp_s;
     s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                         std::chrono::steady_clock::now().time_since_epoch())
                         .count();
+    // Servers before NatNet 2.6 send no frame timestamp: their frames are stamped on arrival.
+    s.timestamp_s =
+        v.at_least(2, 6) ? frame.timestamp_s : static_cast<double>(s.received_ns) * 1e-9;
     const std::size_t n = std::min<std::size_t>(cfg.body_ids.size(), NatNetSample::kMaxBodies);
     for (std::size_t i = 0; i < n; ++i) {
       auto& b = s.bodies[i];

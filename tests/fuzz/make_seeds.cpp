@@ -128,12 +128,12 @@ int main(int argc, char** argv) {
     }
   }
 
-  // natnet_fuzz: byte 0 picks the version (index into 2.0 2.5 2.7 2.9 2.11 3.0 3.1 4.0 4.1),
-  // then a datagram.
+  // natnet_fuzz: byte 0 picks the version (index into 2.0 2.5 2.7 2.9 2.11 3.0 3.1 4.0 4.1 2.3
+  // 2.6), then a datagram.
   {
     using namespace telex::local::natnet;
-    const Version versions[] = {{2, 0}, {2, 5}, {2, 7}, {2, 9}, {2, 11},
-                                {3, 0}, {3, 1}, {4, 0}, {4, 1}};
+    const Version versions[] = {{2, 0}, {2, 5}, {2, 7}, {2, 9}, {2, 11}, {3, 0},
+                                {3, 1}, {4, 0}, {4, 1}, {2, 3}, {2, 6}};
     Frame f;
     f.frame_number = 42;
     f.marker_sets.push_back({"hand", {{0.1f, 0.2f, 0.3f}}});
@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
     f.labeled_markers.push_back({65537, {0.5f, 0.5f, 0.5f}, 0.01f, 1, 0.001f});
     f.force_plates.push_back({1, {{1.0f, 2.0f}}});
     f.devices.push_back({2, {{3.0f}}});
-    for (std::uint8_t i = 0; i < 9; ++i) {
+    for (std::uint8_t i = 0; i < std::size(versions); ++i) {
       write(out / "natnet_fuzz",
             "frame_v" + std::to_string(versions[i].major) + "_" + std::to_string(versions[i].minor),
             cat({{i}, encode_frame(f, versions[i])}));

@@ -9,9 +9,10 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace telex::local::natnet;
   if (size < 1) return 0;
-  // The first byte picks the layout so one corpus covers 2.0 .. 4.1.
-  static constexpr Version kVersions[] = {{2, 0}, {2, 5}, {2, 7}, {2, 9}, {2, 11},
-                                          {3, 0}, {3, 1}, {4, 0}, {4, 1}};
+  // The first byte picks the layout so one corpus covers 2.0 .. 4.1 (2.3 and 2.6 appended later,
+  // so the kept corpus keeps the versions it was found with).
+  static constexpr Version kVersions[] = {{2, 0}, {2, 5}, {2, 7}, {2, 9}, {2, 11}, {3, 0},
+                                          {3, 1}, {4, 0}, {4, 1}, {2, 3}, {2, 6}};
   const Version v = kVersions[data[0] % std::size(kVersions)];
   const std::span<const std::uint8_t> bytes(data + 1, size - 1);
   static Frame frame;  // reused like the client does, to exercise clear() with capacity

@@ -36,8 +36,11 @@ struct Bytes {
 
 // One frame: a marker set "hand" with 2 markers, 1 unlabeled marker, 2 rigid bodies (id 1 head,
 // id 2 hand, the hand not tracked), 1 skeleton with 1 bone, 1 labeled marker, 1 force plate with
-// 2 channels, 1 device with 1 channel. `sized` adds the 4.1 section byte counts.
-std::vector<std::uint8_t> hand_built_frame(Version v) {
+// 2 channels, 1 device with 1 channel. Each field is written in the order, and under the version
+// condition, of NaturalPoint's reference decoder: PacketClient.cpp's Unpack() of SDK 2.5 .. 3.1
+// (mje-nz/natnet-sdk-mirror) and NatNetClient.py's __unpack_mocap_data() of SDK 4.x, whose
+// __unpack_data_size() reads the 4.1 section byte counts.
+std::vector<std::uint8_t> hand_built_frame(Version v, bool with_assets = true) {
   Bytes p;
   const bool sized = v.at_least(4, 1);
   auto section = [&](auto&& body) {
@@ -52,12 +55,12 @@ std::vector<std::uint8_t> hand_built_frame(Version v) {
   };
   auto rigid_body = [&](std::int32_t id, float x, bool valid) {
     p.i32(id).xyz(x, 1.5f, -0.25f).f32(0.0f).f32(0.0f).f32(0.70710678f).f32(0.70710678f);
-    if (v.major < 3) {
+    if (v.major < 3) {                         // 3.0 dropped the rigid body's marker list
       p.i32(1).xyz(x + 0.01f, 1.5f, -0.25f);   // one marker
-      if (v.major >= 2) p.i32(7).f32(0.012f);  // its id and size
+      if (v.major >= 2) p.i32(1).f32(0.014f);  // its id and size (2.0+)
     }
-    if (v.major >= 2) p.f32(0.0004f);            // mean error
-    if (v.at_least(2, 6)) p.i16(valid ? 1 : 0);  // params
+    if (v.major >= 2) p.f32(0.0004f);            // mean error (2.0+)
+    if (v.at_least(2, 6)) p.i16(valid ? 1 : 0);  // params, bit 0 tracking valid (2.6+)
   };
   p.u32(4711);
   p.i32(1);
@@ -69,44 +72,53 @@ std::vector<std::uint8_t> hand_built_frame(Version v) {
     rigid_body(1, 0.25f, true);
     rigid_body(2, 0.5f, false);
   });
-  if (v.at_least(2, 1)) {
+  if (v.at_least(2, 1)) {  // skeletons
     p.i32(1);
     section([&] {
       p.i32(9).i32(1);
       rigid_body(0x90001, 0.75f, true);
     });
   }
-  if (v.at_least(4, 1)) p.i32(3).u32(5).raw("ABCDE", 5);  // assets, skipped by byte count
-  if (v.at_least(2, 3)) {
+  if (v.at_least(4, 1)) {  // assets (4.1+), skipped by byte count
+    if (with_assets)
+      p.i32(3).u32(5).raw("ABCDE", 5);
+    else
+      p.i32(0).u32(0);
+  }
+  if (v.at_least(2, 3)) {  // labeled markers
     p.i32(1);
     section([&] {
       p.i32((2 << 16) | 5).xyz(0.1f, 0.2f, 0.3f).f32(0.015f);
-      if (v.at_least(2, 6)) p.i16(4);
-      if (v.major >= 3) p.f32(0.0002f);
+      if (v.at_least(2, 6)) p.i16(4);    // params
+      if (v.major >= 3) p.f32(0.0002f);  // residual
     });
   }
-  if (v.at_least(2, 9)) {
+  if (v.at_least(2, 9)) {  // force plates
     p.i32(1);
     section([&] { p.i32(31).i32(2).i32(1).f32(9.5f).i32(2).f32(1.0f).f32(2.0f); });
   }
-  if (v.at_least(2, 11)) {
+  if (v.at_least(2, 11)) {  // devices
     p.i32(1);
     section([&] { p.i32(41).i32(1).i32(1).f32(-3.0f); });
   }
-  p.u32(0x01020304).u32(5);
+  if (v.major < 3) p.f32(0.0125f);                 // "software latency (removed in version 3.0)"
+  if (v.at_least(2, 3)) p.u32(0x01020304).u32(5);  // timecode, sub-frame (2.3 change log)
   if (v.at_least(2, 7))
-    p.f64(12.345);
-  else
-    p.f32(12.5f);
-  if (v.major >= 3) p.u64(111).u64(222).u64(333);
-  if (v.major >= 4) p.u32(44).u32(55);
-  p.i16(2).u32(0);
+    p.f64(12.345);  // "2.7 and later - increased from single to double precision"
+  else if (v.at_least(2, 6))
+    p.f32(12.5f);                                  // timestamp added in 2.6 (its change log)
+  if (v.major >= 3) p.u64(111).u64(222).u64(333);  // "high res timestamps (version 3.0 and later)"
+  if (v.at_least(4, 1)) p.u32(44).u32(55);         // precision timestamp: NatNet 4.1 and later
+  if (v.at_least(2, 6)) p.i16(2);                  // frame params (2.6)
+  p.u32(0);                                        // end of data tag
   Bytes d;
   d.u16(7).u16(static_cast<std::uint16_t>(p.size())).raw(p.b.data(), p.size());
   return d.b;
 }
 
-const Version kVersions[] = {{2, 0}, {2, 5}, {2, 9}, {2, 11}, {3, 0}, {3, 1}, {4, 0}, {4, 1}};
+// The versions of the SDKs whose decoders were read, and the boundaries between them.
+const Version kVersions[] = {{2, 0},  {2, 3},  {2, 5}, {2, 6}, {2, 7}, {2, 9},
+                             {2, 10}, {2, 11}, {3, 0}, {3, 1}, {4, 0}, {4, 1}};
 
 class NatNetVersions : public ::testing::TestWithParam<Version> {};
 
@@ -155,12 +167,41 @@ TEST_P(NatNetVersions, ParsesHandBuiltFrame) {
     EXPECT_FLOAT_EQ(f.force_plates[0].channels[1][1], 2.0f);
   }
   ASSERT_EQ(f.devices.size(), v.at_least(2, 11) ? 1u : 0u);
-  EXPECT_EQ(f.timecode, 0x01020304u);
-  EXPECT_EQ(f.timecode_sub, 5u);
-  EXPECT_DOUBLE_EQ(f.timestamp_s, v.at_least(2, 7) ? 12.345 : 12.5);
+  EXPECT_FLOAT_EQ(f.software_latency_s, v.major < 3 ? 0.0125f : 0.0f);
+  EXPECT_EQ(f.timecode, v.at_least(2, 3) ? 0x01020304u : 0u);
+  EXPECT_EQ(f.timecode_sub, v.at_least(2, 3) ? 5u : 0u);
+  EXPECT_DOUBLE_EQ(f.timestamp_s, v.at_least(2, 7) ? 12.345 : v.at_least(2, 6) ? 12.5 : 0.0);
+  EXPECT_EQ(f.stamp_mid_exposure, v.major >= 3 ? 111u : 0u);
   EXPECT_EQ(f.stamp_transmit, v.major >= 3 ? 333u : 0u);
-  EXPECT_EQ(f.precision_frac, v.major >= 4 ? 55u : 0u);
-  EXPECT_EQ(f.params, 2);
+  EXPECT_EQ(f.precision_s, v.at_least(4, 1) ? 44u : 0u);
+  EXPECT_EQ(f.precision_frac, v.at_least(4, 1) ? 55u : 0u);
+  EXPECT_EQ(f.params, v.at_least(2, 6) ? 2 : 0);
+}
+
+// The library's writer (which the simulator and the fuzz seeds use) gives the reference layout
+// byte for byte: the hand-built packet, parsed and written again, is the same bytes.
+TEST_P(NatNetVersions, EncoderWritesTheReferenceLayoutByteForByte) {
+  const Version v = GetParam();
+  const auto bytes = hand_built_frame(v, /*with_assets=*/false);  // the writer sends no assets
+  Frame f;
+  const ParseStatus st = parse_frame(std::span<const std::uint8_t>(bytes).subspan(4), v, f);
+  ASSERT_TRUE(st.ok()) << st.reason;
+  EXPECT_EQ(encode_frame(f, v), bytes);
+}
+
+// Each version's layout is not another's: parsing the frame under the neighbouring version is an
+// error (the tail no longer ends in the zero end-of-data tag), never a silently shifted frame.
+TEST_P(NatNetVersions, NeighbouringVersionsDoNotParseEachOther) {
+  const Version v = GetParam();
+  const auto bytes = hand_built_frame(v);
+  const auto payload = std::span<const std::uint8_t>(bytes).subspan(4);
+  for (const Version other : kVersions) {
+    if (other == v) continue;
+    if (hand_built_frame(other) == bytes) continue;  // no layout change between them (3.0, 3.1)
+    Frame f;
+    EXPECT_FALSE(parse_frame(payload, other, f).ok())
+        << v.major << "." << v.minor << " bytes parsed as " << other.major << "." << other.minor;
+  }
 }
 
 TEST_P(NatNetVersions, EveryTruncationIsRejectedWithAReason) {
@@ -219,8 +260,9 @@ TEST_P(NatNetVersions, EncoderRoundTripsThroughTheParser) {
   EXPECT_FLOAT_EQ(out.rigid_bodies[0].qz, 0.5f);
   EXPECT_EQ(out.skeletons.size(), v.at_least(2, 1) ? 1u : 0u);
   EXPECT_EQ(out.devices.size(), v.at_least(2, 11) ? 1u : 0u);
-  EXPECT_DOUBLE_EQ(out.timestamp_s, 3.25);
-  EXPECT_EQ(out.params, 1);
+  // Before 2.6 a frame carries neither its timestamp nor its params.
+  EXPECT_DOUBLE_EQ(out.timestamp_s, v.at_least(2, 6) ? 3.25 : 0.0);
+  EXPECT_EQ(out.params, v.at_least(2, 6) ? 1 : 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Layouts, NatNetVersions, ::testing::ValuesIn(kVersions),
@@ -255,6 +297,22 @@ TEST(NatNetParser, RejectsCorruptCountsAndMarkers) {
   p.u32(1).i32(1).raw("abcdefgh", 8);
   EXPECT_STREQ(parse_frame(p.b, v, f).reason, "marker set name without terminating NUL");
   EXPECT_FALSE(parse_frame(payload_of(bytes), Version{5, 0}, f).ok());
+}
+
+// Up to 4.1 a frame ends at its end-of-data marker; a later 4.x may append fields we do not read.
+TEST(NatNetParser, BytesAfterTheEndAreAnotherLayoutUpTo41) {
+  for (const Version v : {Version{3, 1}, Version{4, 1}, Version{4, 2}}) {
+    auto bytes = hand_built_frame(v == Version{4, 2} ? Version{4, 1} : v);
+    bytes.push_back(0);
+    Frame f;
+    const ParseStatus st = parse_frame(payload_of(bytes), v, f);
+    if (v == Version{4, 2}) {
+      EXPECT_TRUE(st.ok()) << st.reason;
+    } else {
+      ASSERT_FALSE(st.ok());
+      EXPECT_STREQ(st.reason, "bytes after the end-of-data marker");
+    }
+  }
 }
 
 TEST(NatNetParser, RejectsSectionByteCountMismatchIn41) {

@@ -1,5 +1,8 @@
 // SPDX-License-Identifier: MIT
 // OptiTrack NatNet subset: packet framing, server info, FRAMEOFDATA for NatNet 2.x-4.x (pure).
+// Every version's FRAMEOFDATA layout is NaturalPoint's reference decoder's of that version, field
+// by field: PacketClient.cpp of SDK 2.5 .. 3.1 and NatNetClient.py of SDK 4.x (docs/HARDWARE.md,
+// "NatNet versions", cites each line).
 #pragma once
 
 #include <array>
@@ -83,12 +86,13 @@ struct Frame {
   std::vector<LabeledMarker> labeled_markers;  // 2.3+
   std::vector<AnalogDevice> force_plates;      // 2.9+
   std::vector<AnalogDevice> devices;           // 2.11+
-  std::uint32_t timecode = 0;
-  std::uint32_t timecode_sub = 0;
-  double timestamp_s = 0;  // f32 before 2.7
+  float software_latency_s = 0;                // 2.x only: removed in 3.0
+  std::uint32_t timecode = 0;                  // 2.3+
+  std::uint32_t timecode_sub = 0;              // 2.3+
+  double timestamp_s = 0;                      // 2.6+, f32 before 2.7
   std::uint64_t stamp_mid_exposure = 0, stamp_data_received = 0, stamp_transmit = 0;  // 3.0+
-  std::uint32_t precision_s = 0, precision_frac = 0;                                  // 4.0+
-  std::int16_t params = 0;  // bit 0 recording, bit 1 tracked models changed
+  std::uint32_t precision_s = 0, precision_frac = 0;                                  // 4.1+
+  std::int16_t params = 0;  // 2.6+: bit 0 recording, bit 1 tracked models changed
 
   void clear();  // keeps the top-level arrays' capacity for a reused Frame
   const RigidBody* find_body(std::int32_t id) const;

@@ -12,9 +12,9 @@
 #include <thread>
 #include <vector>
 
+#include "telex/base/triple_buffer.h"
 #include "telex/local/hand_model.h"
 #include "telex/local/natnet.h"
-#include "telex/base/triple_buffer.h"
 
 namespace telex::local {
 
@@ -40,7 +40,7 @@ struct NatNetSample {
     bool valid = false;    // present and tracked
   };
   std::uint32_t frame_number = 0;
-  double timestamp_s = 0;        // server clock
+  double timestamp_s = 0;        // server clock (2.6+), else the arrival time
   std::int64_t received_ns = 0;  // steady clock on receipt
   std::array<Body, kMaxBodies> bodies{};
   const Body* find(std::int32_t id) const;
