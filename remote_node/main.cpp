@@ -85,7 +85,8 @@ int main(int argc, char** argv) {
   std::string psk_file;
   bool no_fill = false, no_temporal = false, no_stats = false;
   app.add_option("--source", cfg.depth_source,
-                 "Depth source: openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
+                 "Depth source: openni[:URI] | freenect[:INDEX] (Kinect v1; under fakenect a "
+                 "recording) | oni:PATH[,loop][,realtime|fast] | "
                  "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
                  "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] (ROS 1 bag, "
                  "16UC1 or 32FC1; colour=T is the eye view) | "

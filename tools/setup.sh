@@ -12,7 +12,7 @@ PACKAGES=(
   zlib1g-dev libzstd-dev libpng-dev
   libboost-dev libboost-system-dev
   libglm-dev
-  libhidapi-dev libusb-1.0-0-dev
+  libhidapi-dev libusb-1.0-0-dev libfreenect-dev libfreenect-bin
   libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev

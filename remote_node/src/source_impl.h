@@ -10,6 +10,8 @@ namespace telex::remote::detail {
 
 std::unique_ptr<DepthSource> make_openni_source(const SourceSpec& spec,
                                                 const SourceOptions& options);
+std::unique_ptr<DepthSource> make_freenect_source(const SourceSpec& spec,
+                                                  const SourceOptions& options);
 std::unique_ptr<DepthSource> make_oni_source(const SourceSpec& spec, const SourceOptions& options);
 std::unique_ptr<DepthSource> make_files_depth_source(const SourceSpec& spec,
                                                      const SourceOptions& options);

@@ -12,7 +12,7 @@ namespace telex::remote {
 
 namespace {
 constexpr std::string_view kDepthForms =
-    "openni[:URI] | oni:PATH[,loop][,realtime|fast] | "
+    "openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] | "
     "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
     "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | "
     "synthetic[:SCENE][,animate][,noise=on|off]";
@@ -84,6 +84,7 @@ std::unique_ptr<DepthSource> make_depth_source(std::string_view spec_text,
                                                const SourceOptions& options) {
   const SourceSpec spec = parse_source_spec(spec_text);
   if (spec.kind == "openni") return detail::make_openni_source(spec, options);
+  if (spec.kind == "freenect") return detail::make_freenect_source(spec, options);
   if (spec.kind == "oni") return detail::make_oni_source(spec, options);
   if (spec.kind == "files") return detail::make_files_depth_source(spec, options);
   if (spec.kind == "bag") return detail::make_bag_depth_source(spec, options);

@@ -161,7 +161,7 @@ const RegisterCommand kRegister{
       auto a = std::make_shared<CaptureArgs>();
       app.add_option("--source", a->source,
                      "depth source spec, as telex-remote --source (synthetic, files, oni, "
-                     "openni, bag)")
+                     "openni, freenect, bag)")
           ->required();
       app.add_option("--stereo", a->stereo,
                      "eye view spec, as telex-remote --stereo (default: a bag source's colour=)");

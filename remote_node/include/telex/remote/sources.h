@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -92,7 +93,7 @@ struct SourceOptions {
   int height = 480;
 };
 
-// Valid depth specs: openni[:URI] | oni:PATH[,loop][,realtime|fast] |
+// Valid depth specs: openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] |
 // files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] |
 // bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | synthetic[:SCENE][,animate].
 // A bag source with colour=T also gives the eye view when no stereo source is set.
@@ -129,6 +130,17 @@ struct V4l2DeviceInfo {
 };
 // The video devices under `dev_dir` (video0, video1, ...) with what they capture.
 std::vector<V4l2DeviceInfo> list_v4l2_devices(const std::string& dev_dir = "/dev");
+
+// A libfreenect recording in fakenect's layout (fakenect-record: INDEX.txt naming one file per
+// line, TYPE-SECONDS-TIMESTAMP.EXT; depth dumps "P5 640 480 65535\n" and 640x480 host-order u16).
+struct FakenectRecording {
+  std::filesystem::path dir;
+  std::vector<std::filesystem::path> depth_files;  // in INDEX.txt's order
+  int rgb = 0, accelerometer = 0;
+};
+// Checks every line and file the way fakenect will read them; throws std::runtime_error naming
+// INDEX.txt's line and what is wrong (fakenect itself exit()s on a missing or short file).
+FakenectRecording check_fakenect_recording(const std::filesystem::path& dir);
 
 // Host steady clock in ns: the single time base of the remote node.
 std::int64_t steady_now_ns();
