@@ -18,10 +18,34 @@
 
 namespace telex::local {
 
+std::span<const GloveProduct> glove_products() {
+  // vrpn_Analog_5dtUSB.C lists these ids (its vrpn_5DT_DATAGLOVE14_* / DATAGLOVE5_* comments) and
+  // the masks that decode them: 0x0001 left, 0x0010 five sensors, 0x0002 / 0x0006 wireless port.
+  static constexpr GloveProduct kTable[] = {
+      {0x00, GloveModel::Sensors14, false, "wired USB"},
+      {0x01, GloveModel::Sensors14, true, "wired USB"},
+      {0x02, GloveModel::Sensors14, false, "wireless port A"},
+      {0x03, GloveModel::Sensors14, true, "wireless port A"},
+      {0x06, GloveModel::Sensors14, false, "wireless port B"},
+      {0x07, GloveModel::Sensors14, true, "wireless port B"},
+      {0x10, GloveModel::Sensors5Right, false, "wired USB"},
+      {0x11, GloveModel::Sensors5Left, true, "wired USB"},
+      {0x12, GloveModel::Sensors5Right, false, "wireless port A"},
+      {0x13, GloveModel::Sensors5Left, true, "wireless port A"},
+      {0x16, GloveModel::Sensors5Right, false, "wireless port B"},
+      {0x17, GloveModel::Sensors5Left, true, "wireless port B"},
+  };
+  return kTable;
+}
+
+const GloveProduct* glove_product(std::uint16_t pid) {
+  for (const auto& p : glove_products())
+    if (p.product_id == pid) return &p;
+  return nullptr;
+}
+
 std::optional<GloveModel> glove_model_from_product_id(std::uint16_t pid) {
-  if (pid <= 0x07) return GloveModel::Sensors14;
-  if (pid == 0x10) return GloveModel::Sensors5Right;
-  if (pid == 0x11) return GloveModel::Sensors5Left;
+  if (const GloveProduct* p = glove_product(pid)) return p->model;
   return std::nullopt;
 }
 
@@ -51,29 +75,46 @@ std::uint8_t serial_5dt_checksum(std::span<const std::uint8_t, 7> data) {
   return static_cast<std::uint8_t>(sum & 0xFF);
 }
 
+const char* parse_5dt_serial_info(std::span<const std::uint8_t> reply, Serial5dtInfo& out) {
+  if (reply.size() < 32) return "5DT info reply shorter than 32 bytes";
+  if (reply[0] != 'B' || reply[1] != 'R') return "5DT info reply does not start with \"BR\"";
+  out = Serial5dtInfo{};
+  out.version_major = reply[2];
+  out.version_minor = reply[3];
+  out.right_hand = (reply[4] & 0x01) != 0;
+  out.pitch_roll = (reply[5] & 0x10) != 0;
+  for (std::size_t i = 16; i < 32 && reply[i] != 0; ++i)
+    out.name.push_back(reply[i] >= 32 && reply[i] < 127 ? static_cast<char>(reply[i]) : '?');
+  return nullptr;
+}
+
 bool Serial5dtParser::push(std::uint8_t byte, GloveRaw& out) {
   if (have_ == 0 && byte != k5dtSerialHeader) {
     ++skipped_;
     return false;
   }
   buf_[have_++] = byte;
-  if (have_ < buf_.size()) return false;
-  const std::span<const std::uint8_t, 7> data(buf_.data() + 1, 7);
-  if (serial_5dt_checksum(data) == buf_[8]) {
+  const std::size_t size = wireless_ ? k5dtWirelessReportBytes : k5dtSerialReportBytes;
+  if (have_ < size) return false;
+  // VRPN's checks: the header, and for the wireless glove the capability byte that ends it.
+  if (!wireless_ || buf_[9] == 0x40 || buf_[9] == 0x01) {
+    const std::span<const std::uint8_t, 7> data(buf_.data() + 1, 7);
+    if (serial_5dt_checksum(data) != buf_[8]) ++checksum_mismatches_;
     out = GloveRaw{};
     out.sensor_count = 5;
     for (int i = 0; i < 5; ++i) out.sensors[i] = buf_[1 + i] / 255.0;
-    out.pitch = buf_[6] / 255.0;
-    out.roll = buf_[7] / 255.0;
+    out.pitch_deg = 180.0 * buf_[6] / 255.0;
+    out.roll_deg = 180.0 * buf_[7] / 255.0;
     have_ = 0;
     return true;
   }
-  // A data byte can look like a header: restart at the next 0x80 inside what we already have.
-  ++bad_checksums_;
-  const auto next = std::find(buf_.begin() + 1, buf_.end(), k5dtSerialHeader);
+  // Out of step: a data byte was taken for a header. Restart at the next 0x80 already read.
+  ++bad_reports_;
+  const auto end = buf_.begin() + static_cast<std::ptrdiff_t>(size);
+  const auto next = std::find(buf_.begin() + 1, end, k5dtSerialHeader);
   skipped_ += static_cast<std::uint64_t>(next - buf_.begin());
-  have_ = static_cast<std::size_t>(buf_.end() - next);
-  std::copy(next, buf_.end(), buf_.begin());
+  have_ = static_cast<std::size_t>(end - next);
+  std::copy(next, end, buf_.begin());
   return false;
 }
 
@@ -195,7 +236,8 @@ class Usb5dtGlove final : public GloveDevice {
       throw std::runtime_error(
           path.empty()
               ? "5DT USB glove: no HID device with vendor 0x5D70 and a glove product id "
-                "(0x00-0x07, 0x10, 0x11) found. Is it plugged in (lsusb | grep 5d70)? Does your "
+                "(0x00-0x03, 0x06, 0x07, 0x10-0x13, 0x16, 0x17) found. Is it plugged in (lsusb | "
+                "grep 5d70)? Does your "
                 "user may read /dev/hidraw* (udev rule, docs/HARDWARE.md)? Or use script:press."
               : "5DT USB glove: cannot open " + path +
                     ": no 5DT glove (vendor 0x5D70) at that HID path. Check it exists (ls -l " +
@@ -247,7 +289,8 @@ class Usb5dtGlove final : public GloveDevice {
 
 class Serial5dtGlove final : public GloveDevice {
  public:
-  Serial5dtGlove(const std::string& dev, const std::string& calibration_path) : dev_(dev) {
+  Serial5dtGlove(const std::string& dev, bool wireless, const std::string& calibration_path)
+      : dev_(dev), wireless_(wireless), parser_(wireless) {
     fd_ = ::open(dev.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
     if (fd_ < 0)
       throw std::runtime_error("5DT serial glove: cannot open " + dev + ": " +
@@ -260,14 +303,20 @@ class Serial5dtGlove final : public GloveDevice {
       ::close(fd_);
       throw std::runtime_error("5DT serial glove: " + dev + " is not a serial port: " + why);
     }
+    // VRPN: 19200 baud for the wired glove, 9600 for the wireless one; 8N1.
+    const speed_t baud = wireless ? B9600 : B19200;
     cfmakeraw(&tio);
-    cfsetispeed(&tio, B19200);
-    cfsetospeed(&tio, B19200);
+    cfsetispeed(&tio, baud);
+    cfsetospeed(&tio, baud);
     tio.c_cflag &= ~static_cast<tcflag_t>(PARENB | CSTOPB | CSIZE);
     tio.c_cflag |= CS8 | CLOCAL | CREAD;
     tcsetattr(fd_, TCSANOW, &tio);
-    const char stream = 'D';  // continuous reports
-    if (::write(fd_, &stream, 1) != 1) ++read_errors_;
+    try {
+      if (!wireless) handshake();  // the wireless glove only sends
+    } catch (...) {
+      ::close(fd_);
+      throw;
+    }
     calibration_ = calibration_for(calibration_path, 5);
     thread_ = std::thread([this] { run(); });
   }
@@ -276,9 +325,52 @@ class Serial5dtGlove final : public GloveDevice {
     if (thread_.joinable()) thread_.join();
     ::close(fd_);
   }
-  std::string name() const override { return "5dt-serial:" + dev_; }
+  std::string name() const override {
+    return "5dt-serial:" + dev_ + (wireless_ ? ",wireless" : "") +
+           (info_.name.empty() ? "" : " (" + info_.name + ")");
+  }
 
  private:
+  // Reads exactly n bytes or gives up after `timeout_ms`.
+  std::size_t read_exactly(std::uint8_t* out, std::size_t n, int timeout_ms) {
+    std::size_t got = 0;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+    while (got < n) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                            until - std::chrono::steady_clock::now())
+                            .count();
+      if (left <= 0) break;
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, static_cast<int>(left)) <= 0) continue;
+      const ssize_t r = ::read(fd_, out + got, n - got);
+      if (r > 0) got += static_cast<std::size_t>(r);
+    }
+    return got;
+  }
+  void command(char c) {
+    tcflush(fd_, TCIFLUSH);
+    if (::write(fd_, &c, 1) != 1)
+      throw std::runtime_error("5DT serial glove on " + dev_ + ": cannot write the '" +
+                               std::string(1, c) + "' command: " + std::strerror(errno));
+  }
+  // vrpn_Analog_5dt.C's reset(): 'A' answers 'U' (0x55), 'G' answers the 32-byte info, then 'D'
+  // starts the stream.
+  void handshake() {
+    std::array<std::uint8_t, 32> reply{};
+    command('A');
+    if (read_exactly(reply.data(), 1, 2000) != 1 || reply[0] != 0x55)
+      throw std::runtime_error(
+          "5DT serial glove on " + dev_ +
+          ": no answer to the reset command 'A' within 2 s (expected 0x55). Is the glove "
+          "powered and on this port? A wireless 5-W glove needs 5dt-serial:" +
+          dev_ + ",wireless.");
+    command('G');
+    const std::size_t n = read_exactly(reply.data(), reply.size(), 2000);
+    if (const char* why = parse_5dt_serial_info(std::span(reply.data(), n), info_))
+      throw std::runtime_error("5DT serial glove on " + dev_ + ": bad reply to 'G' (" + why + ", " +
+                               std::to_string(n) + " bytes)");
+    command('D');
+  }
   void run() {
     std::array<std::uint8_t, 256> buf{};
     GloveRaw raw;
@@ -290,14 +382,16 @@ class Serial5dtGlove final : public GloveDevice {
         if (errno != EAGAIN && errno != EINTR) ++read_errors_;
         continue;
       }
-      const auto bad_before = parser_.bad_checksums();
+      const auto bad_before = parser_.bad_reports();
       for (ssize_t i = 0; i < n; ++i)
         if (parser_.push(buf[static_cast<std::size_t>(i)], raw)) publish(raw);
-      bad_reports_ += parser_.bad_checksums() - bad_before;
+      bad_reports_ += parser_.bad_reports() - bad_before;
     }
   }
   std::string dev_;
+  bool wireless_ = false;
   int fd_ = -1;
+  Serial5dtInfo info_;
   Serial5dtParser parser_;
 };
 
@@ -308,10 +402,21 @@ std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
   if (spec == "5dt-usb") return std::make_unique<Usb5dtGlove>("", calibration_path);
   if (spec.rfind("5dt-usb:", 0) == 0)
     return std::make_unique<Usb5dtGlove>(spec.substr(8), calibration_path);
-  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11)
-    return std::make_unique<Serial5dtGlove>(spec.substr(11), calibration_path);
-  throw std::invalid_argument("glove spec '" + spec +
-                              "' is not one of 5dt-usb, 5dt-usb:HIDPATH, 5dt-serial:DEV");
+  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) {
+    std::string dev = spec.substr(11);
+    bool wireless = false;
+    if (const auto comma = dev.find(','); comma != std::string::npos) {
+      if (dev.substr(comma + 1) != "wireless" || comma == 0)
+        throw std::invalid_argument("glove spec '" + spec +
+                                    "': expected 5dt-serial:DEV or 5dt-serial:DEV,wireless");
+      wireless = true;
+      dev.resize(comma);
+    }
+    return std::make_unique<Serial5dtGlove>(dev, wireless, calibration_path);
+  }
+  throw std::invalid_argument(
+      "glove spec '" + spec +
+      "' is not one of 5dt-usb, 5dt-usb:HIDPATH, 5dt-serial:DEV, 5dt-serial:DEV,wireless");
 }
 
 }  // namespace telex::local

@@ -30,11 +30,14 @@ TEST(Devices, KnownIdsAreRecognisedAndALabsOwnComeFirst) {
   EXPECT_EQ(k->use, "--source openni");
   k = devices::identify(0x5d70, 0x0010);
   ASSERT_TRUE(k);
-  EXPECT_EQ(k->name, "5DT Data Glove (5 sensors)");
+  EXPECT_EQ(k->name, "5DT Data Glove 5 Ultra (right, wired USB)");
   k = devices::identify(0x5d70, 0x0003);
   ASSERT_TRUE(k);
-  EXPECT_EQ(k->name, "5DT Data Glove (14 sensors)");
-  EXPECT_FALSE(devices::identify(0x5d70, 0x0012)) << "not a glove product id";
+  EXPECT_EQ(k->name, "5DT Data Glove 14 Ultra (left, wireless port A)");
+  k = devices::identify(0x5d70, 0x0017);
+  ASSERT_TRUE(k);
+  EXPECT_EQ(k->name, "5DT Data Glove 5 Ultra (left, wireless port B)");
+  EXPECT_FALSE(devices::identify(0x5d70, 0x0004)) << "not a glove product id (VRPN lists none)";
   EXPECT_FALSE(devices::identify(0x8087, 0x0024));
 
   const auto gg = devices::parse_known_device("16C0:05dF=Gravity Grabber controller");
@@ -67,7 +70,8 @@ TEST(Devices, SerialPortsAndVideoNodesAreFoundInTheDirectoryGiven) {
   const auto video = remote::list_v4l2_devices(dir.string());
   ASSERT_EQ(video.size(), 1u);
   EXPECT_EQ(video[0].path, (dir / "video3").string());
-  EXPECT_NE(video[0].error.find("cannot open as a video device"), std::string::npos) << video[0].error;
+  EXPECT_NE(video[0].error.find("cannot open as a video device"), std::string::npos)
+      << video[0].error;
   EXPECT_TRUE(devices::scan_serial((dir / "absent").string()).empty());
 }
 

@@ -31,13 +31,27 @@ std::vector<std::uint8_t> serial_report(std::array<std::uint8_t, 7> d) {
   return r;
 }
 
-TEST(Glove, ProductIdsSelectTheModel) {
-  for (std::uint16_t pid = 0; pid <= 7; ++pid)
-    EXPECT_EQ(glove_model_from_product_id(pid), GloveModel::Sensors14);
-  EXPECT_EQ(glove_model_from_product_id(0x10), GloveModel::Sensors5Right);
-  EXPECT_EQ(glove_model_from_product_id(0x11), GloveModel::Sensors5Left);
-  EXPECT_FALSE(glove_model_from_product_id(0x08).has_value());
-  EXPECT_FALSE(glove_model_from_product_id(0x12).has_value());
+// Each row of the product table against VRPN's masks (vrpn_Analog_5dtUSB.C): 0x01 left, 0x10 five
+// sensors, 0x02 / 0x06 wireless port A / B. Ids VRPN does not list are not gloves.
+TEST(Glove, ProductIdsSelectTheModelAsVrpnsMasksDo) {
+  ASSERT_EQ(glove_products().size(), 12u);
+  for (const auto& p : glove_products()) {
+    SCOPED_TRACE(p.product_id);
+    const bool five = (p.product_id & 0x10) != 0;
+    const bool left = (p.product_id & 0x01) != 0;
+    EXPECT_EQ(sensor_count(p.model), five ? 5 : 14);
+    EXPECT_EQ(p.left_hand, left);
+    if (five) {
+      EXPECT_EQ(p.model, left ? GloveModel::Sensors5Left : GloveModel::Sensors5Right);
+    }
+    const int port = p.product_id & 0x06;
+    EXPECT_STREQ(p.link, port == 0x06   ? "wireless port B"
+                         : port == 0x02 ? "wireless port A"
+                                        : "wired USB");
+    EXPECT_EQ(glove_model_from_product_id(p.product_id), p.model);
+  }
+  for (std::uint16_t pid : {0x04, 0x05, 0x08, 0x0f, 0x14, 0x15, 0x18, 0x20, 0xffff})
+    EXPECT_FALSE(glove_model_from_product_id(pid).has_value()) << pid;
 }
 
 TEST(Glove, UsbReportIsBigEndianOver4096) {
@@ -75,26 +89,84 @@ TEST(Glove, FiveSensorGloveReadsIndicesZeroThreeSixNineTwelve) {
                "5DT USB report shorter than 16 int16 values (32 bytes)");
 }
 
-TEST(Glove, SerialStreamResynchronisesAfterGarbageAndBadChecksums) {
+// The wired Data Glove 5 stream as vrpn_Analog_5dt.C reads it: 0x80, five fingers, pitch, roll,
+// checksum. VRPN does not check the checksum, so a report with another one is kept (and counted).
+TEST(Glove, SerialStreamResynchronisesOnTheHeader) {
   std::vector<std::uint8_t> stream{0x12, 0x34};                // line noise
   auto good1 = serial_report({10, 20, 30, 40, 50, 128, 255});  // 0x80 inside the data
-  auto bad = serial_report({1, 2, 3, 4, 5, 6, 7});
-  bad.back() ^= 0x55;  // corrupted checksum
+  auto odd = serial_report({1, 2, 3, 4, 5, 6, 7});
+  odd.back() ^= 0x55;  // another checksum
   auto good2 = serial_report({255, 0, 0, 0, 0, 0, 0});
-  for (const auto* r : {&good1, &bad, &good2}) stream.insert(stream.end(), r->begin(), r->end());
+  for (const auto* r : {&good1, &odd, &good2}) stream.insert(stream.end(), r->begin(), r->end());
   Serial5dtParser p;
   std::vector<GloveRaw> got;
   GloveRaw raw;
   for (auto b : stream)
     if (p.push(b, raw)) got.push_back(raw);
-  ASSERT_EQ(got.size(), 2u);
+  ASSERT_EQ(got.size(), 3u);
   EXPECT_EQ(got[0].sensor_count, 5);
   EXPECT_DOUBLE_EQ(got[0].sensors[1], 20 / 255.0);
-  EXPECT_DOUBLE_EQ(got[0].pitch, 128 / 255.0);
-  EXPECT_DOUBLE_EQ(got[0].roll, 1.0);
-  EXPECT_DOUBLE_EQ(got[1].sensors[0], 1.0);
-  EXPECT_EQ(p.bad_checksums(), 1u);
-  EXPECT_GE(p.skipped_bytes(), 2u);
+  EXPECT_DOUBLE_EQ(got[0].pitch_deg, 180.0 * 128 / 255.0);
+  EXPECT_DOUBLE_EQ(got[0].roll_deg, 180.0);
+  EXPECT_DOUBLE_EQ(got[1].sensors[4], 5 / 255.0);
+  EXPECT_DOUBLE_EQ(got[2].sensors[0], 1.0);
+  EXPECT_EQ(p.checksum_mismatches(), 1u);
+  EXPECT_EQ(p.skipped_bytes(), 2u);
+}
+
+// The wireless 5-W: ten bytes, the last a capability byte 0x40 or 0x01 (right hand). A frame
+// that does not end in one is out of step and is dropped up to the next header.
+TEST(Glove, WirelessReportsEndInACapabilityByte) {
+  auto r1 = serial_report({1, 2, 3, 4, 5, 6, 7});
+  r1.push_back(0x01);
+  auto r2 = serial_report({9, 9, 9, 9, 9, 0x80, 9});  // a header value inside the data
+  r2.push_back(0x40);
+  std::vector<std::uint8_t> stream;
+  stream.insert(stream.end(), r1.begin() + 3, r1.end());  // joined mid-report
+  stream.insert(stream.end(), r1.begin(), r1.end());
+  stream.insert(stream.end(), r2.begin(), r2.end());
+  auto broken = serial_report({7, 7, 7, 7, 7, 7, 7});
+  broken.push_back(0x33);  // no capability byte
+  stream.insert(stream.end(), broken.begin(), broken.end());
+  stream.insert(stream.end(), r1.begin(), r1.end());
+  Serial5dtParser p(/*wireless=*/true);
+  std::vector<GloveRaw> got;
+  GloveRaw raw;
+  for (auto b : stream)
+    if (p.push(b, raw)) got.push_back(raw);
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_DOUBLE_EQ(got[0].sensors[0], 1 / 255.0);
+  EXPECT_DOUBLE_EQ(got[1].sensors[0], 9 / 255.0);
+  EXPECT_DOUBLE_EQ(got[2].sensors[4], 5 / 255.0);
+  EXPECT_GE(p.bad_reports(), 1u);
+}
+
+// The reply to 'G' as vrpn_Analog_5dt.C decodes it.
+TEST(Glove, SerialInfoReply) {
+  std::vector<std::uint8_t> reply(32, 0);
+  reply[0] = 'B';
+  reply[1] = 'R';
+  reply[2] = 2;
+  reply[3] = 1;
+  reply[4] = 0x01;  // right hand
+  reply[5] = 0x10;  // pitch and roll fitted
+  const std::string name = "DG5 right";
+  std::copy(name.begin(), name.end(), reply.begin() + 16);
+  Serial5dtInfo info;
+  ASSERT_EQ(parse_5dt_serial_info(reply, info), nullptr);
+  EXPECT_EQ(info.version_major, 2);
+  EXPECT_EQ(info.version_minor, 1);
+  EXPECT_TRUE(info.right_hand);
+  EXPECT_TRUE(info.pitch_roll);
+  EXPECT_EQ(info.name, "DG5 right");
+  reply[4] = 0;
+  reply[5] = 0;
+  ASSERT_EQ(parse_5dt_serial_info(reply, info), nullptr);
+  EXPECT_FALSE(info.right_hand);
+  EXPECT_FALSE(info.pitch_roll);
+  reply[1] = 'X';
+  EXPECT_NE(parse_5dt_serial_info(reply, info), nullptr);
+  EXPECT_NE(parse_5dt_serial_info(std::span(reply.data(), 31), info), nullptr);
 }
 
 TEST(Glove, CalibrationMapsToBends) {

@@ -38,11 +38,11 @@ const std::vector<KnownDevice>& known_devices() {
         {0x1d27, std::nullopt, "PrimeSense PS1080 sensor (Carmine, Xtion)", "--source openni"},
     };
     // The 5DT gloves this project reads (local_node/src/glove.cpp, glove_model_from_product_id).
-    for (std::uint16_t pid = 0; pid <= 0x11; ++pid)
-      if (const auto m = local::glove_model_from_product_id(pid))
-        t.push_back({local::k5dtVendorId, pid,
-                     "5DT Data Glove (" + std::to_string(local::sensor_count(*m)) + " sensors)",
-                     "--glove 5dt-usb"});
+    for (const auto& p : local::glove_products())
+      t.push_back({local::k5dtVendorId, p.product_id,
+                   "5DT Data Glove " + std::to_string(local::sensor_count(p.model)) + " Ultra (" +
+                       (p.left_hand ? "left, " : "right, ") + p.link + ")",
+                   "--glove 5dt-usb"});
     return t;
   }();
   return table;

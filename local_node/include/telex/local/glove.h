@@ -16,44 +16,76 @@
 
 namespace telex::local {
 
+// The 5DT formats, from VRPN (github.com/vrpn/vrpn), the public driver that reads these gloves:
+// vrpn_Analog_5dtUSB.C for the USB HID gloves (Data Glove 5 Ultra, 14 Ultra, their wireless kit)
+// and vrpn_Analog_5dt.C for the serial Data Glove 5 / 5-W. docs/HARDWARE.md cites each line.
 inline constexpr std::uint16_t k5dtVendorId = 0x5D70;
 inline constexpr std::size_t k5dtUsbReportBytes = 64;
-inline constexpr std::size_t k5dtSerialReportBytes = 9;
+inline constexpr std::size_t k5dtSerialReportBytes = 9;     // wired (19200 baud)
+inline constexpr std::size_t k5dtWirelessReportBytes = 10;  // wireless (9600): + capability
 inline constexpr std::uint8_t k5dtSerialHeader = 0x80;
 
 enum class GloveModel { Sensors14, Sensors5Right, Sensors5Left, Serial5 };
 
-// 0x00-0x07: 14-sensor Ultra; 0x10 / 0x11: 5-sensor right / left. Other ids: not a 5DT glove.
+// One USB product of 5DT's vendor id. VRPN's product-id bits: 0x01 left hand, 0x10 five sensors
+// (else fourteen), 0x02 / 0x06 the wireless kit's port A / B (else wired).
+struct GloveProduct {
+  std::uint16_t product_id;
+  GloveModel model;
+  bool left_hand;
+  const char* link;  // "wired USB", "wireless port A", "wireless port B"
+};
+// Every product VRPN lists, in one table a lab can extend (local_node/src/glove.cpp).
+std::span<const GloveProduct> glove_products();
+// The table's row for `product_id`, or nullptr: not a 5DT glove this project reads.
+const GloveProduct* glove_product(std::uint16_t product_id);
 std::optional<GloveModel> glove_model_from_product_id(std::uint16_t product_id);
 int sensor_count(GloveModel model);
 
 struct GloveRaw {
   int sensor_count = 0;
-  std::array<double, 14> sensors{};  // USB: int16 / 4096; serial: byte / 255
-  double pitch = 0, roll = 0;        // serial only: byte / 255
+  std::array<double, 14> sensors{};    // USB: int16 / 4096; serial: byte / 255
+  double pitch_deg = 0, roll_deg = 0;  // serial only: 180 * byte / 255 (VRPN's scale)
 };
 
-// One 64-byte HID input report: 16 big-endian int16; the 5-sensor glove reports its sensors at
-// indices 0, 3, 6, 9, 12. Returns nullptr or the reason the report was rejected.
+// One 64-byte HID input report: 16 big-endian int16 / 4096; the 5-sensor glove reports its
+// sensors at indices 0, 3, 6, 9, 12. Returns nullptr or the reason the report was rejected.
 const char* parse_5dt_usb_report(std::span<const std::uint8_t> report, GloveModel model,
                                  GloveRaw& out);
 
-// Checksum of a serial report: low byte of the sum of the 7 data bytes (thumb .. roll).
+// The byte after the seven data bytes: the low byte of their sum, as this project has assumed.
+// VRPN does not check it, so a report is never rejected for it; disagreements are counted.
 std::uint8_t serial_5dt_checksum(std::span<const std::uint8_t, 7> data);
 
+// The reply to the glove's 'G' (get info) command: 32 bytes starting "BR", version at 2..3, bit 0
+// of byte 4 set for a right hand, bit 4 of byte 5 set when pitch and roll are fitted, the name
+// from byte 16 (vrpn_Analog_5dt.C, reset()).
+struct Serial5dtInfo {
+  int version_major = 0, version_minor = 0;
+  bool right_hand = true, pitch_roll = false;
+  std::string name;
+};
+// Returns nullptr or why the bytes are not an info reply.
+const char* parse_5dt_serial_info(std::span<const std::uint8_t> reply, Serial5dtInfo& out);
+
 // Incremental parser for the serial stream: 0x80, thumb, index, middle, ring, little, pitch, roll,
-// checksum. Resynchronises on the next 0x80 after a bad checksum. Pure (no I/O).
+// checksum, and for the wireless glove a capability byte 0x40 or 0x01 (0x01: right hand). A report
+// that does not start with 0x80, or a wireless one not ending in a capability byte, is skipped up
+// to the next 0x80. Pure (no I/O).
 class Serial5dtParser {
  public:
-  // Feeds one byte; true and `out` filled when it completes a valid report.
+  explicit Serial5dtParser(bool wireless = false) : wireless_(wireless) {}
+  // Feeds one byte; true and `out` filled when it completes a report.
   bool push(std::uint8_t byte, GloveRaw& out);
-  std::uint64_t bad_checksums() const { return bad_checksums_; }
+  std::uint64_t checksum_mismatches() const { return checksum_mismatches_; }
+  std::uint64_t bad_reports() const { return bad_reports_; }
   std::uint64_t skipped_bytes() const { return skipped_; }
 
  private:
-  std::array<std::uint8_t, k5dtSerialReportBytes> buf_{};
+  bool wireless_ = false;
+  std::array<std::uint8_t, k5dtWirelessReportBytes> buf_{};
   std::size_t have_ = 0;
-  std::uint64_t bad_checksums_ = 0, skipped_ = 0;
+  std::uint64_t checksum_mismatches_ = 0, bad_reports_ = 0, skipped_ = 0;
 };
 
 // Per-sensor range seen with the hand open (min) and closed (max).
@@ -101,7 +133,9 @@ class GloveDevice {
   std::thread thread_;
 };
 
-// "5dt-usb[:HIDPATH]" (first glove with vendor 0x5D70 when no path) or "5dt-serial:DEV".
+// "5dt-usb[:HIDPATH]" (first glove with vendor 0x5D70 when no path), "5dt-serial:DEV" (the wired
+// Data Glove 5: 19200 baud, reset 'A', info 'G', stream 'D') or "5dt-serial:DEV,wireless" (the
+// send-only 5-W: 9600 baud, 10-byte reports).
 // Throws std::invalid_argument for a malformed spec and std::runtime_error naming the device and
 // what to try when it cannot be opened. Empty calibration path = full sensor range.
 std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
