@@ -74,7 +74,7 @@ int main(int argc, char** argv) {
   app.add_option("--natnet-multicast", cfg.tracker.natnet_multicast_group, "NatNet multicast group")
       ->capture_default_str();
   app.add_option("--haptics", cfg.haptics_spec,
-                 "display: sim[:CSV] | gravity-grabber:HIDPATH | udp:HOST[:PORT]")
+                 "display: sim[:CSV] | gravity-grabber:HIDPATH|VID:PID[:SERIAL] | udp:HOST[:PORT]")
       ->capture_default_str();
   app.add_option("--gg-config", cfg.display.gravity_grabber_config_path,
                  "Gravity Grabber calibration JSON (docs/HARDWARE.md)");

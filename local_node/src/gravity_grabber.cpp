@@ -2,10 +2,12 @@
 // Gravity Grabber motor mapping, HID report encoding, and the hidapi display with a writer thread.
 #include "telex/local/gravity_grabber.h"
 
+#include <fmt/format.h>
 #include <hidapi.h>
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -132,7 +134,87 @@ std::array<std::uint8_t, kGravityGrabberReportBytes> gravity_grabber_report(
   return r;
 }
 
+HidTarget parse_hid_target(std::string_view text) {
+  const auto bad = [&] {
+    return std::invalid_argument(fmt::format(
+        "Gravity Grabber device '{}': expected a hidraw path (/dev/hidraw3) or the controller's "
+        "USB ids VID:PID[:SERIAL] in hex (e.g. 16c0:05df)",
+        text));
+  };
+  HidTarget t;
+  if (text.empty()) throw bad();
+  if (text.front() == '/') {
+    t.path = std::string(text);
+    return t;
+  }
+  const auto hex16 = [&](std::string_view s, std::uint16_t& v) {
+    if (s.empty() || s.size() > 4) return false;
+    const auto r = std::from_chars(s.data(), s.data() + s.size(), v, 16);
+    return r.ec == std::errc{} && r.ptr == s.data() + s.size();
+  };
+  const auto c1 = text.find(':');
+  if (c1 == std::string_view::npos) throw bad();
+  const auto c2 = text.find(':', c1 + 1);
+  const std::string_view pid =
+      text.substr(c1 + 1, c2 == std::string_view::npos ? std::string_view::npos : c2 - c1 - 1);
+  if (!hex16(text.substr(0, c1), t.vendor_id) || !hex16(pid, t.product_id)) throw bad();
+  if (c2 != std::string_view::npos) {
+    t.serial = std::string(text.substr(c2 + 1));
+    if (t.serial.empty()) throw bad();
+  }
+  return t;
+}
+
+std::optional<std::string> choose_hid_device(const HidTarget& target,
+                                             std::span<const HidCandidate> candidates) {
+  for (const auto& c : candidates) {
+    if (!target.by_ids()) {
+      if (c.path == target.path) return c.path;
+      continue;
+    }
+    if (c.vendor_id == target.vendor_id && c.product_id == target.product_id &&
+        (target.serial.empty() || c.serial == target.serial))
+      return c.path;
+  }
+  return std::nullopt;
+}
+
 namespace {
+
+std::string narrow(const wchar_t* w) {
+  std::string out;
+  if (w == nullptr) return out;
+  for (; *w != 0; ++w) out.push_back(*w < 128 ? static_cast<char>(*w) : '?');
+  return out;
+}
+
+// hidapi's enumeration of every HID device, for choosing and for the error text.
+std::vector<HidCandidate> enumerate_hid() {
+  std::vector<HidCandidate> out;
+  hid_device_info* list = hid_enumerate(0, 0);
+  for (hid_device_info* d = list; d != nullptr; d = d->next)
+    out.push_back({d->path ? d->path : "", d->vendor_id, d->product_id, narrow(d->serial_number),
+                   narrow(d->product_string)});
+  hid_free_enumeration(list);
+  return out;
+}
+
+// Resolves a VID:PID target to the hidraw path hidapi reports for it; a path target stays as is.
+std::string resolve(const HidTarget& t) {
+  if (!t.by_ids()) return t.path;
+  const auto found = enumerate_hid();
+  if (const auto path = choose_hid_device(t, found)) return *path;
+  std::string seen;
+  for (const auto& c : found)
+    seen += fmt::format("{}{:04x}:{:04x} {} ({})", seen.empty() ? "" : ", ", c.vendor_id,
+                        c.product_id, c.path, c.product.empty() ? "no name" : c.product);
+  throw std::runtime_error(fmt::format(
+      "Gravity Grabber: no HID device {:04x}:{:04x}{}{} among the {} hidapi enumerates ({}). Is "
+      "the controller plugged in (lsusb -d {:04x}:{:04x}), may your user read it (udev rule in "
+      "docs/HARDWARE.md), or run without hardware with --haptics sim or udp:HOST:PORT.",
+      t.vendor_id, t.product_id, t.serial.empty() ? "" : " with serial ", t.serial, found.size(),
+      seen.empty() ? "none" : seen, t.vendor_id, t.product_id));
+}
 
 struct Report {
   std::array<std::uint8_t, kGravityGrabberReportBytes> bytes;
@@ -140,9 +222,10 @@ struct Report {
 
 class GravityGrabberDisplay final : public HapticDisplay {
  public:
-  GravityGrabberDisplay(const std::string& path, GravityGrabberConfig cfg)
-      : path_(path), cfg_(cfg) {
+  GravityGrabberDisplay(const HidTarget& target, GravityGrabberConfig cfg) : cfg_(cfg) {
     if (hid_init() != 0) throw std::runtime_error("Gravity Grabber: hidapi failed to initialise");
+    path_ = resolve(target);
+    const std::string& path = path_;
     dev_ = hid_open_path(path.c_str());
     if (dev_ == nullptr)
       throw std::runtime_error(
@@ -211,14 +294,16 @@ class GravityGrabberDisplay final : public HapticDisplay {
 
 }  // namespace
 
-std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& hid_path,
+std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
                                                     const std::string& config_path) {
-  if (hid_path.empty())
+  if (target.empty())
     throw std::invalid_argument(
-        "display spec 'gravity-grabber:' needs the HID path, e.g. gravity-grabber:/dev/hidraw3");
+        "display spec 'gravity-grabber:' needs the HID path or the controller's USB ids, e.g. "
+        "gravity-grabber:/dev/hidraw3 or gravity-grabber:16c0:05df");
+  const HidTarget t = parse_hid_target(target);
   const GravityGrabberConfig cfg =
       config_path.empty() ? GravityGrabberConfig{} : GravityGrabberConfig::load(config_path);
-  return std::make_unique<GravityGrabberDisplay>(hid_path, cfg);
+  return std::make_unique<GravityGrabberDisplay>(t, cfg);
 }
 
 }  // namespace telex::local

@@ -153,9 +153,10 @@ std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const Displ
       throw std::invalid_argument("display spec '" + spec + "': expected udp:HOST[:PORT]");
     return open_udp_sink(rest.substr(0, colon), port);
   }
-  throw std::invalid_argument("display spec '" + spec +
-                              "' is not one of sim, sim:CSV, gravity-grabber:HIDPATH, "
-                              "udp:HOST[:PORT]");
+  throw std::invalid_argument(
+      "display spec '" + spec +
+      "' is not one of sim, sim:CSV, gravity-grabber:HIDPATH|VID:PID[:SERIAL], "
+      "udp:HOST[:PORT]");
 }
 
 }  // namespace telex::local

@@ -133,6 +133,49 @@ TEST(DisplayGravityGrabber, MissingDeviceSaysWhatToTry) {
     EXPECT_NE(what.find("sim"), std::string::npos) << what;
   }
   EXPECT_THROW(make_display("gravity-grabber:", cfg), std::invalid_argument);
+  // By USB ids: this machine has no such controller, and the error says what hidapi found.
+  try {
+    make_display("gravity-grabber:16c0:fff7", cfg);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("no HID device 16c0:fff7"), std::string::npos) << what;
+    EXPECT_NE(what.find("lsusb -d 16c0:fff7"), std::string::npos) << what;
+  }
+  EXPECT_THROW(make_display("gravity-grabber:16c0", cfg), std::invalid_argument);
+}
+
+TEST(DisplayGravityGrabber, TargetIsAPathOrUsbIdsFoundByEnumeration) {
+  const HidTarget p = parse_hid_target("/dev/hidraw3");
+  EXPECT_FALSE(p.by_ids());
+  EXPECT_EQ(p.path, "/dev/hidraw3");
+  const HidTarget ids = parse_hid_target("16C0:05df");
+  EXPECT_TRUE(ids.by_ids());
+  EXPECT_EQ(ids.vendor_id, 0x16c0);
+  EXPECT_EQ(ids.product_id, 0x05df);
+  EXPECT_TRUE(ids.serial.empty());
+  EXPECT_EQ(parse_hid_target("16c0:05df:GG-0042").serial, "GG-0042");
+  for (const char* bad : {"", "16c0", "16c0:", ":05df", "16c0:05dfx", "12345:0001",
+                          "16c0:05df:", "hidraw3", "g6c0:05df"}) {
+    try {
+      parse_hid_target(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("VID:PID"), std::string::npos) << e.what();
+    }
+  }
+  // An enumeration as hidapi lists it: the controller twice (two units), a keyboard between.
+  const std::vector<HidCandidate> seen = {
+      {"/dev/hidraw0", 0x046d, 0xc31c, "", "USB Keyboard"},
+      {"/dev/hidraw4", 0x16c0, 0x05df, "GG-0007", "Gravity Grabber"},
+      {"/dev/hidraw5", 0x16c0, 0x05df, "GG-0042", "Gravity Grabber"},
+  };
+  EXPECT_EQ(choose_hid_device(parse_hid_target("16c0:05df"), seen), "/dev/hidraw4");
+  EXPECT_EQ(choose_hid_device(parse_hid_target("16c0:05df:GG-0042"), seen), "/dev/hidraw5");
+  EXPECT_FALSE(choose_hid_device(parse_hid_target("16c0:05df:GG-9999"), seen).has_value());
+  EXPECT_FALSE(choose_hid_device(parse_hid_target("16c0:05de"), seen).has_value());
+  EXPECT_EQ(choose_hid_device(parse_hid_target("/dev/hidraw0"), seen), "/dev/hidraw0");
+  EXPECT_FALSE(choose_hid_device(parse_hid_target("/dev/hidraw9"), seen).has_value());
 }
 
 TEST(DisplayUdp, FormatIsEighteenIntegersTimesThousand) {

@@ -5,7 +5,11 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "telex/local/haptic_display.h"
 
@@ -47,10 +51,33 @@ std::array<double, 10> gravity_grabber_motors(std::span<const FingerForce> force
 std::array<std::uint8_t, kGravityGrabberReportBytes> gravity_grabber_report(
     std::span<const FingerForce> forces, const GravityGrabberConfig& config, std::uint8_t sequence);
 
-// Opens the HID device at `hid_path` (hidapi) with the calibration in `config_path` (empty =
-// defaults). Reports go out on a writer thread so write() never waits on USB. Throws
-// std::runtime_error naming the path and what to try when the device cannot be opened.
-std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& hid_path,
+// Which HID device the display spec names: a hidraw path ("/dev/hidraw3"), or the controller's
+// USB ids "VID:PID" in hex, optionally ":SERIAL" (e.g. "16c0:05df:GG-0042"), found by hidapi's
+// enumeration, so the display is found whatever hidraw number it got.
+struct HidTarget {
+  std::string path;  // set for a path
+  std::uint16_t vendor_id = 0, product_id = 0;
+  std::string serial;  // empty: any
+  bool by_ids() const { return path.empty(); }
+};
+// Throws std::invalid_argument naming the text and the two accepted forms.
+HidTarget parse_hid_target(std::string_view text);
+
+// One row of hidapi's enumeration, as far as choosing a device needs it.
+struct HidCandidate {
+  std::string path;
+  std::uint16_t vendor_id = 0, product_id = 0;
+  std::string serial, product;
+};
+// The path of the first candidate matching `target` (ids and, when given, serial); nullopt when
+// none does. Pure, so the choice is tested on recorded enumerations.
+std::optional<std::string> choose_hid_device(const HidTarget& target,
+                                             std::span<const HidCandidate> candidates);
+
+// Opens the display `target` names (parse_hid_target) through hidapi, with the calibration in
+// `config_path` (empty = defaults). Reports go out on a writer thread so write() never waits on
+// USB. Throws std::runtime_error naming the path or the ids, what was found, and what to try.
+std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
                                                     const std::string& config_path);
 
 }  // namespace telex::local

@@ -76,7 +76,8 @@ class ZeroForceOnExit {
   HapticDisplay& display_;
 };
 
-// Spec grammar (docs/HARDWARE.md): "sim", "sim:CSV", "gravity-grabber:HIDPATH", "udp:HOST[:PORT]".
+// Spec grammar (docs/HARDWARE.md): "sim", "sim:CSV", "gravity-grabber:HIDPATH|VID:PID[:SERIAL]",
+// "udp:HOST[:PORT]".
 // Throws std::invalid_argument for a malformed spec (naming it and the valid forms) and
 // std::runtime_error when the device or file cannot be opened (naming it and what to try).
 std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config);
