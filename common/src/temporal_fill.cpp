@@ -43,36 +43,51 @@ bool TemporalFill::begin_frame(cv::Size size, double time_ms) {
 
 TemporalFillResult TemporalFill::apply(const cv::Mat1w& depth_mm, double time_ms,
                                        cv::Mat1w& out_mm) {
-  const bool reset_history = begin_frame(depth_mm.size(), time_ms);
-  out_mm.create(depth_mm.size());
-  TemporalFillResult r = apply_rect(depth_mm, cv::Rect(0, 0, depth_mm.cols, depth_mm.rows), out_mm);
+  return apply(depth_mm, depth_mm, time_ms, out_mm);
+}
+
+TemporalFillResult TemporalFill::apply(const cv::Mat1w& measured_mm, const cv::Mat1w& filled_mm,
+                                       double time_ms, cv::Mat1w& out_mm) {
+  const bool reset_history = begin_frame(filled_mm.size(), time_ms);
+  out_mm.create(filled_mm.size());
+  TemporalFillResult r =
+      apply_rect(measured_mm, filled_mm, cv::Rect(0, 0, filled_mm.cols, filled_mm.rows), out_mm);
   r.history_reset = reset_history;
   return r;
 }
 
 TemporalFillResult TemporalFill::apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect,
                                             cv::Mat1w& out_mm) {
+  return apply_rect(depth_mm, depth_mm, rect, out_mm);
+}
+
+TemporalFillResult TemporalFill::apply_rect(const cv::Mat1w& measured_mm,
+                                            const cv::Mat1w& filled_mm, const cv::Rect& rect,
+                                            cv::Mat1w& out_mm) {
   // begin_frame with the frame size first, an output of that size, a rectangle inside the frame.
-  TELEX_DEMAND(frame_ != 0 && depth_mm.size() == last_mm_.size() &&
-               out_mm.size() == depth_mm.size());
-  TELEX_DEMAND(!rect.empty() && (rect & cv::Rect(0, 0, depth_mm.cols, depth_mm.rows)) == rect);
+  TELEX_DEMAND(frame_ != 0 && filled_mm.size() == last_mm_.size() &&
+               measured_mm.size() == filled_mm.size() && out_mm.size() == filled_mm.size());
+  TELEX_DEMAND(!rect.empty() && (rect & cv::Rect(0, 0, filled_mm.cols, filled_mm.rows)) == rect);
   TemporalFillResult r;
   const int frame = static_cast<int>(frame_);
   const double time_ms = prev_time_ms_;
   const int max_age = options_.max_age_frames;
   const double max_age_ms = options_.max_age_ms;
   for (int y = rect.y; y < rect.y + rect.height; ++y) {
-    const std::uint16_t* in = depth_mm[y];
+    const std::uint16_t* measured = measured_mm[y];
+    const std::uint16_t* in = filled_mm[y];
     std::uint16_t* out = out_mm[y];
     std::uint16_t* last = last_mm_[y];
     int* last_frame = last_frame_[y];
     double* last_time = last_time_ms_[y];
     for (int x = rect.x; x < rect.x + rect.width; ++x) {
-      const std::uint16_t v = in[x];
-      if (v != 0) {
-        last[x] = v;
+      if (measured[x] != 0) {  // only a measurement enters the history
+        last[x] = measured[x];
         last_frame[x] = frame;
         last_time[x] = time_ms;
+      }
+      const std::uint16_t v = in[x];
+      if (v != 0) {
         out[x] = v;
         continue;
       }

@@ -189,7 +189,8 @@ std::vector<int> FramePipeline::process_tiles(const DepthFrame& frame, const cv:
       if (job.new_frame)
         temporal_.begin_frame(in.size(), static_cast<double>(frame.capture_ns) * 1e-6);
       temporal_out_.create(in.size());
-      for (int i : tiles) temporal_.apply_rect(filled_, grid.rect(i), temporal_out_);
+      // The history learns from the measured frame only; it fills what the spatial fill left.
+      for (int i : tiles) temporal_.apply_rect(in, filled_, grid.rect(i), temporal_out_);
       current = &temporal_out_;
       out.times.temporal_ms += now_ms() - t1;
     }

@@ -32,6 +32,34 @@ TEST(TemporalFill, FillsFromThePreviousFrameWhileYoung) {
   EXPECT_EQ(out(1, 1), 0);
 }
 
+// Issue 16: the history holds measurements only. A pixel the spatial fill guessed in one frame is
+// used in that frame and forgotten: when it is a hole again, the older measurement (or nothing)
+// fills it, never the guess.
+TEST(TemporalFill, ASpatialGuessIsUsedButNeverRemembered) {
+  TemporalFill tf;
+  cv::Mat1w measured(2, 2, std::uint16_t{0}), filled, out;
+  measured(0, 0) = 700;  // measured once, frame 1
+  filled = measured.clone();
+  auto r = tf.apply(measured, filled, 0.0, out);
+  EXPECT_EQ(out(0, 0), 700);
+  EXPECT_EQ(r.filled, 0u);
+  // Frame 2: (0,0) and (1,1) are holes; the spatial fill guessed 999 for both.
+  measured.setTo(0);
+  filled.setTo(0);
+  filled(0, 0) = 999;
+  filled(1, 1) = 999;
+  r = tf.apply(measured, filled, 33.0, out);
+  EXPECT_EQ(out(0, 0), 999) << "this frame uses the guess";
+  EXPECT_EQ(out(1, 1), 999);
+  EXPECT_EQ(r.holes_in, 2u);
+  // Frame 3: no guess. (0,0) comes back from its measurement two frames ago, (1,1) stays a hole.
+  filled.setTo(0);
+  r = tf.apply(measured, filled, 66.0, out);
+  EXPECT_EQ(out(0, 0), 700) << "the history kept the measurement, not the guess";
+  EXPECT_EQ(out(1, 1), 0) << "a guess is never remembered";
+  EXPECT_EQ(r.filled, 1u);
+}
+
 TEST(TemporalFill, NeverSeenPixelsStayHoles) {
   TemporalFill tf;
   cv::Mat1w a(3, 3, std::uint16_t{0}), out;

@@ -23,9 +23,10 @@ struct TemporalFillResult {
       false;  // the frame size changed (or the clock ran backwards): history dropped
 };
 
-// Per-pixel history of the last valid depth, the frame it came from and its time. All state is in
-// this object; apply() reads no clock. Pixels filled from the history are not written back into
-// it, so a value ages out even while it keeps being reused.
+// Per-pixel history of the last measured depth, the frame it came from and its time. All state is
+// in this object; apply() reads no clock. Only measurements enter the history: pixels filled from
+// it are not written back (a value ages out even while it keeps being reused), and with the
+// two-image calls the depth a spatial fill guessed is used for this frame but never remembered.
 class TemporalFill {
  public:
   explicit TemporalFill(const TemporalFillOptions& options = {});
@@ -43,6 +44,14 @@ class TemporalFill {
   // A size mismatch or a rectangle outside the frame is a caller bug (TELEX_DEMAND aborts).
   bool begin_frame(cv::Size size, double time_ms);
   TemporalFillResult apply_rect(const cv::Mat1w& depth_mm, const cv::Rect& rect, cv::Mat1w& out_mm);
+
+  // After a spatial fill: `measured_mm` is the frame as the sensor gave it (the only values the
+  // history records) and `filled_mm` the same frame with some holes guessed; the holes still left
+  // in `filled_mm` are filled from the history. Same size rules as above.
+  TemporalFillResult apply(const cv::Mat1w& measured_mm, const cv::Mat1w& filled_mm, double time_ms,
+                           cv::Mat1w& out_mm);
+  TemporalFillResult apply_rect(const cv::Mat1w& measured_mm, const cv::Mat1w& filled_mm,
+                                const cv::Rect& rect, cv::Mat1w& out_mm);
 
   void reset();
   std::uint32_t frames_seen() const { return frame_; }
