@@ -13,6 +13,7 @@
 
 #include "stream_fixtures.h"
 #include "telex/bag/bag.h"
+#include "telex/local/glove.h"
 #include "telex/local/natnet.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/fragment.h"
@@ -158,6 +159,30 @@ int main(int argc, char** argv) {
     info.natnet_version_bytes = {4, 1, 0, 0};
     write(out / "natnet_fuzz", "server_info", cat({{8}, make_server_info(info)}));
     write(out / "natnet_fuzz", "ping", cat({{8}, make_ping("telex")}));
+  }
+  // device_fuzz: byte 0 picks the parser (0 USB report, 1 wired serial, 2 wireless serial, 3 info
+  // reply, 4 Gravity Grabber device text), byte 1 the glove model for a USB report.
+  {
+    Bytes usb(64, 0);
+    for (std::size_t i = 0; i < 16; ++i) usb[2 * i] = static_cast<std::uint8_t>(i);  // 256 i
+    for (std::uint8_t m = 0; m < 3; ++m)
+      write(out / "device_fuzz", "usb" + std::to_string(m), cat({{0, m}, usb}));
+    const Bytes report{0x80, 10, 20, 30, 40, 50, 60, 70, 24};
+    write(out / "device_fuzz", "serial", cat({{1, 0}, {0x12}, report, report}));
+    Bytes wireless = report;
+    wireless.push_back(0x01);
+    write(out / "device_fuzz", "wireless", cat({{2, 0}, wireless, wireless}));
+    Bytes info(32, 0);
+    info[0] = 'B';
+    info[1] = 'R';
+    info[2] = 2;
+    info[4] = 1;
+    info[5] = 0x10;
+    for (std::size_t i = 0; i < 6; ++i) info[16 + i] = static_cast<std::uint8_t>("DG5 R "[i]);
+    write(out / "device_fuzz", "info", cat({{3, 0}, info}));
+    for (const std::string t : {"/dev/hidraw3", "16c0:05df", "16c0:05df:GG-0042"})
+      write(out / "device_fuzz", "target_" + std::to_string(t.size()),
+            cat({{4, 0}, Bytes(t.begin(), t.end())}));
   }
   // bag_fuzz: small bags of every message type the adapter decodes, uncompressed (so mutations
   // reach the message fields: an image's width, height, step and encoding) and LZ4.
