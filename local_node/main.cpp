@@ -104,7 +104,18 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(10.0, 10000.0))
       ->capture_default_str();
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO for the haptic thread");
-  app.add_flag("--roi", cfg.surface.roi, "filter and build normals only near the fingertips");
+  bool full_frame = false, roi_flag = false;
+  app.add_flag("--full-frame", full_frame,
+               "filter and build normals over the whole frame (default: only near the "
+               "fingertips, the same force error at a fiftieth of the cost, docs/BENCHMARKS.md)");
+  app.add_flag("--roi", roi_flag, "the default: filter and build normals only near the fingertips")
+      ->excludes("--full-frame");
+  int bilateral_radius = cfg.surface.bilateral_options.radius_px;
+  app.add_option("--bilateral-radius", bilateral_radius,
+                 "bilateral window radius, px (default 6, KinectFusion's 13x13: 4.1 % force error "
+                 "against 9.2 % at radius 2, docs/BENCHMARKS.md)")
+      ->check(CLI::Range(1, 15))
+      ->capture_default_str();
   bool no_frame_parts = false;
   app.add_flag("--no-frame-parts", no_frame_parts,
                "take each frame in one part (ROI tiles are otherwise sent and published first)");
@@ -168,6 +179,8 @@ int main(int argc, char** argv) {
   cfg.tracker.glove_spec = glove;
   cfg.realtime = !no_realtime;
   cfg.surface.bilateral = !no_bilateral;
+  cfg.surface.roi = !full_frame;
+  cfg.surface.bilateral_options.radius_px = bilateral_radius;
   cfg.status_line = !quiet;
 
   // Signals go to one waiting thread, never interrupting the haptic loop.

@@ -17,8 +17,8 @@ view="${TELEX_DEMO_VIEW:-$root/demo_view}"
 remote=$!
 trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 
-# --roi: the station filters and builds normals only around the fingertips and the remote sends
-# those tiles first, the lowest-latency path (docs/BENCHMARKS.md, operator station).
+# The station's defaults: it filters and builds normals only around the fingertips and the remote
+# sends those tiles first, the lowest-latency path (docs/BENCHMARKS.md, "Defaults").
 "$bin/telex-local" --connect "127.0.0.1:$port" --hand script:press --repeat --duration "$duration" \
-  --haptics sim --print-forces 10 --roi --view "png:$view" "$@"
+  --haptics sim --print-forces 10 --view "png:$view" "$@"
 echo "demo: the operator's view is in $view/view.png"

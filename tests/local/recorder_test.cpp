@@ -100,7 +100,8 @@ TEST(SessionRecorder, EveryTopicIsThereInStandardTypesAndTheForcesAreThoseTheMod
   const auto path = temp_bag("stroke.bag").string();
   HapticParams haptic;
   haptic.startup_ramp_s = 0.2;
-  const SurfaceOptions surface;
+  SurfaceOptions surface;
+  surface.roi = false;  // this harness builds surfaces without fingertip windows
   const Session s = record_stroke(path, haptic, surface, 1000.0);
   ASSERT_GT(s.peak_N, 1.0);
 
@@ -153,6 +154,7 @@ TEST(SessionRecorder, ReplayWithTheRecordedParametersGivesTheRecordedForcesAndOt
   haptic.stiffness_N_per_m = 350.0;
   haptic.max_force_N = 10.0;  // no clamp: the force scales with the stiffness
   SurfaceOptions surface;
+  surface.roi = false;  // this harness builds surfaces without fingertip windows
   surface.bilateral_options.radius_px = 3;
   const Session s = record_stroke(path, haptic, surface, 100.0);
 

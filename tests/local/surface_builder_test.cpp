@@ -33,8 +33,21 @@ const void* buffer(const Surface& s) { return s.depth_m.data; }
 
 SurfaceOptions roi_options() {
   SurfaceOptions o;
-  o.roi = true;
+  o.roi = true;  // the default since issue 16; spelled out because the tests compare the two
   return o;
+}
+
+SurfaceOptions full_options() {
+  SurfaceOptions o;
+  o.roi = false;
+  return o;
+}
+
+TEST(SurfaceBuilder, DefaultsAreRadiusSixInFingertipWindows) {
+  const SurfaceOptions o;
+  EXPECT_TRUE(o.roi);
+  EXPECT_TRUE(o.bilateral);
+  EXPECT_EQ(o.bilateral_options.radius_px, 6);
 }
 
 // Pixels (depth or normal) that differ between two snapshots; NaN never occurs in valid ones.
@@ -66,7 +79,7 @@ TEST(SurfaceBuilder, RoiWritesOnlyItsWindowsAndMatchesTheFullFrameThere) {
   const std::vector<cv::Rect> windows{{300, 200, 41, 41}, {100, 50, 33, 33}};
   SurfaceBuildStats st;
   const auto roi = build_surface(f, roi_options(), windows, &st);
-  const auto full = build_surface(f, SurfaceOptions{}, {});
+  const auto full = build_surface(f, full_options(), {});
   EXPECT_EQ(st.pixels_processed, 41u * 41u + 33u * 33u);
   EXPECT_EQ(nonzero_outside(*roi, windows), 0);
   // Inside, away from the window edge (normals there see the margin as holes), the same numbers.
@@ -128,7 +141,7 @@ TEST(SurfacePool, RoiAfterFullFrameClearsTheWholeFrame) {
   const AssembledFrame f = desk_frame(1, 1);
   const void* first_buffer = nullptr;
   {
-    const auto full = build_surface(f, SurfaceOptions{}, {}, nullptr, &pool);
+    const auto full = build_surface(f, full_options(), {}, nullptr, &pool);
     first_buffer = buffer(*full);
     ASSERT_GT(cv::countNonZero(full->depth_m), 250000);
   }
@@ -142,10 +155,10 @@ TEST(SurfacePool, RoiAfterFullFrameClearsTheWholeFrame) {
 TEST(SurfacePool, FullFrameRecycledEqualsFresh) {
   SurfacePool pool(1);
   const AssembledFrame f1 = desk_frame(1, 1), f2 = desk_frame(2, 2);
-  { build_surface(f1, SurfaceOptions{}, {}, nullptr, &pool); }
-  const auto s = build_surface(f2, SurfaceOptions{}, {}, nullptr, &pool);
+  { build_surface(f1, full_options(), {}, nullptr, &pool); }
+  const auto s = build_surface(f2, full_options(), {}, nullptr, &pool);
   EXPECT_EQ(pool.recycled(), 1u);
-  EXPECT_EQ(differing_pixels(*s, *build_surface(f2, SurfaceOptions{}, {})), 0);
+  EXPECT_EQ(differing_pixels(*s, *build_surface(f2, full_options(), {})), 0);
 }
 
 TEST(SurfacePool, SnapshotStillReferencedIsNeverRecycled) {
