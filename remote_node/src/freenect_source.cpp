@@ -227,8 +227,8 @@ class FreenectDepthSource final : public DepthSource {
         ++self->dropped_;
       }
       self->queue_.push_back(std::move(raw));
+      self->cv_.notify_one();  // under the lock: helgrind flags a signal without it as dubious
     }
-    self->cv_.notify_one();
   }
 
   void event_loop() {
