@@ -110,6 +110,10 @@ int main(int argc, char** argv) {
                "fingertips, the same force error at a fiftieth of the cost, docs/BENCHMARKS.md)");
   app.add_flag("--roi", roi_flag, "the default: filter and build normals only near the fingertips")
       ->excludes("--full-frame");
+  bool no_fill_here = false;
+  app.add_flag("--no-fill-here", no_fill_here,
+               "do not fill holes on the station (default: fill them in the fingertip windows; "
+               "the remote sends its depth unfilled unless run with --fill)");
   int bilateral_radius = cfg.surface.bilateral_options.radius_px;
   app.add_option("--bilateral-radius", bilateral_radius,
                  "bilateral window radius, px (default 6, KinectFusion's 13x13: 4.1 % force error "
@@ -180,6 +184,7 @@ int main(int argc, char** argv) {
   cfg.realtime = !no_realtime;
   cfg.surface.bilateral = !no_bilateral;
   cfg.surface.roi = !full_frame;
+  cfg.surface.fill_here = !no_fill_here;
   cfg.surface.bilateral_options.radius_px = bilateral_radius;
   cfg.status_line = !quiet;
 

@@ -86,6 +86,7 @@ nlohmann::json session_config_json(const HapticParams& h, const SurfaceOptions& 
         {"normal_smooth_radius_px", s.normal_options.smooth_radius_px},
         {"discontinuity_ratio", s.normal_options.discontinuity_ratio},
         {"roi", s.roi},
+        {"fill_here", s.fill_here},
         {"roi_radius_m", s.roi_radius_m},
         {"roi_lookahead_s", s.roi_lookahead_s},
         {"roi_min_half_px", s.roi_min_half_px},
@@ -140,6 +141,7 @@ void apply_session_config(const nlohmann::json& j, HapticParams& h, SurfaceOptio
     take(o, "normal_smooth_radius_px", s.normal_options.smooth_radius_px, sec);
     take(o, "discontinuity_ratio", s.normal_options.discontinuity_ratio, sec);
     take(o, "roi", s.roi, sec);
+    take(o, "fill_here", s.fill_here, sec);
     take(o, "roi_radius_m", s.roi_radius_m, sec);
     take(o, "roi_lookahead_s", s.roi_lookahead_s, sec);
     take(o, "roi_min_half_px", s.roi_min_half_px, sec);

@@ -160,15 +160,37 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
   s->capture_ns = frame.capture_ns;
   s->frame_id = frame.frame_id;
   local.snapshot_ms = now_ms() - t0;
+  // Station-side fill: what the filter reads (the windows plus the bilateral radius) is filled
+  // from the depth as it arrived. The scratch image is this thread's, reused frame to frame; in
+  // ROI mode only the widened windows of it are written, and only they are read.
+  const cv::Mat1w* depth = &frame.depth_mm;
+  if (o.fill_here) {
+    thread_local cv::Mat1w filled;
+    t0 = now_ms();
+    if (!o.roi) {
+      fill_holes_mode_into(frame.depth_mm, filled, o.fill_options);
+    } else {
+      filled.create(size);
+      const int margin = o.bilateral ? o.bilateral_options.radius_px : 0;
+      for (const auto& r : windows) {
+        const cv::Rect wide =
+            cv::Rect(r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin) &
+            cv::Rect(cv::Point(0, 0), size);
+        fill_holes_mode_roi_into(frame.depth_mm, wide, filled, o.fill_options);
+      }
+    }
+    depth = &filled;
+    local.fill_ms = now_ms() - t0;
+  }
   // The kernels write straight into the snapshot's buffers (their outputs are valid by
   // construction: finite metres or 0, unit or zero normals): no copy, no re-check.
   if (!o.roi) {
     if (pooled) pooled->written_all = true;
     t0 = now_ms();
     if (o.bilateral)
-      bilateral_filter_depth(frame.depth_mm, s->depth_m, o.bilateral_options);
+      bilateral_filter_depth(*depth, s->depth_m, o.bilateral_options);
     else
-      frame.depth_mm.convertTo(s->depth_m, CV_32F, 1e-3);  // as depth_m_from_mm, in place
+      depth->convertTo(s->depth_m, CV_32F, 1e-3);  // as depth_m_from_mm, in place
     local.filter_ms = now_ms() - t0;
     t0 = now_ms();
     compute_normals(s->depth_m, frame.intrinsics, s->normals, o.normal_options);
@@ -182,9 +204,9 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
   for (const auto& r : windows) {
     cv::Mat1f dst = s->depth_m(r);  // the kernel writes through this view (same size: no realloc)
     if (o.bilateral)
-      bilateral_filter_depth_roi(frame.depth_mm, r, dst, o.bilateral_options);
+      bilateral_filter_depth_roi(*depth, r, dst, o.bilateral_options);
     else
-      frame.depth_mm(r).convertTo(dst, CV_32F, 1e-3);
+      (*depth)(r).convertTo(dst, CV_32F, 1e-3);
   }
   local.filter_ms = now_ms() - t0;
   t0 = now_ms();

@@ -48,6 +48,7 @@ TEST(SurfaceBuilder, DefaultsAreRadiusSixInFingertipWindows) {
   EXPECT_TRUE(o.roi);
   EXPECT_TRUE(o.bilateral);
   EXPECT_EQ(o.bilateral_options.radius_px, 6);
+  EXPECT_TRUE(o.fill_here) << "the remote sends its depth unfilled";
 }
 
 // Pixels (depth or normal) that differ between two snapshots; NaN never occurs in valid ones.
@@ -72,6 +73,40 @@ int nonzero_outside(const Surface& s, const std::vector<cv::Rect>& windows) {
       n += s.depth_m(v, u) != 0.0f || nv != cv::Vec3f(0, 0, 0);
     }
   return n;
+}
+
+// Station-side fill (issue 16's study): the remote's spatial fill run on the depth as it
+// arrived gives, inside the windows, exactly the surface a remote-filled frame gives; over the
+// whole frame the same; and it changes nothing when there is no hole.
+TEST(SurfaceBuilder, FillHereEqualsTheRemotesSpatialFill) {
+  const AssembledFrame raw = desk_frame(1, 1);
+  ASSERT_GT(cv::countNonZero(raw.depth_mm == 0), 1000) << "the sensor model leaves holes";
+  AssembledFrame filled = raw;
+  filled.depth_mm = fill_holes_mode(raw.depth_mm).depth_mm;  // what the remote's fill sends
+  const std::vector<cv::Rect> windows{{300, 200, 41, 41}, {100, 50, 33, 33}};
+  SurfaceOptions here = roi_options(), trust = roi_options();
+  here.fill_here = true;
+  trust.fill_here = false;
+  SurfaceBuildStats st;
+  const auto a = build_surface(raw, here, windows, &st);
+  const auto b = build_surface(filled, trust, windows);
+  EXPECT_EQ(differing_pixels(*a, *b), 0);
+  EXPECT_GT(st.fill_ms, 0.0);
+  const auto unfilled = build_surface(raw, trust, windows);
+  EXPECT_GT(differing_pixels(*a, *unfilled), 0) << "the fill did something";
+  SurfaceOptions here_full = full_options(), trust_full = full_options();
+  here_full.fill_here = true;
+  trust_full.fill_here = false;
+  EXPECT_EQ(
+      differing_pixels(*build_surface(raw, here_full, {}), *build_surface(filled, trust_full, {})),
+      0);
+  // A frame with no hole: the fill changes nothing.
+  AssembledFrame solid = filled;
+  solid.depth_mm = filled.depth_mm.clone();
+  solid.depth_mm.setTo(900, solid.depth_mm == 0);
+  EXPECT_EQ(
+      differing_pixels(*build_surface(solid, here, windows), *build_surface(solid, trust, windows)),
+      0);
 }
 
 TEST(SurfaceBuilder, RoiWritesOnlyItsWindowsAndMatchesTheFullFrameThere) {

@@ -51,6 +51,7 @@ struct Config {
   proto::Codec codec = proto::Codec::Zip;
   int zip_level = proto::kDefaultZipLevel;
   bool roi = false;
+  bool station_fill = false;  // the station fills what arrived (SurfaceOptions::fill_here)
 };
 
 extern const std::vector<std::string> kGroups;
@@ -58,6 +59,9 @@ int group_index(const std::string& g);
 // One factor at a time around the default (the shipping defaults at 640x480), plus a few
 // combinations: a full Cartesian grid would be thousands of chains for little extra insight.
 std::vector<Config> make_grid(bool quick);
+// The grid's configurations named in `names` (all when empty); throws std::invalid_argument
+// naming an unknown one.
+std::vector<Config> select_configs(std::vector<Config> grid, const std::vector<std::string>& names);
 std::string describe(const Config& c);
 // The remote pipeline's configuration for `c`: telex-remote's defaults with c's fill, temporal
 // fill, codec and an 8x8 tile grid, timed by the thread's CPU clock.

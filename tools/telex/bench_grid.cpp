@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "bench.h"
 #include "telex/common/stage_clock.h"
@@ -114,6 +115,33 @@ std::vector<Config> make_grid(bool quick) {
       "combo", "smooth1_r1",
       [](Config& c) { c.bilateral_options.radius_px = 1, c.normal_options.smooth_radius_px = 1; },
       false);
+  // Where to fill (issue 16): the remote sends the depth unfilled and the station fills it.
+  add(
+      "fill", "fill_station", [](Config& c) { c.fill = false, c.station_fill = true; }, false);
+  add(
+      "combo", "kinfu_r6_roi_fill_off",
+      [](Config& c) { c.bilateral_options.radius_px = 6, c.roi = true, c.fill = false; }, false);
+  add(
+      "combo", "kinfu_r6_roi_fill_station",
+      [](Config& c) {
+        c.bilateral_options.radius_px = 6, c.roi = true, c.fill = false, c.station_fill = true;
+      },
+      false);
+  return out;
+}
+
+std::vector<Config> select_configs(std::vector<Config> grid,
+                                   const std::vector<std::string>& names) {
+  if (names.empty()) return grid;
+  std::vector<Config> out;
+  for (const auto& n : names) {
+    const auto it =
+        std::find_if(grid.begin(), grid.end(), [&](const Config& c) { return c.name == n; });
+    if (it == grid.end())
+      throw std::invalid_argument("telex bench: no configuration '" + n +
+                                  "' in the grid (bench.csv's first column lists them)");
+    out.push_back(*it);
+  }
   return out;
 }
 
@@ -140,6 +168,7 @@ std::string describe(const Config& c) {
   os << ' ' << proto::codec_name(c.codec);
   if (c.codec == proto::Codec::Zip) os << c.zip_level;
   if (c.roi) os << " ROI";
+  if (c.station_fill) os << " fill@station";
   return os.str();
 }
 
@@ -163,6 +192,8 @@ local::SurfaceOptions surface_options(const Config& c) {
   so.bilateral_options = c.bilateral_options;
   so.normal_options = c.normal_options;
   so.roi = c.roi;
+  so.fill_here = c.station_fill;
+  so.fill_options = c.fill_options;
   so.clock_ms = thread_cpu_ms;
   return so;
 }

@@ -28,6 +28,7 @@ struct Options {
   std::string out = "bench_out";
   std::string real;
   std::vector<std::string> sessions;
+  std::vector<std::string> configs;
 };
 
 std::vector<cv::Mat1w> load_real(const std::string& dir, std::string& note) {
@@ -53,7 +54,13 @@ int run(const Options& o) {
   cv::setNumThreads(1);
   const fs::path out_dir(o.out);
   fs::create_directories(out_dir);
-  const std::vector<Config> grid = make_grid(o.quick);
+  std::vector<Config> grid;
+  try {
+    grid = select_configs(make_grid(o.quick), o.configs);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << e.what() << "\n";
+    return 2;  // a bad flag
+  }
   const std::vector<std::string> scenes =
       o.quick ? std::vector<std::string>{"tilted", "box"}
               : std::vector<std::string>{"plane", "tilted", "sphere", "box", "desk"};
@@ -197,6 +204,9 @@ const RegisterCommand kRegister{
       app.add_option("--real", o->real,
                      "directory with desk_{0,1,2}_depth_mm.png (default: $TELEX_REAL_DESK_DIR); "
                      "skipped with a note when absent");
+      app.add_option("--config", o->configs,
+                     "only these configurations of the grid (names as in bench.csv); repeatable")
+          ->delimiter(',');
       app.add_option("--session", o->sessions,
                      "a recorded session FILE.bag (telex-local --record) whose depth joins the "
                      "real-frame rows; repeatable")
