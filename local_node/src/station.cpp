@@ -701,6 +701,7 @@ StationSummary Station::Run::summarize() {
   s.dropped_malformed = client_->stats().dropped_malformed.load();
   s.udp_datagrams = client_->stats().datagrams.load();
   s.udp_lost = client_->stats().udp_lost.load();
+  s.bytes_in = client_->stats().bytes_in.load();
   for (std::size_t n = 0; n < s.udp_messages_by_fragments.size(); ++n)
     s.udp_messages_by_fragments[n] = client_->stats().udp_messages_by_fragments[n].load();
   return s;

@@ -112,6 +112,10 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   EXPECT_GT(j["contact_latency_samples"].get<double>(), 0.6 * 30.0 * contact_s / kSanitizerSlowdown)
       << "contact for " << contact_s << " s";
   expect_latency_within_bench(j, kFullFrameLatency);
+  // The stream's mean rate is what arrived over the run's span.
+  ASSERT_GT(j["bytes_in"].get<double>(), 0.0);
+  EXPECT_NEAR(j["stream_mbit_per_s"].get<double>(),
+              j["bytes_in"].get<double>() * 8e-6 / j["haptic_span_s"].get<double>(), 1e-9);
 }
 
 // ROI first end to end: with --roi the remote sends each frame's fingertip tiles as an ROI part

@@ -41,10 +41,10 @@ struct StationConfig {
   // ROS 1 bag of the session (docs/RECORDING.md); empty = off. Forces at record_rate_hz.
   std::filesystem::path record_bag;
   double record_rate_hz = 100.0;
-  std::string view_spec = "none";          // none | png:DIR | window
-  double print_forces_hz = 0.0;            // live force lines on stdout (0 = off)
-  bool status_line = true;                 // one status line per second on stderr
-  bool roi_requests = true;                // ask the remote for full-rate tiles near the hands
+  std::string view_spec = "none";  // none | png:DIR | window
+  double print_forces_hz = 0.0;    // live force lines on stdout (0 = off)
+  bool status_line = true;         // one status line per second on stderr
+  bool roi_requests = true;        // ask the remote for full-rate tiles near the hands
   // Test seam, never set by telex-local: called at the top of every pass of the named loop; an
   // exception it throws takes that loop's error path (tests/integration/station_faults_test.cpp).
   std::function<void(StationLoop)> fault_hook;
@@ -80,6 +80,7 @@ struct StationSummary {
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
   // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
   std::uint64_t udp_datagrams = 0, udp_lost = 0;
+  std::uint64_t bytes_in = 0;  // everything the remote sent (TCP and UDP, headers and tags)
   std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
   // --record: what was written and what the queues dropped; record_error when writing failed.
   std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
