@@ -181,24 +181,6 @@ std::optional<std::string> choose_hid_device(const HidTarget& target,
 
 namespace {
 
-std::string narrow(const wchar_t* w) {
-  std::string out;
-  if (w == nullptr) return out;
-  for (; *w != 0; ++w) out.push_back(*w < 128 ? static_cast<char>(*w) : '?');
-  return out;
-}
-
-// hidapi's enumeration of every HID device, for choosing and for the error text.
-std::vector<HidCandidate> enumerate_hid() {
-  std::vector<HidCandidate> out;
-  hid_device_info* list = hid_enumerate(0, 0);
-  for (hid_device_info* d = list; d != nullptr; d = d->next)
-    out.push_back({d->path ? d->path : "", d->vendor_id, d->product_id, narrow(d->serial_number),
-                   narrow(d->product_string)});
-  hid_free_enumeration(list);
-  return out;
-}
-
 // Resolves a VID:PID target to the hidraw path hidapi reports for it; a path target stays as is.
 std::string resolve(const HidTarget& t) {
   if (!t.by_ids()) return t.path;

@@ -30,6 +30,12 @@ namespace fs = std::filesystem;
 
 constexpr const char* kFakenect = "/usr/bin/fakenect";
 
+// The telex tool, run under Debian's fakenect wrapper (tools/setup.sh installs libfreenect-bin).
+#define TELEX_REQUIRE_FAKENECT()                                                             \
+  TELEX_REQUIRE_BINARIES("telex");                                                           \
+  TELEX_SKIP_UNLESS(fs::exists(kFakenect), "Debian's fakenect (package libfreenect-bin) is " \
+                                           "missing")
+
 // fakenect-record's dump_depth: "P5 640 480 65535\n" then the 11-bit samples as the host wrote
 // them (little-endian here); INDEX.txt names each file as TYPE-SECONDS-TIMESTAMP.EXT.
 struct Recording {
@@ -88,9 +94,7 @@ FakenectRun capture_under_fakenect(const fs::path& recording, const fs::path& ou
 }
 
 TEST(Freenect, FakenectReplayEqualsTheDumpLoadedAsKinectDisparity) {
-  TELEX_REQUIRE_BINARIES("telex");
-  TELEX_SKIP_UNLESS(fs::exists(kFakenect),
-                    "Debian's fakenect (package libfreenect-bin) is missing");
+  TELEX_REQUIRE_FAKENECT();
   const auto dir = scratch_dir("freenect_replay");
   const Recording rec = write_recording(dir / "rec", 8);
   const auto out = dir / "out";
@@ -120,9 +124,7 @@ TEST(Freenect, FakenectReplayEqualsTheDumpLoadedAsKinectDisparity) {
 }
 
 TEST(Freenect, ABrokenRecordingIsNamedNotExitedOn) {
-  TELEX_REQUIRE_BINARIES("telex");
-  TELEX_SKIP_UNLESS(fs::exists(kFakenect),
-                    "Debian's fakenect (package libfreenect-bin) is missing");
+  TELEX_REQUIRE_FAKENECT();
   const auto dir = scratch_dir("freenect_broken");
   const Recording rec = write_recording(dir / "rec", 3);
   {

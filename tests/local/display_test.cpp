@@ -164,11 +164,11 @@ TEST(DisplayGravityGrabber, TargetIsAPathOrUsbIdsFoundByEnumeration) {
       EXPECT_NE(std::string(e.what()).find("VID:PID"), std::string::npos) << e.what();
     }
   }
-  // An enumeration as hidapi lists it: the controller twice (two units), a keyboard between.
+  // An enumeration as hidapi lists it: a keyboard, then the controller twice (two units).
   const std::vector<HidCandidate> seen = {
-      {"/dev/hidraw0", 0x046d, 0xc31c, "", "USB Keyboard"},
-      {"/dev/hidraw4", 0x16c0, 0x05df, "GG-0007", "Gravity Grabber"},
-      {"/dev/hidraw5", 0x16c0, 0x05df, "GG-0042", "Gravity Grabber"},
+      {"/dev/hidraw0", 0x046d, 0xc31c, "", "USB Keyboard", "Logitech"},
+      {"/dev/hidraw4", 0x16c0, 0x05df, "GG-0007", "Gravity Grabber", "lab"},
+      {"/dev/hidraw5", 0x16c0, 0x05df, "GG-0042", "Gravity Grabber", "lab"},
   };
   EXPECT_EQ(choose_hid_device(parse_hid_target("16c0:05df"), seen), "/dev/hidraw4");
   EXPECT_EQ(choose_hid_device(parse_hid_target("16c0:05df:GG-0042"), seen), "/dev/hidraw5");

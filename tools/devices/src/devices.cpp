@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "telex/devices/devices.h"
 
-#include <hidapi.h>
 #include <libusb.h>
 
 #include <algorithm>
@@ -11,18 +10,9 @@
 #include <system_error>
 
 #include "telex/local/glove.h"
+#include "telex/local/hid.h"
 
 namespace telex::devices {
-
-namespace {
-
-std::string narrow(const wchar_t* w) {
-  std::string out;
-  for (; w && *w; ++w) out += (*w < 128) ? static_cast<char>(*w) : '?';
-  return out;
-}
-
-}  // namespace
 
 const std::vector<KnownDevice>& known_devices() {
   static const std::vector<KnownDevice> table = [] {
@@ -115,21 +105,10 @@ UsbScan scan_usb(const std::vector<KnownDevice>& extra) {
 
 std::vector<HidDevice> scan_hid(const std::vector<KnownDevice>& extra) {
   std::vector<HidDevice> out;
-  if (hid_init() != 0) return out;
-  hid_device_info* list = hid_enumerate(0, 0);
-  for (auto* d = list; d; d = d->next) {
-    HidDevice h;
-    h.path = d->path ? d->path : "";
-    h.vendor_id = d->vendor_id;
-    h.product_id = d->product_id;
-    h.manufacturer = narrow(d->manufacturer_string);
-    h.product = narrow(d->product_string);
-    h.serial = narrow(d->serial_number);
-    h.known = identify(d->vendor_id, d->product_id, extra);
-    out.push_back(h);
-  }
-  hid_free_enumeration(list);
-  hid_exit();
+  for (auto& c : local::enumerate_hid())
+    out.push_back({std::move(c.path), c.vendor_id, c.product_id, std::move(c.manufacturer),
+                   std::move(c.product), std::move(c.serial),
+                   identify(c.vendor_id, c.product_id, extra)});
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.path < b.path; });
   return out;
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "telex/local/haptic_display.h"
+#include "telex/local/hid.h"
 
 namespace telex::local {
 
@@ -63,12 +64,6 @@ struct HidTarget {
 // Throws std::invalid_argument naming the text and the two accepted forms.
 HidTarget parse_hid_target(std::string_view text);
 
-// One row of hidapi's enumeration, as far as choosing a device needs it.
-struct HidCandidate {
-  std::string path;
-  std::uint16_t vendor_id = 0, product_id = 0;
-  std::string serial, product;
-};
 // The path of the first candidate matching `target` (ids and, when given, serial); nullopt when
 // none does. Pure, so the choice is tested on recorded enumerations.
 std::optional<std::string> choose_hid_device(const HidTarget& target,
