@@ -112,6 +112,16 @@ void put_payload(Writer& w, const Stats& m) {
   }
 }
 
+void put_payload(Writer& w, const TileNack& m) {
+  require(!m.tiles.empty() && m.tiles.size() <= kMaxManifestTiles,
+          "TileNack lists no tile or more than 4096");
+  for (std::size_t i = 1; i < m.tiles.size(); ++i)
+    require(m.tiles[i - 1] < m.tiles[i], "TileNack tile list not strictly increasing");
+  w.u32(m.frame_id);
+  w.u16(static_cast<std::uint16_t>(m.tiles.size()));
+  for (std::uint16_t t : m.tiles) w.u16(t);
+}
+
 void put_header(Writer& w, const Header& h) {
   w.u32(h.magic);
   w.u8(h.version);
@@ -336,6 +346,24 @@ PayloadResult get_stats(Reader& r) {
   return m;
 }
 
+PayloadResult get_nack(Reader& r) {
+  TileNack m;
+  m.frame_id = r.u32();
+  const std::size_t n = r.u16();
+  if (!r.ok()) return truncated("TileNack fields");
+  if (n == 0 || n > kMaxManifestTiles) return bad("TileNack lists no tile or more than 4096");
+  if (r.remaining() < 2 * n) return truncated("TileNack tile list");
+  m.tiles.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint16_t t = r.u16();
+    if (t >= kMaxManifestTiles) return {Bad{ErrorReason::BadTileGeometry, "TileNack tile index"}};
+    if (!m.tiles.empty() && t <= m.tiles.back())
+      return bad("TileNack tile list not strictly increasing");
+    m.tiles.push_back(t);
+  }
+  return m;
+}
+
 PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
   switch (type) {
     case MsgType::Hello:
@@ -360,6 +388,8 @@ PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
       return get_roi(r, lim);
     case MsgType::Stats:
       return get_stats(r);
+    case MsgType::TileNack:
+      return get_nack(r);
   }
   return Bad{ErrorReason::UnknownType, "message type"};
 }
@@ -375,8 +405,8 @@ Result failure(ErrorReason reason, const char* detail) {
 
 std::string_view msg_type_name(MsgType type) {
   static constexpr std::string_view kNames[kMsgTypeCount] = {
-      "Hello",     "Accept",        "Reject",     "Heartbeat",  "Bye",  "StreamConfig",
-      "DepthTile", "FrameManifest", "VideoFrame", "RoiRequest", "Stats"};
+      "Hello",     "Accept",        "Reject",     "Heartbeat",  "Bye",   "StreamConfig",
+      "DepthTile", "FrameManifest", "VideoFrame", "RoiRequest", "Stats", "TileNack"};
   const auto i = static_cast<std::size_t>(type);
   return i < kMsgTypeCount ? kNames[i] : std::string_view("unknown");
 }

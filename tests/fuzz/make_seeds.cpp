@@ -69,6 +69,10 @@ std::vector<telex::proto::Message> messages() {
   fm.changed_tiles.clear();
   m.push_back(fm);
   m.push_back(Bye{});
+  // The client's requests, repair among them (docs/PROTOCOL.md 2.5).
+  m.push_back(RoiRequest{{{10, 20, 80, 60, 3}}});
+  m.push_back(Stats{{{"key_frame_request", 1}}});
+  m.push_back(TileNack{41, {9, 10, 17}});
   return m;
 }
 

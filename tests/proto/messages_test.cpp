@@ -199,3 +199,45 @@ TEST(Messages, RejectsBadPayload) {
 
 }  // namespace
 }  // namespace telex::proto
+
+namespace telex::proto {
+namespace {
+
+// PROTOCOL.md 2.3: TileNack of frame 41, tiles 9, 10 and 17 is `29 00 00 00 · 03 00 · 09 00 0A 00
+// 11 00` after the header, whose type byte is 11.
+TEST(Messages, TileNackBytesAreTheDocumentedLayout) {
+  const auto b = encode({}, TileNack{41, {9, 10, 17}});
+  ASSERT_EQ(b.size(), kHeaderSize + 12);
+  EXPECT_EQ(b[5], 11);
+  const std::vector<std::uint8_t> payload(b.begin() + kHeaderSize, b.end());
+  EXPECT_EQ(payload, (std::vector<std::uint8_t>{0x29, 0, 0, 0, 3, 0, 9, 0, 0x0A, 0, 0x11, 0}));
+  const Result r = decode(b);
+  ASSERT_TRUE(r.ok()) << r.detail;
+  EXPECT_EQ(std::get<TileNack>(r.envelope->message), (TileNack{41, {9, 10, 17}}));
+}
+
+TEST(Messages, TileNackRejectsEmptyUnorderedAndShortLists) {
+  EXPECT_THROW(encode({}, TileNack{1, {}}), std::invalid_argument);
+  EXPECT_THROW(encode({}, TileNack{1, {4, 4}}), std::invalid_argument);
+  auto b = encode({}, TileNack{1, {4, 5}});
+  b[kHeaderSize + 8] = 4;  // the second index equals the first
+  reseal(b);
+  EXPECT_EQ(decode(b).error, ErrorReason::BadPayload);
+  b = encode({}, TileNack{1, {4, 5}});
+  b[kHeaderSize + 4] = 0;  // n = 0
+  b.resize(kHeaderSize + 6);
+  put_u32(b, 28, 6);
+  reseal(b);
+  EXPECT_EQ(decode(b).error, ErrorReason::BadPayload);
+  b = encode({}, TileNack{1, {4, 5}});
+  b[kHeaderSize + 4] = 3;  // claims a third index that is not there
+  reseal(b);
+  EXPECT_EQ(decode(b).error, ErrorReason::Truncated);
+  b = encode({}, TileNack{1, {4, 5}});
+  b[kHeaderSize + 9] = 0x10;  // index 4101 > 4095
+  reseal(b);
+  EXPECT_EQ(decode(b).error, ErrorReason::BadTileGeometry);
+}
+
+}  // namespace
+}  // namespace telex::proto

@@ -25,6 +25,7 @@ inline std::vector<Message> sample_messages() {
   m.push_back(VideoFrame{1, 640, 480, {0xFF, 0xD8, 0xFF, 0xD9}});
   m.push_back(RoiRequest{{{10, 20, 80, 60, 3}, {0, 0, 640, 480, 0}}});
   m.push_back(Stats{{{"tiles_sent", 123456789}, {"drops.crc", 0}}});
+  m.push_back(TileNack{41, {9, 10, 17}});
   return m;
 }
 

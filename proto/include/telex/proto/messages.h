@@ -37,8 +37,9 @@ enum class MsgType : std::uint8_t {
   VideoFrame = 8,
   RoiRequest = 9,
   Stats = 10,
+  TileNack = 11,
 };
-inline constexpr int kMsgTypeCount = 11;
+inline constexpr int kMsgTypeCount = 12;
 std::string_view msg_type_name(MsgType type);
 
 // Header flag bits.
@@ -49,6 +50,9 @@ inline constexpr std::uint16_t kFlagAuth = 1u << 1;
 // The message belongs to the ROI part of its frame: a second FrameManifest with the same frame id
 // (without this flag) follows and closes the frame (PROTOCOL.md 2.4).
 inline constexpr std::uint16_t kFlagRoiPart = 1u << 2;
+// A DepthTile resent in answer to a TileNack (PROTOCOL.md 2.5): the tile as it was encoded for
+// the header's frame_id, outside that frame's manifest.
+inline constexpr std::uint16_t kFlagRepair = 1u << 3;
 
 struct Header {
   std::uint32_t magic = kMagic;
@@ -72,6 +76,8 @@ inline constexpr std::uint32_t kCapRoi = 1u << 3;
 inline constexpr std::uint32_t kCapStats = 1u << 4;
 // The client takes a frame in two parts (ROI tiles first, then the rest; PROTOCOL.md 2.4).
 inline constexpr std::uint32_t kCapFrameParts = 1u << 5;
+// The client sends TileNack and takes repaired tiles (kFlagRepair; PROTOCOL.md 2.5).
+inline constexpr std::uint32_t kCapRepair = 1u << 6;
 
 enum class Transport : std::uint8_t { Tcp = 0, Udp = 1 };
 
@@ -204,9 +210,17 @@ struct Stats {
   bool operator==(const Stats&) const = default;
 };
 
+// A generic NACK (RFC 4585 section 6.2.1, by tile instead of by packet): the tiles of frame
+// `frame_id` (or of any newer frame that changed them) that the client needs and lacks.
+struct TileNack {
+  std::uint32_t frame_id = 0;
+  std::vector<std::uint16_t> tiles;  // 1..kMaxManifestTiles, strictly increasing
+  bool operator==(const TileNack&) const = default;
+};
+
 // Alternative index == MsgType wire value.
 using Message = std::variant<Hello, Accept, Reject, Heartbeat, Bye, StreamConfig, DepthTile,
-                             FrameManifest, VideoFrame, RoiRequest, Stats>;
+                             FrameManifest, VideoFrame, RoiRequest, Stats, TileNack>;
 
 MsgType type_of(const Message& message);
 
