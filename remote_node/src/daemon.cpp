@@ -48,10 +48,10 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
-      "{:.1f} kB/s | tiles sent {} skipped {} | video {} | client {} (accepted {} rejected {} "
-      "timeouts {}) | ended{} | "
+      "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} | client {} (accepted {} "
+      "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
-      "frames-sent {}",
+      "key-requests {} nacks {} repaired {} unavailable {} | frames-sent {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -64,11 +64,13 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       mean(now.stage_ms_sum.total_ms, before.stage_ms_sum.total_ms),
       mean(now.first_part_ms_sum, before.first_part_ms_sum), now.rests_cut - before.rests_cut,
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
+      static_cast<double>(now.bytes_sent - before.bytes_sent) * 8.0 / dt / 1e6,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
       now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
       now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
-      now.udp_ignored, now.frames_sent);
+      now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
+      now.repair_unavailable, now.frames_sent);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -133,6 +135,10 @@ DaemonStats RemoteDaemon::stats() const {
     s.unexpected_tag = c.unexpected_tag;
     s.replayed = c.replayed;
     s.udp_ignored = c.udp_ignored;
+    s.key_frame_requests = c.key_frame_requests;
+    s.nacks_in = c.nacks_in;
+    s.repair_tiles_sent = c.repair_tiles_sent;
+    s.repair_unavailable = c.repair_unavailable;
     s.clients_accepted = c.clients_accepted;
     s.clients_rejected = c.clients_rejected;
     s.client_timeouts = c.client_timeouts;

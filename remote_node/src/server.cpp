@@ -32,7 +32,11 @@ std::string_view session_end_name(SessionEnd reason) {
 }
 
 RemoteServer::Impl::Impl(ServerConfig config)
-    : config_(std::move(config)), acceptor_(io_), udp_(io_), timer_(io_) {
+    : config_(std::move(config)),
+      acceptor_(io_),
+      udp_(io_),
+      timer_(io_),
+      cache_(config_.repair_cache_frames) {
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(config_.host, ec);
   if (ec)

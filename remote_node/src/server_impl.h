@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "telex/proto/parser.h"
+#include "telex/remote/repair_cache.h"
 #include "telex/remote/server.h"
 
 namespace telex::remote {
@@ -38,6 +39,7 @@ struct OutFrame {
   std::vector<Buffer> items;
   std::size_t next = 0;
   bool counts_as_frame = true;  // video frames are not counted in frames_sent
+  bool repair = false;          // resent tiles: ahead of queued frames, never trimmed
 };
 
 // The connected operator (Asio's chat_session): its socket, parser and queues. Lives on the io
@@ -94,7 +96,8 @@ class RemoteServer::Impl {
     std::uint32_t session_id = 0;
     std::uint32_t generation = 0;
     bool udp = false;
-    KeyPtr key;  // the session key with --psk, else null
+    bool repair = false;  // the client announced kCapRepair: its frames' tiles are cached
+    KeyPtr key;           // the session key with --psk, else null
   };
 
   // ---- acceptor (server.cpp), io thread ----
@@ -113,6 +116,7 @@ class RemoteServer::Impl {
                 std::uint64_t hello_nonce);
   void refuse_session(proto::RejectReason reason, std::string text);
   void request_key_frame();
+  void on_nack(const proto::TileNack& nack);
   void send_control(Buffer buf);
   void kick_tcp(const std::shared_ptr<Session>& s);
 
@@ -122,8 +126,10 @@ class RemoteServer::Impl {
                        bool key, std::uint16_t extra_flags = 0);
   OutFrame pack(const Link& l, std::uint32_t frame_id,
                 const std::vector<std::pair<proto::Header, proto::Message>>& msgs);
+  // `frame_id` is the fragments' (the messages' headers keep their own).
   void post_frame(OutFrame f, std::uint32_t generation);
-  void enqueue_frame(OutFrame f);  // io thread
+  void enqueue_frame(OutFrame f);   // io thread
+  void enqueue_repair(OutFrame f);  // io thread: after the frame on the wire, before the others
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
 
@@ -150,6 +156,8 @@ class RemoteServer::Impl {
   proto::StreamConfig announced_;
 
   // shared
+  std::mutex cache_mu_;
+  RepairCache cache_;  // guarded by cache_mu_; filled by publish(), read by on_nack()
   mutable std::mutex mu_;
   FrameRequest request_;
   bool frame_parts_ = false;  // guarded by mu_
@@ -157,6 +165,9 @@ class RemoteServer::Impl {
   std::atomic<bool> connected_{false};
   std::atomic<bool> video_wanted_{false};
   std::atomic<std::uint32_t> seq_{0};
+  // The newest frame handed to the transport: a repair's datagrams carry it in their fragment
+  // header, so the client's reassembler (newest frame wins) does not drop them as stale.
+  std::atomic<std::uint32_t> newest_frame_id_{0};
   std::atomic<std::uint32_t> message_id_{0};
 };
 

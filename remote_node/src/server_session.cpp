@@ -72,6 +72,8 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
               ++counters_.key_frame_requests;
               request_key_frame();
             }
+        } else if constexpr (std::is_same_v<T, proto::TileNack>) {
+          on_nack(m);
         } else if constexpr (std::is_same_v<T, proto::Bye>) {
           end_session(SessionEnd::ClientBye);
         } else {
@@ -169,7 +171,12 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
   connected_ = true;
   video_wanted_ = config_.video_available && (hello.capabilities & proto::kCapVideo);
   frame_parts_ = (hello.capabilities & proto::kCapFrameParts) != 0;
-  link_ = Link{session_id_, active_generation_, a->over_udp, a->session_key};
+  const bool repair = (hello.capabilities & proto::kCapRepair) != 0;
+  link_ = Link{session_id_, active_generation_, a->over_udp, repair, a->session_key};
+  {
+    std::lock_guard cache_lock(cache_mu_);
+    cache_.clear();  // tiles sent to an earlier session were encoded against its frames
+  }
   request_ = FrameRequest{};
   request_.force_key_frame = true;  // a new receiver holds nothing
   request_.codec = codec;
@@ -179,6 +186,35 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
 void RemoteServer::Impl::request_key_frame() {
   std::lock_guard lock(mu_);
   request_.force_key_frame = true;
+}
+
+// A TileNack (PROTOCOL.md 2.5): each tile it lists goes out again once, as cached, ahead of the
+// queued frames; a tile the cache no longer holds is counted and the next frame is a key frame.
+void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
+  ++counters_.nacks_in;
+  const auto l = link();
+  if (!l || !l->repair) {
+    ++counters_.malformed_in;  // only a client that announced kCapRepair may ask
+    return;
+  }
+  NackAnswer answer;
+  {
+    std::lock_guard lock(cache_mu_);
+    answer = cache_.answer(nack);
+  }
+  counters_.repair_unavailable += answer.unavailable.size();
+  if (!answer.unavailable.empty()) request_key_frame();
+  if (answer.resend.empty()) return;
+  std::vector<std::pair<proto::Header, proto::Message>> msgs;
+  msgs.reserve(answer.resend.size());
+  for (const auto& c : answer.resend)
+    msgs.emplace_back(header(l->session_id, c.frame_id, c.capture_ns, false, proto::kFlagRepair),
+                      proto::tile_message(*c.tile, c.codec));
+  counters_.repair_tiles_sent += answer.resend.size();
+  OutFrame f = pack(*l, newest_frame_id_.load(), msgs);
+  f.counts_as_frame = false;
+  f.repair = true;
+  enqueue_repair(std::move(f));
 }
 
 void RemoteServer::Impl::send_control(Buffer buf) {

@@ -9,11 +9,17 @@ namespace telex::remote {
 namespace {
 
 // Drops the oldest frames nobody has started sending so that at most `bound` remain queued.
+// Repairs are not counted and never dropped (each is a few tiles, sent once per request).
 std::uint64_t trim_queue(std::deque<OutFrame>& q, std::size_t bound) {
   std::uint64_t dropped = 0;
-  while (q.size() > bound) {
-    auto it = q.begin();
-    if (it->next != 0) ++it;  // the frame on the wire finishes
+  const auto frames = [&q] {
+    return static_cast<std::size_t>(
+        std::count_if(q.begin(), q.end(), [](const OutFrame& f) { return !f.repair; }));
+  };
+  while (frames() > bound) {
+    auto it = std::find_if(q.begin(), q.end(), [](const OutFrame& f) {
+      return !f.repair && f.next == 0;  // the frame on the wire finishes
+    });
     if (it == q.end()) break;
     q.erase(it);
     ++dropped;
@@ -103,6 +109,11 @@ void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
   msgs.emplace_back(
       header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
       frame.manifest);
+  if (l->repair && config_.repair_cache_frames > 0) {
+    std::lock_guard lock(cache_mu_);
+    cache_.add(frame.frame_id, frame.capture_ns, frame.codec, frame.tiles);
+  }
+  newest_frame_id_.store(frame.frame_id);
   OutFrame f = pack(*l, frame.frame_id, msgs);
   f.counts_as_frame = frame.part != FramePart::RoiPart;
   post_frame(std::move(f), l->generation);
@@ -146,6 +157,18 @@ void RemoteServer::Impl::enqueue_frame(OutFrame f) {
     // The receiver misses those tiles: resend everything with the next frame.
     request_key_frame();
   }
+  if (a.over_udp)
+    kick_udp(active_);
+  else
+    kick_tcp(active_);
+}
+
+void RemoteServer::Impl::enqueue_repair(OutFrame f) {
+  if (!active_) return;
+  auto& a = *active_;
+  auto at = a.frames.begin();
+  while (at != a.frames.end() && at->next != 0) ++at;  // what is on the wire finishes first
+  a.frames.insert(at, std::move(f));
   if (a.over_udp)
     kick_udp(active_);
   else

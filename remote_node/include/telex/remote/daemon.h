@@ -47,6 +47,9 @@ struct DaemonStats {
   std::uint64_t video_frames = 0;
   std::uint64_t malformed_in = 0;
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, udp_ignored = 0;
+  // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
+  // tiles asked for that the cache no longer held.
+  std::uint64_t key_frame_requests = 0, nacks_in = 0, repair_tiles_sent = 0, repair_unavailable = 0;
   std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
   std::array<std::uint64_t, kSessionEndCount> sessions_ended{};  // by SessionEnd
   StageTimes stage_ms_sum;                                       // summed over frames_processed

@@ -24,6 +24,7 @@ struct ServerConfig {
   std::uint16_t port = 7300;  // 0 = any free port (tests)
   bool force_tcp = false;  // depth and video on the TCP connection even when the client offers UDP
   std::chrono::milliseconds client_timeout{3000};  // a silent operator is dropped after this
+  std::size_t repair_cache_frames = 8;     // frames whose tiles a TileNack can still get (0 = none)
   std::size_t max_queued_frames = 3;       // frames waiting to go out; older ones are dropped
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
@@ -65,6 +66,11 @@ struct ServerCounters {
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> udp_ignored{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
+  // Repair (PROTOCOL.md 2.5): TileNacks in, tiles resent from the cache, requested tiles the cache
+  // no longer held (each of those makes the next frame a key frame).
+  std::atomic<std::uint64_t> nacks_in{0};
+  std::atomic<std::uint64_t> repair_tiles_sent{0};
+  std::atomic<std::uint64_t> repair_unavailable{0};
   std::array<std::atomic<std::uint64_t>, kSessionEndCount> sessions_ended{};  // by SessionEnd
   std::uint64_t ended(SessionEnd reason) const {
     return sessions_ended[static_cast<std::size_t>(reason)].load();

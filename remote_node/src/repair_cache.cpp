@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: MIT
+// The remote's cache of recently sent tiles, answering TileNack.
+#include "telex/remote/repair_cache.h"
+
+#include <algorithm>
+
+namespace telex::remote {
+namespace {
+// Serial-number order (RFC 1982): a is at or after b.
+bool at_or_after(std::uint32_t a, std::uint32_t b) { return static_cast<std::int32_t>(a - b) >= 0; }
+}  // namespace
+
+void RepairCache::add(std::uint32_t frame_id, std::int64_t capture_ns, proto::Codec codec,
+                      const std::vector<proto::EncodedTile>& tiles) {
+  if (max_frames_ == 0 || tiles.empty()) return;
+  // The rest of a frame joins its ROI part's entry.
+  Frame* f = nullptr;
+  if (!frames_.empty() && frames_.back().frame_id == frame_id && frames_.back().codec == codec)
+    f = &frames_.back();
+  if (f == nullptr) {
+    frames_.push_back(Frame{frame_id, capture_ns, codec, {}});
+    while (frames_.size() > max_frames_) frames_.pop_front();
+    f = &frames_.back();
+  }
+  for (const auto& t : tiles) {
+    auto copy = std::make_shared<const proto::EncodedTile>(t);
+    auto it = std::lower_bound(f->tiles.begin(), f->tiles.end(), t.index,
+                               [](const std::shared_ptr<const proto::EncodedTile>& a,
+                                  std::uint16_t i) { return a->index < i; });
+    if (it != f->tiles.end() && (*it)->index == t.index)
+      *it = std::move(copy);
+    else
+      f->tiles.insert(it, std::move(copy));
+  }
+}
+
+NackAnswer RepairCache::answer(const proto::TileNack& nack) const {
+  NackAnswer out;
+  for (std::uint16_t index : nack.tiles) {
+    bool found = false;
+    for (auto f = frames_.rbegin(); f != frames_.rend() && !found; ++f) {
+      if (!at_or_after(f->frame_id, nack.frame_id)) break;
+      auto it = std::lower_bound(f->tiles.begin(), f->tiles.end(), index,
+                                 [](const std::shared_ptr<const proto::EncodedTile>& a,
+                                    std::uint16_t i) { return a->index < i; });
+      if (it != f->tiles.end() && (*it)->index == index) {
+        out.resend.push_back(CachedTile{f->frame_id, f->capture_ns, f->codec, *it});
+        found = true;
+      }
+    }
+    if (!found) out.unavailable.push_back(index);
+  }
+  return out;
+}
+
+}  // namespace telex::remote
