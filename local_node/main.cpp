@@ -123,6 +123,11 @@ int main(int argc, char** argv) {
   bool no_frame_parts = false;
   app.add_flag("--no-frame-parts", no_frame_parts,
                "take each frame in one part (ROI tiles are otherwise sent and published first)");
+  bool no_repair = false;
+  app.add_flag("--no-repair", no_repair,
+               "never ask the remote for lost tiles or key frames (default: a TileNack for the "
+               "fingertip windows' lost tiles, a key frame when a frame cannot be completed; "
+               "docs/PROTOCOL.md 2.5)");
   app.add_flag("--no-bilateral", no_bilateral, "skip the bilateral filter");
   app.add_option("--max-tile-age", cfg.max_tile_age_s,
                  "a missing tile keeps its value this long, s")
@@ -180,6 +185,7 @@ int main(int argc, char** argv) {
   }
   cfg.client.use_udp = transport == "udp";
   cfg.client.frame_parts = !no_frame_parts;
+  cfg.client.repair = !no_repair;
   cfg.tracker.glove_spec = glove;
   cfg.realtime = !no_realtime;
   cfg.surface.bilateral = !no_bilateral;
@@ -252,6 +258,10 @@ int main(int argc, char** argv) {
           {"contact_latency_samples", s.contact_latency_samples},
           {"contact_latency_median_ms", s.contact_latency_median_ms},
           {"contact_latency_p99_ms", s.contact_latency_p99_ms},
+          {"arrive_median_ms", s.arrive_median_ms},
+          {"arrive_p99_ms", s.arrive_p99_ms},
+          {"build_wait_median_ms", s.build_wait_median_ms},
+          {"build_wait_p99_ms", s.build_wait_p99_ms},
           {"peak_pressure_N", s.peak_pressure_N},
           {"peak_shear_N", s.peak_shear_N},
           {"scheduling", s.scheduling},
@@ -266,7 +276,26 @@ int main(int argc, char** argv) {
           // second's): issue 16's 10 Mbit/s goal.
           {"stream_mbit_per_s",
            s.haptic_span_s > 0.0 ? static_cast<double>(s.bytes_in) * 8e-6 / s.haptic_span_s : 0.0},
-          {"udp_messages_by_fragments", s.udp_messages_by_fragments}};
+          {"udp_messages_by_fragments", s.udp_messages_by_fragments},
+          // Repair (docs/PROTOCOL.md 2.5) and tile ages in frame periods (issue 16).
+          {"tiles_missing", s.tiles_missing},
+          {"frames_incomplete", s.frames_incomplete},
+          {"frames_unclosed", s.frames_unclosed},
+          {"tiles_expired", s.tiles_expired},
+          {"nacks", s.nacks},
+          {"tiles_nacked", s.tiles_nacked},
+          {"watched_tiles_nacked", s.watched_tiles_nacked},
+          {"tiles_repaired", s.tiles_repaired},
+          {"repairs_useless", s.repairs_useless},
+          {"key_frame_requests", s.key_frame_requests},
+          {"tile_age_watched_samples", s.tile_age_watched_samples},
+          {"tile_age_watched_median_frames", s.tile_age_watched_median},
+          {"tile_age_watched_p99_frames", s.tile_age_watched_p99},
+          {"tile_age_watched_max_frames", s.tile_age_watched_max},
+          {"tile_age_samples", s.tile_age_samples},
+          {"tile_age_all_median_frames", s.tile_age_all_median},
+          {"tile_age_all_p99_frames", s.tile_age_all_p99},
+          {"tile_age_all_max_frames", s.tile_age_all_max}};
       if (!cfg.record_bag.empty())
         j["record"] = {{"file", cfg.record_bag.string()},
                        {"ticks", s.record_ticks},

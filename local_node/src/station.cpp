@@ -137,6 +137,9 @@ class Station::Run {
   // ---- network thread (inside SurfaceClient): tiles -> frames ----
   FrameAssembler assembler_;
   LatestSlot<AssembledFrame> frames_;
+  std::int64_t transit_ns_ = 0;  // smoothed capture-to-manifest time (network thread)
+  std::mutex watch_mu_;
+  std::vector<cv::Rect> watch_rects_;  // the fingertip windows as read (surface -> network)
   std::mutex video_mu_;
   std::vector<std::uint8_t> latest_jpeg_;
 
@@ -146,6 +149,10 @@ class Station::Run {
   std::atomic<std::uint64_t> surfaces_built_{0};
   std::atomic<double> first_centre_depth_m_{0.0};
   std::atomic<double> build_ms_{0.0};
+  // Where a new capture's latency goes (surface thread; read after it is joined): capture to
+  // the frame's manifest on the station (remote processing + network), and from there to the
+  // surface's publication (queue + build).
+  Histogram arrive_ms_{0.1, 20'000}, build_wait_ms_{0.1, 20'000};
   std::mutex view_mu_;
   std::shared_ptr<const Surface> view_surface_;
   cv::Mat1w view_depth_;
@@ -242,10 +249,32 @@ StationSummary Station::Run::execute() {
   ClientEvents events;
   events.on_config = [this](const proto::StreamConfig& c) { assembler_.configure(c); };
   events.on_tile = [this](const proto::Header& h, const proto::DepthTile& t) {
-    assembler_.apply_tile(h, t, monotonic_ns());
+    const std::int64_t now = monotonic_ns();
+    assembler_.apply_tile(h, t, now);
+    // A repaired tile under a fingertip rebuilds the surface at once, not at the next frame.
+    if (h.flags & proto::kFlagRepair)
+      if (auto f = assembler_.take_repaired(now)) frames_.put(std::move(*f));
   };
   events.on_manifest = [this](const proto::Header& h, const proto::FrameManifest& m) {
-    if (auto f = assembler_.finish(h, m, monotonic_ns())) frames_.put(std::move(*f));
+    const std::int64_t now = monotonic_ns();
+    {
+      std::lock_guard lock(watch_mu_);
+      assembler_.set_watched(watch_rects_);
+    }
+    if (auto f = assembler_.finish(h, m, now)) {
+      const std::int64_t transit = now - (f->capture_ns - client_->stats().clock_offset_ns.load());
+      transit_ns_ = transit_ns_ == 0 ? transit : (7 * transit_ns_ + transit) / 8;
+      frames_.put(std::move(*f));
+    }
+    if (!cfg_.client.repair) return;
+    // Ask again only once the answer had time to come: the stream's transit and a round trip.
+    const std::int64_t retry_ns =
+        std::max(static_cast<std::int64_t>(cfg_.nack_retry_min_s * 1e9),
+                 std::max<std::int64_t>(transit_ns_, 0) + 2 * client_->stats().rtt_ns.load());
+    const RepairRequest r = assembler_.repair_request(
+        now, retry_ns, static_cast<std::int64_t>(cfg_.key_request_interval_s * 1e9));
+    if (r.nack) client_->send_nack(*r.nack);
+    if (r.key_frame) client_->request_key_frame();
   };
   events.on_video = [this](const proto::Header&, const proto::VideoFrame& v) {
     std::lock_guard lock(video_mu_);
@@ -302,8 +331,8 @@ void Station::Run::surface_loop(std::stop_token stop) {
       check(StationLoop::Surface);
       // The rest of a frame whose ROI part is already built: rebuild only when it changed pixels
       // the surface's windows (or the filter reading around them) use.
-      if (frame->part == AssembledPart::Rest && frame->capture_ns == built_capture_ns &&
-          cfg_.surface.roi) {
+      if ((frame->part == AssembledPart::Rest || frame->part == AssembledPart::Repair) &&
+          frame->capture_ns == built_capture_ns && cfg_.surface.roi) {
         hand_for_surface_.take(hand);
         const auto windows =
             fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
@@ -322,9 +351,15 @@ void Station::Run::surface_loop(std::stop_token stop) {
       // the start again, and the haptic model ignores snapshots that go backwards.
       frame->frame_id = static_cast<std::uint32_t>(++surface_seq);
       hand_for_surface_.take(hand);
-      std::vector<cv::Rect> windows;
-      if (cfg_.surface.roi)
-        windows = fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
+      std::vector<cv::Rect> windows =
+          fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
+      {
+        // The tiles the network thread repairs first: what these windows' surface reads.
+        std::lock_guard lock(watch_mu_);
+        watch_rects_.clear();
+        for (const auto& w : windows) watch_rects_.push_back(grow_rect(w, reach_px));
+      }
+      if (!cfg_.surface.roi) windows.clear();
       SurfaceBuildStats st;
       const std::int64_t built_ns = monotonic_ns();
       std::shared_ptr<const Surface> s = build_surface(*frame, cfg_.surface, windows, &st, &pool);
@@ -337,6 +372,12 @@ void Station::Run::surface_loop(std::stop_token stop) {
       retired.push_back(s);
       if (retired.size() > 8) retired.pop_front();
       surfaces_built_.fetch_add(1);
+      if (frame->part != AssembledPart::Repair) {
+        const std::int64_t offset = client_->stats().clock_offset_ns.load();
+        arrive_ms_.add(static_cast<double>(frame->received_ns - (frame->capture_ns - offset)) /
+                       1e6);
+        build_wait_ms_.add(static_cast<double>(monotonic_ns() - frame->received_ns) / 1e6);
+      }
       {
         std::lock_guard lock(view_mu_);
         view_surface_ = s;
@@ -695,6 +736,10 @@ StationSummary Station::Run::summarize() {
   s.contact_latency_samples = contact_latency_ms_.count();
   s.contact_latency_median_ms = contact_latency_ms_.quantile(0.5);
   s.contact_latency_p99_ms = contact_latency_ms_.quantile(0.99);
+  s.arrive_median_ms = arrive_ms_.quantile(0.5);
+  s.arrive_p99_ms = arrive_ms_.quantile(0.99);
+  s.build_wait_median_ms = build_wait_ms_.quantile(0.5);
+  s.build_wait_p99_ms = build_wait_ms_.quantile(0.99);
   s.auth_failed = client_->stats().auth_failed.load();
   s.unexpected_tag = client_->stats().unexpected_tag.load();
   s.replayed = client_->stats().replayed.load();
@@ -702,6 +747,26 @@ StationSummary Station::Run::summarize() {
   s.udp_datagrams = client_->stats().datagrams.load();
   s.udp_lost = client_->stats().udp_lost.load();
   s.bytes_in = client_->stats().bytes_in.load();
+  const AssemblerCounters& ac = assembler_.counters();
+  s.tiles_missing = ac.tiles_missing;
+  s.frames_incomplete = ac.frames_incomplete;
+  s.frames_unclosed = ac.frames_unclosed;
+  s.tiles_expired = ac.tiles_expired;
+  s.nacks = ac.nacks;
+  s.tiles_nacked = ac.tiles_nacked;
+  s.watched_tiles_nacked = ac.watched_tiles_nacked;
+  s.tiles_repaired = ac.tiles_repaired;
+  s.repairs_useless = ac.repairs_useless;
+  s.key_frame_requests = ac.key_frame_requests;
+  const TileAges& ages = assembler_.ages();
+  s.tile_age_samples = ages.all.count();
+  s.tile_age_watched_samples = ages.watched.count();
+  s.tile_age_watched_median = ages.watched.quantile(0.5);
+  s.tile_age_watched_p99 = ages.watched.quantile(0.99);
+  s.tile_age_watched_max = ages.watched.max();
+  s.tile_age_all_median = ages.all.quantile(0.5);
+  s.tile_age_all_p99 = ages.all.quantile(0.99);
+  s.tile_age_all_max = ages.all.max();
   for (std::size_t n = 0; n < s.udp_messages_by_fragments.size(); ++n)
     s.udp_messages_by_fragments[n] = client_->stats().udp_messages_by_fragments[n].load();
   return s;

@@ -173,10 +173,10 @@ struct SurfaceClient::Impl {
     set_state(ClientState::Handshaking, "connected to " + ep.address().to_string());
     last_rx_ns = monotonic_ns();
     proto::Hello hello;
-    hello.capabilities = proto::kCapDepthTcp | proto::kCapRoi | proto::kCapStats |
-                         (cfg.frame_parts ? proto::kCapFrameParts : 0u) |
-                         (cfg.use_udp ? proto::kCapDepthUdp : 0u) |
-                         (cfg.want_video ? proto::kCapVideo : 0u);
+    hello.capabilities =
+        proto::kCapDepthTcp | proto::kCapRoi | proto::kCapStats |
+        (cfg.frame_parts ? proto::kCapFrameParts : 0u) | (cfg.repair ? proto::kCapRepair : 0u) |
+        (cfg.use_udp ? proto::kCapDepthUdp : 0u) | (cfg.want_video ? proto::kCapVideo : 0u);
     hello.codecs = {proto::Codec::Zip, proto::Codec::Fast, proto::Codec::Raw};
     hello.udp_port = udp_port;
     send(hello);
@@ -470,6 +470,19 @@ void SurfaceClient::stop() {
 void SurfaceClient::request_roi(const proto::RoiRequest& roi) {
   asio::post(impl_->io, [this, roi] {
     if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(roi);
+  });
+}
+
+void SurfaceClient::send_nack(const proto::TileNack& nack) {
+  asio::post(impl_->io, [this, nack] {
+    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(nack);
+  });
+}
+
+void SurfaceClient::request_key_frame() {
+  asio::post(impl_->io, [this] {
+    if (impl_->session_id != 0 && impl_->tcp_sock.is_open())
+      impl_->send(proto::Stats{{{"key_frame_request", 1}}});
   });
 }
 

@@ -150,6 +150,78 @@ TEST_P(LossThroughProxy, SurfaceRateFollowsTheLossAndTheStationCountsWhatTheProx
 
 INSTANTIATE_TEST_SUITE_P(Faults, LossThroughProxy, ::testing::Values(0.05, 0.20));
 
+// Repair (docs/PROTOCOL.md 2.5) through telex-sim-impair at 10 % loss and 20 ms delay. The scene
+// is the still plane without noise, so after the key frame the remote sends a tile only when
+// asked: a tile lost under the fingertip stays stale until the next key frame (30 frames) unless
+// the station's TileNack brings it back. With repair the fingertip windows' tiles are at most two
+// frame periods old at p99 (sampled at every closed frame); without it they are older, so the
+// measure can tell.
+struct RepairRun {
+  nlohmann::json station;
+  std::string remote_log;
+};
+
+RepairRun run_repair(bool repair, const std::string& loss, const std::string& name) {
+  const auto dir = scratch_dir(name);
+  const auto port = free_port(), udp_port = free_port(), proxy_port = free_port();
+  Process remote(
+      {built_binary("telex-remote").string(), "--listen", "127.0.0.1:" + std::to_string(port),
+       "--transport", "udp", "--source", "synthetic:plane,noise=off"},
+      dir / "remote.out", dir / "remote.err");
+  Process proxy(
+      {built_binary("telex-sim-impair").string(), "--listen",
+       "127.0.0.1:" + std::to_string(proxy_port), "--forward",
+       "127.0.0.1:" + std::to_string(udp_port), "--loss", loss, "--delay-ms", "20", "--seed", "11"},
+      dir / "proxy.out", dir / "proxy.err");
+  std::vector<std::string> extra{"--udp-port",
+                                 std::to_string(udp_port),
+                                 "--udp-announce-port",
+                                 std::to_string(proxy_port),
+                                 "--hand",
+                                 "script:press",
+                                 "--repeat",
+                                 "--duration",
+                                 "8"};
+  if (!repair) extra.push_back("--no-repair");
+  Process local(local_argv(port, extra), dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(60s);
+  EXPECT_TRUE(rc.has_value()) << "telex-local did not finish";
+  EXPECT_EQ(rc.value_or(-1), 0) << local.stderr_text();
+  std::this_thread::sleep_for(1200ms);  // the remote's next stats line
+  proxy.signal(SIGINT);
+  remote.signal(SIGINT);
+  remote.wait(5s);
+  proxy.wait(5s);
+  return {last_json_line(local.stdout_text()), remote.stderr_text()};
+}
+
+TEST(Repair, LostFingertipTilesAreRepairedWithinTwoFramePeriods) {
+  TELEX_REQUIRE_REMOTE();
+  const RepairRun on = run_repair(true, "0.10", "repair_on");
+  const auto& s = on.station;
+  ASSERT_TRUE(s.is_object());
+  ASSERT_GT(s["udp_lost"].get<double>(), 0) << "the proxy lost nothing";
+  ASSERT_GT(s["tile_age_watched_samples"].get<double>(), 100 / kSanitizerSlowdown)
+      << "no fingertip window was watched";
+  EXPECT_GT(s["nacks"].get<double>(), 0);
+  EXPECT_GT(s["watched_tiles_nacked"].get<double>(), 0) << "no fingertip tile was lost";
+  EXPECT_GT(s["tiles_repaired"].get<double>(), 0);
+  EXPECT_LE(s["tile_age_watched_p99_frames"].get<double>(), 2.0) << s.dump();
+  // The remote answered every NACK it got from its cache.
+  EXPECT_GT(last_counter(on.remote_log, "nacks"), 0) << on.remote_log;
+  EXPECT_GT(last_counter(on.remote_log, "repaired"), 0);
+  EXPECT_EQ(last_counter(on.remote_log, "unavailable"), 0);
+
+  // The control, at 20 % loss so that a short run surely loses fingertip tiles: without repair
+  // they wait for the next key frame, and the age measured shows it.
+  const RepairRun off = run_repair(false, "0.20", "repair_off");
+  ASSERT_TRUE(off.station.is_object());
+  EXPECT_EQ(off.station["nacks"].get<double>(), 0);
+  EXPECT_EQ(last_counter(off.remote_log, "nacks"), 0);
+  EXPECT_GT(off.station["tile_age_watched_p99_frames"].get<double>(), 4.0)
+      << "without repair the fingertip tiles were not older: the test shows nothing";
+}
+
 struct Row {
   double t = 0, pressure = 0;
   std::string status;

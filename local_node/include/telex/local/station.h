@@ -33,7 +33,11 @@ struct StationConfig {
   double rate_hz = 1000.0;
   bool realtime = true;         // try SCHED_FIFO for the haptic thread
   double max_tile_age_s = 0.5;  // a missing tile keeps its last value this long
-  double duration_s = 0.0;      // 0 = until stopped
+  // Repair (docs/PROTOCOL.md 2.5; client.repair announces it): a tile asked for is asked again
+  // after max(nack_retry_min_s, the stream's transit + 2 RTT); key frames at most this often.
+  double nack_retry_min_s = 0.025;
+  double key_request_interval_s = 0.25;
+  double duration_s = 0.0;  // 0 = until stopped
   double first_surface_timeout_s = 10.0;
   std::filesystem::path log_forces_csv;    // empty = off
   int log_every = 1;                       // one row per finger every N ticks
@@ -73,6 +77,9 @@ struct StationSummary {
   std::uint64_t contact_latency_samples = 0;
   double contact_latency_median_ms = 0;
   double contact_latency_p99_ms = 0;
+  // Of every surface built from a new frame or part: capture to its manifest's arrival, and from
+  // that arrival to the surface's publication.
+  double arrive_median_ms = 0, arrive_p99_ms = 0, build_wait_median_ms = 0, build_wait_p99_ms = 0;
   double peak_pressure_N = 0;
   double peak_shear_N = 0;
   std::string scheduling;
@@ -82,6 +89,15 @@ struct StationSummary {
   std::uint64_t udp_datagrams = 0, udp_lost = 0;
   std::uint64_t bytes_in = 0;  // everything the remote sent (TCP and UDP, headers and tags)
   std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
+  // Repair (FrameAssembler's counters) and tile ages in frame periods at each closed frame: the
+  // tiles under the fingertip windows, and all tiles.
+  std::uint64_t tiles_missing = 0, frames_incomplete = 0, frames_unclosed = 0, tiles_expired = 0;
+  std::uint64_t nacks = 0, tiles_nacked = 0, watched_tiles_nacked = 0, tiles_repaired = 0,
+                repairs_useless = 0;
+  std::uint64_t key_frame_requests = 0;
+  std::uint64_t tile_age_samples = 0, tile_age_watched_samples = 0;
+  double tile_age_watched_median = 0, tile_age_watched_p99 = 0, tile_age_watched_max = 0;
+  double tile_age_all_median = 0, tile_age_all_p99 = 0, tile_age_all_max = 0;
   // --record: what was written and what the queues dropped; record_error when writing failed.
   std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
   std::uint64_t record_dropped_ticks = 0, record_dropped_surfaces = 0, record_dropped_bodies = 0;

@@ -21,6 +21,7 @@ struct ClientConfig {
   bool use_udp = true;      // ask for depth over UDP (the remote may still choose TCP)
   bool want_video = false;  // ask for the right-eye video
   bool frame_parts = true;  // take frames as an ROI part and a rest (PROTOCOL.md 2.4)
+  bool repair = true;       // announce kCapRepair: the remote caches tiles for TileNacks (2.5)
   std::int64_t heartbeat_ns = 250'000'000;
   std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
   std::int64_t backoff_min_ns = 100'000'000;
@@ -86,6 +87,10 @@ class SurfaceClient {
   void stop();   // sends Bye when connected, joins the thread
   // Thread-safe: asks the remote for full-rate tiles in these rectangles.
   void request_roi(const proto::RoiRequest& roi);
+  // Thread-safe: asks the remote to resend tiles (PROTOCOL.md 2.5), or for a key frame (a Stats
+  // message with key_frame_request = 1). Dropped when no session is up.
+  void send_nack(const proto::TileNack& nack);
+  void request_key_frame();
 
   const ClientStats& stats() const { return stats_; }
   ClientState state() const { return static_cast<ClientState>(stats_.state.load()); }
