@@ -127,9 +127,13 @@ class RemoteServer::Impl {
   OutFrame pack(const Link& l, std::uint32_t frame_id,
                 const std::vector<std::pair<proto::Header, proto::Message>>& msgs);
   // `frame_id` is the fragments' (the messages' headers keep their own).
-  void post_frame(OutFrame f, std::uint32_t generation);
+  // Packs `msgs` on the io thread, so message ids follow the send queue's order (the client's
+  // reassembler counts an id that arrives after a later one as lost).
+  void post_frame(const Link& l, std::uint32_t frame_id,
+                  std::vector<std::pair<proto::Header, proto::Message>> msgs, bool counts_as_frame,
+                  bool depth);
   void enqueue_frame(OutFrame f);   // io thread
-  void enqueue_repair(OutFrame f);  // io thread: after the frame on the wire, before the others
+  void enqueue_repair(OutFrame f);  // io thread: at the end of the queue, never trimmed
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
 
@@ -165,9 +169,9 @@ class RemoteServer::Impl {
   std::atomic<bool> connected_{false};
   std::atomic<bool> video_wanted_{false};
   std::atomic<std::uint32_t> seq_{0};
-  // The newest frame handed to the transport: a repair's datagrams carry it in their fragment
+  // io thread: the newest depth frame queued; a repair's datagrams carry it in their fragment
   // header, so the client's reassembler (newest frame wins) does not drop them as stale.
-  std::atomic<std::uint32_t> newest_frame_id_{0};
+  std::uint32_t newest_queued_frame_id_ = 0;
   std::atomic<std::uint32_t> message_id_{0};
 };
 

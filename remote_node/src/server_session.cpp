@@ -188,8 +188,9 @@ void RemoteServer::Impl::request_key_frame() {
   request_.force_key_frame = true;
 }
 
-// A TileNack (PROTOCOL.md 2.5): each tile it lists goes out again once, as cached, ahead of the
-// queued frames; a tile the cache no longer holds is counted and the next frame is a key frame.
+// A TileNack (PROTOCOL.md 2.5): each tile it lists goes out again once, as cached, behind the
+// frames already queued (at most max_queued_frames); a tile the cache no longer holds is counted
+// and the next frame is a key frame.
 void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   ++counters_.nacks_in;
   const auto l = link();
@@ -211,7 +212,7 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
     msgs.emplace_back(header(l->session_id, c.frame_id, c.capture_ns, false, proto::kFlagRepair),
                       proto::tile_message(*c.tile, c.codec));
   counters_.repair_tiles_sent += answer.resend.size();
-  OutFrame f = pack(*l, newest_frame_id_.load(), msgs);
+  OutFrame f = pack(*l, newest_queued_frame_id_, msgs);
   f.counts_as_frame = false;
   f.repair = true;
   enqueue_repair(std::move(f));

@@ -113,10 +113,7 @@ void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
     std::lock_guard lock(cache_mu_);
     cache_.add(frame.frame_id, frame.capture_ns, frame.codec, frame.tiles);
   }
-  newest_frame_id_.store(frame.frame_id);
-  OutFrame f = pack(*l, frame.frame_id, msgs);
-  f.counts_as_frame = frame.part != FramePart::RoiPart;
-  post_frame(std::move(f), l->generation);
+  post_frame(*l, frame.frame_id, std::move(msgs), frame.part != FramePart::RoiPart, true);
 }
 
 void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
@@ -136,15 +133,19 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
     v.jpeg = jpeg;
     msgs.emplace_back(header(l->session_id, frame_id, capture_ns, false), std::move(v));
   }
-  OutFrame f = pack(*l, frame_id, msgs);
-  f.counts_as_frame = false;
-  post_frame(std::move(f), l->generation);
+  post_frame(*l, frame_id, std::move(msgs), false, false);
 }
 
 // Hands a packed frame to the io thread, for the session it was packed for only.
-void RemoteServer::Impl::post_frame(OutFrame f, std::uint32_t generation) {
-  asio::post(io_, [this, f = std::move(f), generation]() mutable {
-    if (active_ && active_generation_ == generation) enqueue_frame(std::move(f));
+void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
+                                    std::vector<std::pair<proto::Header, proto::Message>> msgs,
+                                    bool counts_as_frame, bool depth) {
+  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth]() {
+    if (!active_ || active_generation_ != l.generation) return;
+    OutFrame f = pack(l, frame_id, msgs);
+    f.counts_as_frame = counts_as_frame;
+    if (depth) newest_queued_frame_id_ = frame_id;
+    enqueue_frame(std::move(f));
   });
 }
 
@@ -165,11 +166,9 @@ void RemoteServer::Impl::enqueue_frame(OutFrame f) {
 
 void RemoteServer::Impl::enqueue_repair(OutFrame f) {
   if (!active_) return;
-  auto& a = *active_;
-  auto at = a.frames.begin();
-  while (at != a.frames.end() && at->next != 0) ++at;  // what is on the wire finishes first
-  a.frames.insert(at, std::move(f));
-  if (a.over_udp)
+  // At the end: ahead of it would put its message ids before earlier ones on the wire.
+  active_->frames.push_back(std::move(f));
+  if (active_->over_udp)
     kick_udp(active_);
   else
     kick_tcp(active_);
