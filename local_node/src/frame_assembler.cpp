@@ -79,7 +79,9 @@ bool FrameAssembler::apply_tile(const proto::Header& header, const proto::DepthT
     if (!stale(idx)) {
       tile_current_capture_ns_[idx] = last_capture_ns_;
       ++counters_.tiles_repaired;
-      repaired_.push_back(tile.tile_index);
+      // Only a fingertip window's tile is worth republishing the frame for; the others go out
+      // with the next frame.
+      if (idx < watched_.size() && watched_[idx]) repaired_.push_back(tile.tile_index);
     }
     return true;
   }

@@ -132,8 +132,7 @@ class RemoteServer::Impl {
   void post_frame(const Link& l, std::uint32_t frame_id,
                   std::vector<std::pair<proto::Header, proto::Message>> msgs, bool counts_as_frame,
                   bool depth);
-  void enqueue_frame(OutFrame f);   // io thread
-  void enqueue_repair(OutFrame f);  // io thread: at the end of the queue, never trimmed
+  void enqueue_frame(OutFrame f);  // io thread
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
 

@@ -215,7 +215,7 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   OutFrame f = pack(*l, newest_queued_frame_id_, msgs);
   f.counts_as_frame = false;
   f.repair = true;
-  enqueue_repair(std::move(f));
+  enqueue_frame(std::move(f));
 }
 
 void RemoteServer::Impl::send_control(Buffer buf) {

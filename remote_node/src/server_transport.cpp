@@ -136,7 +136,8 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
   post_frame(*l, frame_id, std::move(msgs), false, false);
 }
 
-// Hands a packed frame to the io thread, for the session it was packed for only.
+// Hands a frame's messages to the io thread, which packs them for the session they were made for
+// (only) as it queues them.
 void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
                                     std::vector<std::pair<proto::Header, proto::Message>> msgs,
                                     bool counts_as_frame, bool depth) {
@@ -159,16 +160,6 @@ void RemoteServer::Impl::enqueue_frame(OutFrame f) {
     request_key_frame();
   }
   if (a.over_udp)
-    kick_udp(active_);
-  else
-    kick_tcp(active_);
-}
-
-void RemoteServer::Impl::enqueue_repair(OutFrame f) {
-  if (!active_) return;
-  // At the end: ahead of it would put its message ids before earlier ones on the wire.
-  active_->frames.push_back(std::move(f));
-  if (active_->over_udp)
     kick_udp(active_);
   else
     kick_tcp(active_);

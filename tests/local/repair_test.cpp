@@ -98,7 +98,7 @@ TEST(Repair, AStaleTileIsNotConfirmedByLaterFramesAndExpiresUnrepaired) {
   EXPECT_GE(a.ages().watched.max(), 16.5);
 }
 
-TEST(Repair, TilesOutsideTheWatchedOnesAreAskedForTooAndNoKeyFrame) {
+TEST(Repair, TilesOutsideTheWatchedOnesAreAskedForTooButRepublishNothing) {
   std::int64_t now = 0;
   FrameAssembler a = lost_tile_3(now);
   a.set_watched({tile_rect(0)});
@@ -107,6 +107,11 @@ TEST(Repair, TilesOutsideTheWatchedOnesAreAskedForTooAndNoKeyFrame) {
   ASSERT_TRUE(r.nack);
   EXPECT_EQ(r.nack->tiles, std::vector<std::uint16_t>{3});
   EXPECT_FALSE(r.key_frame);
+  // Its copy makes it current, but republishes nothing: no fingertip reads it.
+  EXPECT_TRUE(tile(a, level(1200), 2, 3, now + 12 * kMs, /*repair=*/true));
+  EXPECT_EQ(a.counters().tiles_repaired, 1u);
+  EXPECT_FALSE(a.take_repaired(now + 12 * kMs));
+  EXPECT_FALSE(a.repair_request(now + 40 * kMs, 25 * kMs, 250 * kMs).nack);
 }
 
 TEST(Repair, UnclosedFramesAskForAKeyFrameAtMostOncePerIntervalUntilOneCloses) {

@@ -86,8 +86,8 @@ class FrameAssembler {
   // changed the tile after it.
   bool apply_tile(const proto::Header& header, const proto::DepthTile& tile, std::int64_t now_ns);
 
-  // The tiles repairs made current since the last call, as the last frame republished (part
-  // Repair, the same capture); nothing when no repair made a tile current.
+  // The watched tiles repairs made current since the last call, as the last frame republished
+  // (part Repair, the same capture); nothing when no repair made a watched tile current.
   std::optional<AssembledFrame> take_repaired(std::int64_t now_ns);
 
   // Tiles whose age is sampled as `watched` (the fingertip windows' tiles): those that intersect
