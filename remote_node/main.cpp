@@ -107,6 +107,10 @@ int main(int argc, char** argv) {
   app.add_option("--tile", tile, "Tile size WxH in pixels");
   app.add_option("--key-every", cfg.pipeline.key_frame_every, "Frames between key frames")
       ->check(CLI::Range(1, 100000));
+  app.add_option("--stream-tiles", cfg.pipeline.stream_tiles,
+                 "Send a frame's tiles in batches of N as they are encoded, ahead of its manifest "
+                 "(0 = each part at once)")
+      ->check(CLI::Range(0, 4096));
   app.add_option("--background-every", cfg.pipeline.background_every,
                  "While an ROI is requested, tiles outside it are considered every Nth frame")
       ->check(CLI::Range(1, 1000));

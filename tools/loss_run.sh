@@ -5,7 +5,8 @@
 #   tools/loss_run.sh LOSS DELAY_MS SOURCE [telex-local flags...]
 # LOSS 0 and DELAY_MS 0 skip the proxy. SOURCE is a telex-remote --source, e.g.
 #   'files:/path/to/desk_*_depth_mm.png,fps=30,loop' or synthetic:plane,noise=off.
-# TELEX_RUN_SECONDS (default 30) is the station's duration. Needs a build (tools/build.sh).
+# TELEX_RUN_SECONDS (default 30) is the station's duration; TELEX_REMOTE_FLAGS (split on spaces)
+# adds telex-remote flags. Needs a build (tools/build.sh).
 set -euo pipefail
 if [[ $# -lt 3 ]]; then
   echo "usage: tools/loss_run.sh LOSS DELAY_MS SOURCE [telex-local flags...]" >&2
@@ -21,7 +22,7 @@ port=$((20000 + RANDOM % 20000))
 udp=$((port + 1)) proxy=$((port + 2))
 
 "$bin/telex-remote" --listen "127.0.0.1:$port" --transport udp --duration $((seconds + 10)) \
-  --source "$source" >"$log/remote.out" 2>"$log/remote.err" &
+  --source "$source" ${TELEX_REMOTE_FLAGS:-} >"$log/remote.out" 2>"$log/remote.err" &
 remote=$!
 pids=("$remote")
 udp_flags=()

@@ -95,6 +95,9 @@ void RemoteDaemon::start() {
   config_.server.fps = static_cast<float>(depth_->nominal_fps());
   server_ = std::make_unique<RemoteServer>(config_.server);
   server_->start();
+  // Tiles go to the network as they are encoded, so the station decodes while the rest encodes.
+  pipeline_.set_tile_sink(
+      [this](const ProcessedFrame& part, std::size_t from) { server_->publish_tiles(part, from); });
   running_ = true;
   capture_thread_ = std::thread([this] { capture_loop(); });
   process_thread_ = std::thread([this] { process_loop(); });

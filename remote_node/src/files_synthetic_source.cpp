@@ -117,6 +117,8 @@ class FilesDepthSource final : public DepthSource {
     // Load the first frame now so a bad file or unit fails at start-up, not in the loop.
     const DepthImage first = load_depth(files_.front(), units_);
     intrinsics_ = first.intrinsics;
+    decoded_.clear();
+    decoded_bytes_ = 0;
     frames_ = 0;
     cursor_.restart();
   }
@@ -127,12 +129,27 @@ class FilesDepthSource final : public DepthSource {
     const auto next = cursor_.take(files_.size(), timeout, "files source", out);
     if (!next) return out;
     const std::string& file = files_[*next];
-    try {
-      out.frame.image = load_depth(file, units_);
-    } catch (const std::exception& e) {
-      out.status = ReadStatus::Error;
-      out.error = e.what();
-      return out;
+    if (*next < decoded_.size() && !decoded_[*next].empty()) {
+      out.frame.image = decoded_[*next];
+      out.frame.image.depth_mm = decoded_[*next].depth_mm.clone();
+    } else {
+      try {
+        out.frame.image = load_depth(file, units_);
+      } catch (const std::exception& e) {
+        out.status = ReadStatus::Error;
+        out.error = e.what();
+        return out;
+      }
+      // A looping replay decodes each file once and keeps it while the frames fit in
+      // kDecodedBudget, as a camera hands frames over without decoding a PNG (3.3 ms per
+      // 640x480 frame on the bench machine, on the CPU the pipeline runs on).
+      const std::size_t bytes = out.frame.image.depth_mm.total() * sizeof(std::uint16_t);
+      if (cursor_.loop() && decoded_bytes_ + bytes <= kDecodedBudget) {
+        decoded_.resize(files_.size());
+        decoded_[*next] = out.frame.image;
+        decoded_[*next].depth_mm = out.frame.image.depth_mm.clone();
+        decoded_bytes_ += bytes;
+      }
     }
     out.frame.capture_ns = steady_now_ns();
     out.frame.frame_id = ++frames_;
@@ -155,6 +172,9 @@ class FilesDepthSource final : public DepthSource {
   double fps_;
   FileCursor cursor_;
   std::vector<std::string> files_;
+  static constexpr std::size_t kDecodedBudget = std::size_t{256} << 20;
+  std::vector<DepthImage> decoded_;  // by file index, while looping
+  std::size_t decoded_bytes_ = 0;
   std::uint64_t frames_ = 0;
   Intrinsics intrinsics_;
 };

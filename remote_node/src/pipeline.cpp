@@ -106,6 +106,12 @@ const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
 }
 
 ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameRequest& request) {
+  // One message set in index order: nothing is streamed (the sink is back when this returns).
+  struct Unset {
+    TileSink& sink;
+    TileSink saved = std::move(sink);
+    ~Unset() { sink = std::move(saved); }
+  } unset{sink_};
   ProcessedFrame out = process_roi(frame, request);
   if (!rest_pending()) return out;
   ProcessedFrame rest = process_rest(frame);
@@ -241,6 +247,12 @@ std::vector<int> FramePipeline::process_tiles(const DepthFrame& frame, const cv:
     t.rect = r;
     t.bytes = proto::encode_depth(stabilised_(r), out.codec, config_.zip_level);
     out.tiles.push_back(std::move(t));
+    // Hand a batch on while the next ones are encoded; the last batch goes with the manifest.
+    if (sink_ && config_.stream_tiles > 0 && sent.size() < send.size() &&
+        out.tiles.size() - out.tiles_streamed >= static_cast<std::size_t>(config_.stream_tiles)) {
+      sink_(out, out.tiles_streamed);
+      out.tiles_streamed = out.tiles.size();
+    }
   }
   out.times.encode_ms += now_ms() - t0;
   return sent;
@@ -271,6 +283,8 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
   job.tiles = &roi_tiles;
   job.fill_rois = &request.rois;
   job.key = key;
+  out.part = has_rest ? FramePart::RoiPart : FramePart::Whole;  // what streamed tiles carry
+  out.key_frame = key;
   const std::vector<int> sent = process_tiles(frame, in, job, out);
   if (!has_rest) out.tiles_skipped += static_cast<std::size_t>(grid.count()) - roi_tiles.size();
 
@@ -321,6 +335,9 @@ ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame,
   job.key = pending_.key;
   // Two rests in a row are never cut, so the background always progresses.
   if (preempt && !last_rest_cut_) job.preempt = &preempt;
+  // Tiles streamed before a cut carry the key flag the rest began with; the manifest decides.
+  out.part = FramePart::Rest;
+  out.key_frame = pending_.key;
   const std::vector<int> sent = process_tiles(frame, image.depth_mm, job, out);
   last_rest_cut_ = out.rest_cut;
   if (out.rest_cut) {
@@ -368,6 +385,7 @@ ProcessedFrame FramePipeline::process_whole(const DepthFrame& frame, const Frame
   const bool key = next_frame_is_key(in.size(), request);
   key_owed_ = rest_owed_ = false;  // a whole frame sends every tile that differs
   job.key = key;
+  out.key_frame = key;
   close_one_part(out, key, process_tiles(frame, in, job, out));
   out.sent_view_mm = sent_view_.clone();
   out.times.total_ms = config_.clock_ms() - t_start;

@@ -173,6 +173,9 @@ bool RemoteServer::video_wanted() const { return impl_->video_wanted(); }
 const ServerCounters& RemoteServer::counters() const { return impl_->counters_; }
 FrameRequest RemoteServer::take_request() { return impl_->take_request(); }
 void RemoteServer::publish(const ProcessedFrame& frame) { impl_->publish(frame); }
+void RemoteServer::publish_tiles(const ProcessedFrame& part, std::size_t from) {
+  impl_->publish_tiles(part, from);
+}
 void RemoteServer::publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
                                  const std::vector<std::uint8_t>& left,
                                  const std::vector<std::uint8_t>& right, int width, int height) {

@@ -39,7 +39,9 @@ struct OutFrame {
   std::vector<Buffer> items;
   std::size_t next = 0;
   bool counts_as_frame = true;  // video frames are not counted in frames_sent
-  bool repair = false;          // resent tiles: ahead of queued frames, never trimmed
+  // false for resent tiles and for tiles streamed ahead of their part's manifest: not counted
+  // against the queue's bound and never dropped (each is a few tiles).
+  bool trimmable = true;
 };
 
 // The connected operator (Asio's chat_session): its socket, parser and queues. Lives on the io
@@ -83,6 +85,7 @@ class RemoteServer::Impl {
   std::uint16_t port() const { return acceptor_.local_endpoint().port(); }
   FrameRequest take_request();
   void publish(const ProcessedFrame& frame);
+  void publish_tiles(const ProcessedFrame& part, std::size_t from);
   void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
                      const std::vector<std::uint8_t>& left, const std::vector<std::uint8_t>& right,
                      int width, int height);
@@ -131,7 +134,13 @@ class RemoteServer::Impl {
   // reassembler counts an id that arrives after a later one as lost).
   void post_frame(const Link& l, std::uint32_t frame_id,
                   std::vector<std::pair<proto::Header, proto::Message>> msgs, bool counts_as_frame,
-                  bool depth);
+                  bool depth, bool trimmable = true);
+  // Sends StreamConfig first when the session or the frame's shape or codec is new.
+  void announce(const Link& l, const ProcessedFrame& frame);
+  // One message per tile of tiles[from, end), with the part's header flags.
+  std::vector<std::pair<proto::Header, proto::Message>> tile_messages(const Link& l,
+                                                                      const ProcessedFrame& frame,
+                                                                      std::size_t from);
   void enqueue_frame(OutFrame f);  // io thread
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
@@ -157,6 +166,7 @@ class RemoteServer::Impl {
   // processing thread only
   std::uint32_t announced_generation_ = 0;
   proto::StreamConfig announced_;
+  std::uint32_t streamed_generation_ = 0;  // the session the current part's tiles streamed to
 
   // shared
   std::mutex cache_mu_;

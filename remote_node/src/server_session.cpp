@@ -214,7 +214,7 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   counters_.repair_tiles_sent += answer.resend.size();
   OutFrame f = pack(*l, newest_queued_frame_id_, msgs);
   f.counts_as_frame = false;
-  f.repair = true;
+  f.trimmable = false;
   enqueue_frame(std::move(f));
 }
 

@@ -9,16 +9,16 @@ namespace telex::remote {
 namespace {
 
 // Drops the oldest frames nobody has started sending so that at most `bound` remain queued.
-// Repairs are not counted and never dropped (each is a few tiles, sent once per request).
+// Repairs and streamed batches are not counted and never dropped (each is a few tiles).
 std::uint64_t trim_queue(std::deque<OutFrame>& q, std::size_t bound) {
   std::uint64_t dropped = 0;
   const auto frames = [&q] {
     return static_cast<std::size_t>(
-        std::count_if(q.begin(), q.end(), [](const OutFrame& f) { return !f.repair; }));
+        std::count_if(q.begin(), q.end(), [](const OutFrame& f) { return f.trimmable; }));
   };
   while (frames() > bound) {
     auto it = std::find_if(q.begin(), q.end(), [](const OutFrame& f) {
-      return !f.repair && f.next == 0;  // the frame on the wire finishes
+      return f.trimmable && f.next == 0;  // the frame on the wire finishes
     });
     if (it == q.end()) break;
     q.erase(it);
@@ -68,13 +68,7 @@ OutFrame RemoteServer::Impl::pack(
   return f;
 }
 
-void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
-  const auto l = link();
-  if (!l) return;
-  // A frame processed while nobody was connected has no tiles or manifest: a receiver that
-  // connected in between waits for the next one (its key frame).
-  if (frame.manifest.tile_count == 0) return;
-  // A new session, or a frame of another shape or codec, announces the stream first (on TCP).
+void RemoteServer::Impl::announce(const Link& l, const ProcessedFrame& frame) {
   proto::StreamConfig sc;
   sc.width = static_cast<std::uint16_t>(frame.grid.frame_width);
   sc.height = static_cast<std::uint16_t>(frame.grid.frame_height);
@@ -88,24 +82,49 @@ void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
   sc.grid_rows = static_cast<std::uint16_t>(frame.grid.rows());
   sc.codec = frame.codec;
   sc.fps = config_.fps;
-  if (l->generation != announced_generation_ || !(sc == announced_)) {
-    announced_generation_ = l->generation;
-    announced_ = sc;
-    auto buf = make_buffer(proto::encode_stream_sealed(
-        header(l->session_id, frame.frame_id, frame.capture_ns, false), sc, l->key.get()));
-    asio::post(io_, [this, buf, gen = l->generation] {
-      if (active_ && active_generation_ == gen) send_control(buf);
-    });
-  }
+  if (l.generation == announced_generation_ && sc == announced_) return;
+  announced_generation_ = l.generation;
+  announced_ = sc;
+  auto buf = make_buffer(proto::encode_stream_sealed(
+      header(l.session_id, frame.frame_id, frame.capture_ns, false), sc, l.key.get()));
+  asio::post(io_, [this, buf, gen = l.generation] {
+    if (active_ && active_generation_ == gen) send_control(buf);
+  });
+}
+
+std::vector<std::pair<proto::Header, proto::Message>> RemoteServer::Impl::tile_messages(
+    const Link& l, const ProcessedFrame& frame, std::size_t from) {
   // An ROI part's messages say so; the rest (or a whole frame) closes the frame and counts it.
   const std::uint16_t part_flag = frame.part == FramePart::RoiPart ? proto::kFlagRoiPart : 0;
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
-  msgs.reserve(frame.tiles.size() + 1);
-  for (const auto& t : frame.tiles) {
+  msgs.reserve(frame.tiles.size() - from + 1);
+  for (std::size_t i = from; i < frame.tiles.size(); ++i)
     msgs.emplace_back(
-        header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
-        proto::tile_message(t, frame.codec));
-  }
+        header(l.session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
+        proto::tile_message(frame.tiles[i], frame.codec));
+  return msgs;
+}
+
+void RemoteServer::Impl::publish_tiles(const ProcessedFrame& part, std::size_t from) {
+  const auto l = link();
+  if (!l || from >= part.tiles.size()) return;
+  announce(*l, part);
+  streamed_generation_ = l->generation;
+  post_frame(*l, part.frame_id, tile_messages(*l, part, from), false, true, false);
+}
+
+void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
+  const auto l = link();
+  if (!l) return;
+  // A frame processed while nobody was connected has no tiles or manifest: a receiver that
+  // connected in between waits for the next one (its key frame).
+  if (frame.manifest.tile_count == 0) return;
+  // Part of this part's tiles went to an earlier session: its manifest means nothing here.
+  if (frame.tiles_streamed > 0 && streamed_generation_ != l->generation) return;
+  // A new session, or a frame of another shape or codec, announces the stream first (on TCP).
+  announce(*l, frame);
+  auto msgs = tile_messages(*l, frame, frame.tiles_streamed);
+  const std::uint16_t part_flag = frame.part == FramePart::RoiPart ? proto::kFlagRoiPart : 0;
   msgs.emplace_back(
       header(l->session_id, frame.frame_id, frame.capture_ns, frame.key_frame, part_flag),
       frame.manifest);
@@ -140,11 +159,12 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
 // (only) as it queues them.
 void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
                                     std::vector<std::pair<proto::Header, proto::Message>> msgs,
-                                    bool counts_as_frame, bool depth) {
-  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth]() {
+                                    bool counts_as_frame, bool depth, bool trimmable) {
+  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth, trimmable]() {
     if (!active_ || active_generation_ != l.generation) return;
     OutFrame f = pack(l, frame_id, msgs);
     f.counts_as_frame = counts_as_frame;
+    f.trimmable = trimmable;
     if (depth) newest_queued_frame_id_ = frame_id;
     enqueue_frame(std::move(f));
   });

@@ -259,5 +259,68 @@ TEST(RoiFirst, WithoutRoisOrReceiverTheFrameIsWhole) {
   EXPECT_DEATH(p.process_rest(frame_of(d, 2)), "TELEX_DEMAND");
 }
 
+TEST(TileSink, PartsStreamInBatchesAheadOfTheirManifestAndMergedFramesDoNot) {
+  PipelineConfig cfg;
+  cfg.stream_tiles = 8;
+  FramePipeline streaming(cfg), plain(cfg);
+  struct Batch {
+    std::uint32_t frame_id;
+    FramePart part;
+    bool key;
+    std::vector<int> tiles;
+  };
+  std::vector<Batch> batches;
+  streaming.set_tile_sink([&](const ProcessedFrame& part, std::size_t from) {
+    Batch b{part.frame_id, part.part, part.key_frame, {}};
+    for (std::size_t i = from; i < part.tiles.size(); ++i) b.tiles.push_back(part.tiles[i].index);
+    batches.push_back(std::move(b));
+  });
+  // A whole key frame (64 tiles): seven batches of 8 stream, the last 8 go with the manifest.
+  const cv::Mat1w d = holey_frame(5);
+  const ProcessedFrame whole = streaming.process_roi(frame_of(d, 1), {});
+  const ProcessedFrame reference = plain.process_roi(frame_of(d, 1), {});
+  ASSERT_EQ(whole.tiles.size(), 64u);
+  EXPECT_EQ(whole.tiles_streamed, 56u);
+  ASSERT_EQ(batches.size(), 7u);
+  std::vector<int> streamed;
+  for (const auto& b : batches) {
+    EXPECT_EQ(b.frame_id, 1u);
+    EXPECT_EQ(b.part, FramePart::Whole);
+    EXPECT_TRUE(b.key);
+    EXPECT_EQ(b.tiles.size(), 8u);
+    streamed.insert(streamed.end(), b.tiles.begin(), b.tiles.end());
+  }
+  std::vector<int> first56 = indices(whole.tiles);
+  first56.resize(56);
+  EXPECT_EQ(streamed, first56);
+  // Streaming changes what goes when, not what goes.
+  EXPECT_EQ(indices(whole.tiles), indices(reference.tiles));
+  for (std::size_t i = 0; i < whole.tiles.size(); ++i)
+    EXPECT_EQ(whole.tiles[i].bytes, reference.tiles[i].bytes) << i;
+  EXPECT_EQ(whole.manifest, reference.manifest);
+
+  // An ROI part with a rest: the ROI part's batches carry its part and key flags.
+  batches.clear();
+  const ProcessedFrame roi = streaming.process_roi(frame_of(holey_frame(6), 2), roi_request(true));
+  ASSERT_EQ(roi.part, FramePart::RoiPart);
+  for (const auto& b : batches) EXPECT_EQ(b.part, FramePart::RoiPart);
+  EXPECT_EQ(roi.tiles_streamed, batches.size() * 8);
+  batches.clear();
+  const ProcessedFrame rest = streaming.process_rest(frame_of(holey_frame(6), 2));
+  ASSERT_FALSE(batches.empty());
+  for (const auto& b : batches) EXPECT_EQ(b.part, FramePart::Rest);
+  EXPECT_EQ(rest.tiles_streamed, batches.size() * 8);
+  EXPECT_LT(rest.tiles_streamed, rest.tiles.size());  // the last batch goes with the manifest
+
+  // process() merges both parts into one message set in index order: nothing streams, and the
+  // sink is back afterwards.
+  batches.clear();
+  const ProcessedFrame merged = streaming.process(frame_of(holey_frame(7), 3), roi_request(true));
+  EXPECT_TRUE(batches.empty());
+  EXPECT_EQ(merged.tiles_streamed, 0u);
+  streaming.process_roi(frame_of(holey_frame(8), 4), {});
+  EXPECT_FALSE(batches.empty());
+}
+
 }  // namespace
 }  // namespace telex::remote

@@ -50,6 +50,13 @@ TEST(FilesSource, LoopsAndNamesBadPatternsAndUnits) {
     auto r = source->read(500ms);
     ASSERT_EQ(r.status, ReadStatus::Frame) << r.error;
     seen.push_back(r.frame.image.depth_mm(0, 0));
+    // Each frame is the reader's own: writing into it changes no later pass.
+    r.frame.image.depth_mm.setTo(7);
+    // A looping replay decodes each file once: the later passes read no file.
+    if (i == 1) {
+      std::filesystem::remove(dir / "f0.png");
+      std::filesystem::remove(dir / "f1.png");
+    }
   }
   EXPECT_EQ(seen, (std::vector<std::uint16_t>{1000, 2000, 1000, 2000, 1000}));
 

@@ -59,6 +59,10 @@ struct PipelineConfig {
       2;  // tiles outside any ROI are considered every Nth frame while an ROI is set
   proto::Codec codec = proto::Codec::Zip;
   int zip_level = proto::kDefaultZipLevel;
+  // With a tile sink set (FramePipeline::set_tile_sink), every this many encoded tiles of a part
+  // are handed to it before the part is done, so the network (and the receiver's decoder) work
+  // while the rest is encoded. 0: each part is returned whole.
+  int stream_tiles = 8;
   StageClock clock_ms = steady_clock_ms;  // stage times (the bench passes thread_cpu_ms)
 };
 
@@ -107,6 +111,9 @@ struct ProcessedFrame {
   proto::Codec codec = proto::Codec::Zip;
   cv::Mat1w sent_view_mm;  // what a receiver that got every message of every frame now holds
   std::vector<proto::EncodedTile> tiles;  // tiles to send, increasing index
+  // tiles[0, tiles_streamed) went to the tile sink while the part was encoded; the rest and the
+  // manifest go when the part is returned.
+  std::size_t tiles_streamed = 0;
   proto::FrameManifest manifest;
   bool rest_cut = false;  // a Rest cut short for a newer frame: its unsent tiles go with the next
   std::size_t tiles_skipped = 0;  // unchanged, or not due (outside ROI on a background-skip frame)
@@ -143,6 +150,11 @@ class FramePipeline {
   // cut, so the background always progresses.
   ProcessedFrame process_rest(const DepthFrame& frame, const std::function<bool()>& preempt = {});
   const PipelineConfig& config() const { return config_; }
+  // Receives a part's tiles as they are encoded: `part` carries the frame's id, capture time,
+  // part, key flag, codec and grid, and tiles[from, part.tiles.size()) are new. Called on the
+  // processing thread, between tiles; the part is not finished (no manifest yet).
+  using TileSink = std::function<void(const ProcessedFrame& part, std::size_t from)>;
+  void set_tile_sink(TileSink sink) { sink_ = std::move(sink); }
   // The registration stage alone: `in` itself when the mode is none, else the frame in the eye
   // camera (valid until the next call).
   const DepthImage& register_frame(const DepthImage& in);
@@ -179,6 +191,7 @@ class FramePipeline {
   };
 
   PipelineConfig config_;
+  TileSink sink_;
   DepthImage registered_;
   ShiftScale shift_scale_;
   std::optional<Intrinsics> shift_scale_for_;  // source intrinsics shift_scale_ was derived for

@@ -105,6 +105,9 @@ class RemoteServer {
   FrameRequest take_request();
   // Queues one processed frame (tiles + manifest) for the connected client; no-op without one.
   void publish(const ProcessedFrame& frame);
+  // Queues tiles[from, end) of a part still being encoded (FramePipeline's tile sink) ahead of
+  // it; publish() of the finished part then sends only what was not streamed, and the manifest.
+  void publish_tiles(const ProcessedFrame& part, std::size_t from);
   // Queues JPEG views (eye 0 left, 1 right).
   void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
                      const std::vector<std::uint8_t>& left_jpeg,
