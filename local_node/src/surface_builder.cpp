@@ -96,6 +96,19 @@ SurfacePool::SurfacePool(std::size_t capacity) : capacity_(capacity) {
 
 SurfacePool::~SurfacePool() = default;
 
+void SurfacePool::warm(cv::Size size) {
+  if (size.width <= 0 || size.height <= 0)
+    throw std::invalid_argument("SurfacePool: empty snapshot size");
+  while (entries_.size() < capacity_) {
+    auto s = std::make_shared<PooledSurface>(size);
+    ++allocations_;
+    // calloc'd pages are mapped on first write: write the zeros they already read as.
+    s->depth_m.setTo(0.0f);
+    s->normals.setTo(cv::Vec3f(0.0f, 0.0f, 0.0f));
+    entries_.push_back(std::move(s));
+  }
+}
+
 std::shared_ptr<PooledSurface> SurfacePool::acquire(cv::Size size, bool zeroed) {
   if (size.width <= 0 || size.height <= 0)
     throw std::invalid_argument("SurfacePool: empty snapshot size");

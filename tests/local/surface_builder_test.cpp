@@ -187,6 +187,23 @@ TEST(SurfacePool, RoiAfterFullFrameClearsTheWholeFrame) {
   EXPECT_EQ(differing_pixels(*roi, *build_surface(f, roi_options(), w)), 0);
 }
 
+TEST(SurfacePool, WarmFillsThePoolWithZeroedSnapshotsThatAreRecycled) {
+  SurfacePool pool(3);
+  pool.warm({640, 480});
+  EXPECT_EQ(pool.pooled(), 3u);
+  EXPECT_EQ(pool.allocations(), 3u);
+  pool.warm({640, 480});  // already full: nothing more
+  EXPECT_EQ(pool.allocations(), 3u);
+  const AssembledFrame f = desk_frame(1, 1);
+  const std::vector<cv::Rect> w{{200, 150, 40, 40}};
+  const auto s = build_surface(f, roi_options(), w, nullptr, &pool);
+  EXPECT_EQ(pool.recycled(), 1u);
+  EXPECT_EQ(pool.allocations(), 3u);
+  EXPECT_EQ(nonzero_outside(*s, w), 0);
+  EXPECT_EQ(differing_pixels(*s, *build_surface(f, roi_options(), w)), 0);
+  EXPECT_THROW(pool.warm({0, 480}), std::invalid_argument);
+}
+
 TEST(SurfacePool, FullFrameRecycledEqualsFresh) {
   SurfacePool pool(1);
   const AssembledFrame f1 = desk_frame(1, 1), f2 = desk_frame(2, 2);

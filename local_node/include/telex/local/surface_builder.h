@@ -103,6 +103,9 @@ class SurfacePool {
   // (a recycled one has the windows its previous use wrote cleared; a whole-frame one is cleared
   // in full); without, its pixels are unspecified and the caller must write all of them.
   std::shared_ptr<PooledSurface> acquire(cv::Size size, bool zeroed);
+  // Fills the pool to capacity with snapshots of `size` whose pages are resident (written once),
+  // so the first frames do not pay for page faults: the station calls it before its first frame.
+  void warm(cv::Size size);
 
  private:
   std::size_t capacity_;
