@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: MIT
+// Hand forward kinematics: finger chains bent about per-finger axes.
+#include "telex/common/hand_kinematics.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace telex {
+
+std::array<FingerGeometry, 5> HandGeometry::default_fingers() {
+  // Adult hand proportions (Buryanov & Kotiuk 2010, rounded); knuckles spread across z.
+  std::array<FingerGeometry, 5> f{};
+  f[0].base_hand_m = {0.025, -0.015, -0.030};
+  f[0].dir_hand = glm::normalize(glm::dvec3{0.6, -0.2, -0.75});
+  f[0].curl_toward_hand = glm::normalize(glm::dvec3{0.3, -0.6, 0.7});
+  f[0].segment_m = {0.045, 0.032, 0.027};
+  f[0].max_angle_rad = {0.87, 1.05, 1.22};
+  f[1].base_hand_m = {0.085, 0.0, -0.025};
+  f[1].segment_m = {0.044, 0.025, 0.022};
+  f[2].base_hand_m = {0.088, 0.0, -0.005};
+  f[2].segment_m = {0.048, 0.030, 0.024};
+  f[3].base_hand_m = {0.083, 0.0, 0.015};
+  f[3].segment_m = {0.045, 0.028, 0.023};
+  f[4].base_hand_m = {0.075, 0.0, 0.033};
+  f[4].segment_m = {0.036, 0.020, 0.020};
+  return f;
+}
+
+namespace {
+glm::dvec3 mirror(const glm::dvec3& v, bool left) { return left ? glm::dvec3{v.x, v.y, -v.z} : v; }
+}  // namespace
+
+HandPoints hand_forward(const HandGeometry& hand, const Pose& X_WorldWrist,
+                        std::span<const double, 5> bend) {
+  HandPoints out;
+  out.wrist = X_WorldWrist.p_m;
+  for (int i = 0; i < 5; ++i) {
+    const FingerGeometry& g = hand.fingers[static_cast<std::size_t>(i)];
+    const glm::dvec3 dir0 = glm::normalize(mirror(g.dir_hand, hand.left));
+    glm::dvec3 axis = glm::cross(dir0, mirror(g.curl_toward_hand, hand.left));
+    // A curl direction parallel to the finger leaves no bending plane: keep the finger straight.
+    const double axis_len = glm::length(axis);
+    axis = axis_len > 1e-9 ? axis / axis_len : glm::dvec3{0.0};
+    const double raw = bend[static_cast<std::size_t>(i)];
+    const double b = std::isnan(raw) ? 0.0 : std::clamp(raw, 0.0, 1.0);
+    glm::dvec3 p = mirror(g.base_hand_m, hand.left);
+    glm::dvec3 dir = dir0;
+    double angle = 0.0;
+    out.joints[static_cast<std::size_t>(i)][0] = X_WorldWrist.p_m + X_WorldWrist.q * p;
+    for (int s = 0; s < 3; ++s) {
+      angle += b * g.max_angle_rad[static_cast<std::size_t>(s)];
+      dir = axis_len > 1e-9 ? glm::angleAxis(angle, axis) * dir0 : dir0;
+      p += dir * g.segment_m[static_cast<std::size_t>(s)];
+      out.joints[static_cast<std::size_t>(i)][static_cast<std::size_t>(s) + 1] =
+          X_WorldWrist.p_m + X_WorldWrist.q * p;
+    }
+    out.axis[static_cast<std::size_t>(i)] = glm::normalize(X_WorldWrist.q * dir);
+  }
+  return out;
+}
+
+}  // namespace telex
