@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: MIT
+// The operator's stereo view, one eye at a time: that eye's camera image as the background, the
+// remote depth registered to that eye written into the depth buffer, and the virtual body drawn as
+// shaded capsules, so the real scene hides the body wherever it is nearer. OpenGL 3.3 core through
+// libepoxy, on a headless EGL context (Mesa's llvmpipe runs it with no display and no GPU).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <glm/glm.hpp>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "telex/common/body.h"
+#include "telex/common/depth_image.h"
+
+namespace telex::local {
+
+// A segment with round ends (two spheres joined by a cylinder), in the right eye's camera frame
+// (x right, y down, z forward, metres). a == b draws a sphere.
+struct Capsule {
+  glm::dvec3 a{0.0}, b{0.0};
+  double radius_m = 0.01;
+  cv::Vec3b bgr{180, 200, 230};
+};
+
+struct EyeView {
+  Intrinsics k;
+  // This eye's centre in the right eye's camera frame (the right eye: 0; a left eye a baseline B
+  // to its left: (-B, 0, 0)); the eyes' axes are parallel (a rectified pair).
+  glm::dvec3 p_RightEye{0.0};
+  cv::Mat3b background;  // BGR, k's size; empty: dark grey
+  cv::Mat1w depth_mm;    // the remote depth registered to this eye, k's size; 0 or empty: no data
+};
+
+class StereoRenderer {
+ public:
+  // Creates the headless EGL context and the GL objects for `width` x `height` eyes. Throws
+  // std::runtime_error naming what is missing (no EGL display, no OpenGL 3.3 core context).
+  StereoRenderer(int width, int height);
+  ~StereoRenderer();
+  StereoRenderer(const StereoRenderer&) = delete;
+  StereoRenderer& operator=(const StereoRenderer&) = delete;
+
+  // One eye: background, depth, then the capsules with depth test. BGR, top row first. The
+  // calling thread must be the one that constructed the renderer (the context is current there).
+  cv::Mat3b render(const EyeView& eye, std::span<const Capsule> capsules);
+
+  std::string gl_renderer() const;  // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+  static constexpr double kNear_m = 0.05, kFar_m = 20.0;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The visible arms and hands of `body` as capsules in the right eye's frame: upper arm and
+// forearm (radii 4.5 and 3.5 cm), the palm as a capsule from the wrist to each knuckle, three
+// phalanges per finger. `to_right_eye` maps a world point into the right eye's camera frame.
+std::vector<Capsule> body_capsules(const BodyState& body,
+                                   const std::function<glm::dvec3(const glm::dvec3&)>& to_right_eye,
+                                   cv::Vec3b skin_bgr = {150, 175, 225});
+
+// Clip-space projection of a pinhole camera (x right, y down, z forward) so that a point lands
+// on the pixel centre OpenCV's convention gives it, u = fx x/z + cx, v = fy y/z + cy, with GL's
+// window row v (rows run top-down in the renderer's buffers, as in an image). Column-major.
+glm::mat4 projection_from_intrinsics(const Intrinsics& k, double near_m, double far_m);
+
+}  // namespace telex::local

@@ -1,0 +1,127 @@
+// SPDX-License-Identifier: MIT
+// The stereo view's renderer, headless on Mesa's EGL: the remote scene hides the body where it is
+// nearer (both eyes), the eyes see a point at depth Z with the disparity f B / Z, and bad sizes or
+// a missing EGL name themselves.
+#include "telex/local/stereo_renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <iostream>
+
+namespace telex::local {
+namespace {
+
+constexpr double kBaseline = 0.064;
+
+EyeView eye(bool left, const cv::Mat1w& depth) {
+  EyeView e;
+  e.k = kinect_v1_intrinsics(640, 480);
+  e.p_RightEye = left ? glm::dvec3{-kBaseline, 0.0, 0.0} : glm::dvec3{0.0};
+  e.background = cv::Mat3b(480, 640, cv::Vec3b(40, 40, 40));
+  e.depth_mm = depth;
+  return e;
+}
+
+// Where a point of the right eye's frame lands in an eye.
+cv::Point2d project(const EyeView& e, const glm::dvec3& p_Right) {
+  const glm::dvec3 p = p_Right - e.p_RightEye;
+  return {e.k.fx * p.x / p.z + e.k.cx, e.k.fy * p.y / p.z + e.k.cy};
+}
+
+TEST(StereoRenderer, TheRemoteSceneHidesAFingertipBehindItInBothEyes) {
+  StereoRenderer r(640, 480);
+  std::cout << "GL renderer: " << r.gl_renderer() << "\n";
+  // A wall at 2 m with a box face at 0.8 m over the middle of both eyes' views.
+  cv::Mat1w depth(480, 640, std::uint16_t{2000});
+  depth(cv::Rect(170, 90, 300, 300)).setTo(800);
+  const cv::Vec3b skin(150, 170, 230);
+  for (const bool left : {false, true}) {
+    const EyeView e = eye(left, depth);
+    for (const double z : {1.0, 0.6}) {
+      const glm::dvec3 tip{0.0, 0.0, z};
+      const std::vector<Capsule> body{{tip, tip, 0.012, skin}};
+      const cv::Mat3b img = r.render(e, body);
+      const cv::Point2d px = project(e, tip);
+      const cv::Vec3b got = img(static_cast<int>(px.y), static_cast<int>(px.x));
+      if (z > 0.8)
+        EXPECT_EQ(got, e.background(0, 0)) << (left ? "left" : "right") << " eye, behind";
+      else
+        EXPECT_NE(got, e.background(0, 0)) << (left ? "left" : "right") << " eye, in front";
+      // Outside the sphere's image the background is untouched.
+      EXPECT_EQ(img(10, 10), e.background(10, 10));
+    }
+  }
+  // Without depth nothing hides it.
+  const EyeView open = eye(false, {});
+  const cv::Mat3b img =
+      r.render(open, std::vector<Capsule>{{{0, 0, 1.0}, {0, 0, 1.0}, 0.012, skin}});
+  EXPECT_NE(img(240, 320), open.background(240, 320));
+}
+
+// Centroid of the pixels that differ from the background.
+cv::Point2d centroid(const cv::Mat3b& img, const cv::Vec3b& background) {
+  double sx = 0, sy = 0, n = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      if (img(y, x) != background) {
+        sx += x;
+        sy += y;
+        ++n;
+      }
+  return n > 0 ? cv::Point2d(sx / n, sy / n) : cv::Point2d(-1, -1);
+}
+
+TEST(StereoRenderer, AFingertipAtDepthZHasTheDisparityFBOverZ) {
+  StereoRenderer r(640, 480);
+  for (const double z : {0.4, 0.8, 1.5, 3.0}) {
+    const glm::dvec3 tip{0.05, -0.03, z};
+    const std::vector<Capsule> body{{tip, tip, 0.004 * z, {255, 255, 255}}};
+    const EyeView right = eye(false, {}), left = eye(true, {});
+    const cv::Point2d cr = centroid(r.render(right, body), right.background(0, 0));
+    const cv::Point2d cl = centroid(r.render(left, body), left.background(0, 0));
+    ASSERT_GE(cr.x, 0.0) << z;
+    ASSERT_GE(cl.x, 0.0) << z;
+    const double expected = right.k.fx * kBaseline / z;
+    EXPECT_NEAR(cl.x - cr.x, expected, 1.0) << "Z = " << z;
+    EXPECT_NEAR(cl.y, cr.y, 0.5) << "Z = " << z;
+    // And each lands where the intrinsics put it (OpenCV's pixel centres).
+    EXPECT_NEAR(cr.x, project(right, tip).x, 0.5) << z;
+    EXPECT_NEAR(cr.y, project(right, tip).y, 0.5) << z;
+  }
+}
+
+TEST(StereoRenderer, BadSizesAreRefusedWithTheSizes) {
+  EXPECT_THROW(StereoRenderer(0, 480), std::invalid_argument);
+  StereoRenderer r(320, 240);
+  EyeView e = eye(false, {});  // 640x480 intrinsics
+  try {
+    r.render(e, {});
+    FAIL();
+  } catch (const std::invalid_argument& ex) {
+    EXPECT_NE(std::string(ex.what()).find("640x480"), std::string::npos) << ex.what();
+  }
+  e.k = kinect_v1_intrinsics(320, 240);
+  e.background = cv::Mat3b(100, 100);
+  EXPECT_THROW(r.render(e, {}), std::invalid_argument);
+}
+
+TEST(StereoRendererDeathTest, NoEglVendorIsAClearError) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  // glvnd with no vendor library: no EGL display at all (a fresh process, so EGL is not loaded).
+  EXPECT_EXIT(
+      {
+        setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent/egl_vendor.json", 1);
+        try {
+          StereoRenderer r(64, 48);
+        } catch (const std::runtime_error& e) {
+          std::cerr << e.what() << "\n";
+          std::exit(3);
+        }
+        std::exit(0);
+      },
+      testing::ExitedWithCode(3), "no EGL display.*libegl-mesa0");
+}
+
+}  // namespace
+}  // namespace telex::local
