@@ -294,15 +294,23 @@ class SyntheticStereoSource final : public StereoSource {
   void start() override {
     scene_ = synth::Scene::named(scene_name_);
     frames_ = 0;
+    still_.reset();
   }
   void stop() override {}
   ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<StereoFrame> out;
     if (!pacer_.wait_due(timeout)) return out;
     const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
-    const auto views = render_stereo_views(scene_.at_time(t_s), intrinsics_);
-    out.frame.left_bgr = views.left_bgr;
-    out.frame.right_bgr = views.right_bgr;
+    // A still scene is ray-cast once (two full renders cost far more than a frame period); each
+    // frame then gets its own copy.
+    std::optional<StereoViews> moving;
+    if (animate_)
+      moving = render_stereo_views(scene_.at_time(t_s), intrinsics_);
+    else if (!still_)
+      still_ = render_stereo_views(scene_.at_time(0.0), intrinsics_);
+    const StereoViews& views = animate_ ? *moving : *still_;
+    out.frame.left_bgr = views.left_bgr.clone();
+    out.frame.right_bgr = views.right_bgr.clone();
     out.frame.capture_ns = steady_now_ns();
     out.frame.frame_id = ++frames_;
     out.status = ReadStatus::Frame;
@@ -319,6 +327,7 @@ class SyntheticStereoSource final : public StereoSource {
   Pacer pacer_;
   Intrinsics intrinsics_;
   synth::Scene scene_;
+  std::optional<StereoViews> still_;
   std::uint64_t frames_ = 0;
 };
 

@@ -162,7 +162,10 @@ void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
                                     bool counts_as_frame, bool depth, bool trimmable) {
   asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth, trimmable]() {
     if (!active_ || active_generation_ != l.generation) return;
-    OutFrame f = pack(l, frame_id, msgs);
+    // Video counts its own frames: its datagrams carry the newest depth frame's id, so the
+    // client's reassembler (newest frame wins) neither drops them nor drops depth for them. With
+    // 30 fps of video a station built one surface in 5 s: its depth was dropped as stale.
+    OutFrame f = pack(l, depth ? frame_id : newest_queued_frame_id_, msgs);
     f.counts_as_frame = counts_as_frame;
     f.trimmable = trimmable;
     if (depth) newest_queued_frame_id_ = frame_id;
