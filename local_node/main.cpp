@@ -147,8 +147,13 @@ int main(int argc, char** argv) {
   app.add_option("--log-every", cfg.log_every, "log one tick in N")
       ->check(CLI::Range(1, 1000000))
       ->capture_default_str();
-  app.add_option("--view", cfg.view_spec, "operator view: none | png:DIR | window")
+  app.add_option("--view", cfg.view_spec,
+                 "operator view: none | png:DIR (view.png, and the stereo pair left.png, "
+                 "right.png, sbs.png, once a second) | window")
       ->capture_default_str();
+  app.add_option("--stereo-baseline", cfg.stereo_baseline_m,
+                 "distance between the remote's eye cameras in metres (stereo view)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--print-forces", cfg.print_forces_hz,
                  "print forces on stdout at this rate, Hz (0 off)")
       ->check(CLI::Range(0.0, 1000.0))

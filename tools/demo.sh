@@ -12,7 +12,8 @@ duration="${TELEX_DEMO_SECONDS:-20}"
 port="${TELEX_DEMO_PORT:-7300}"
 view="${TELEX_DEMO_VIEW:-$root/demo_view}"
 
-"$bin/telex-remote" --listen "127.0.0.1:$port" --source synthetic:plane --duration $((duration + 5)) \
+"$bin/telex-remote" --listen "127.0.0.1:$port" --source synthetic:plane --stereo synthetic:plane \
+  --duration $((duration + 5)) \
   --no-stats &
 remote=$!
 trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM

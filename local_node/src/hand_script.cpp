@@ -7,8 +7,11 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <glm/gtc/quaternion.hpp>
 #include <sstream>
 #include <stdexcept>
+
+#include "telex/common/hand_kinematics.h"
 
 namespace telex::local {
 
@@ -176,6 +179,33 @@ void HandScript::sample(double t_s, HandState& out) const {
     const double t0 = t_s - kH >= 0.0 ? t_s - kH : t_s;
     tip.v_CameraFingertip = (position(i, t0 + kH) - position(i, t0)) / kH;
   }
+  pose_hand(out);
+}
+
+// A scripted body for the view: a pointing right hand (the default hand geometry) whose leading
+// finger (the first scripted one) is straight along the finger axis with its tip exactly at the
+// script's position, the back of the hand up, the other fingers curled. Only the scripted
+// fingertips are haptic fingertips; the skeleton is drawn.
+void HandScript::pose_hand(HandState& out) {
+  int lead = -1;
+  for (int i = 0; i < kFingerCount && lead < 0; ++i)
+    if (out.tips[static_cast<std::size_t>(i)].valid) lead = i;
+  if (lead < 0) return;
+  const Fingertip& tip = out.tips[static_cast<std::size_t>(lead)];
+  const glm::dvec3 x = glm::normalize(tip.axis_Camera);
+  const glm::dvec3 up{0.0, -1.0, 0.0};  // the camera's y points down
+  glm::dvec3 y = up - x * glm::dot(up, x);
+  y = glm::length(y) > 1e-9 ? glm::normalize(y) : glm::dvec3{0.0, 0.0, -1.0};
+  const glm::dquat q = glm::quat_cast(glm::dmat3(x, y, glm::cross(x, y)));
+  std::array<double, 5> bend{0.5, 0.8, 0.8, 0.8, 0.8};
+  bend[static_cast<std::size_t>(lead)] = 0.0;
+  static const HandGeometry kHand;
+  const HandPoints hp = hand_forward(kHand, Pose{glm::dvec3{0.0}, q}, bend);
+  const glm::dvec3 offset = tip.p_CameraFingertip - hp.joints[static_cast<std::size_t>(lead)][3];
+  for (std::size_t f = 0; f < kFingerCount; ++f)
+    for (std::size_t j = 0; j < 4; ++j) out.joints_camera[f][j] = hp.joints[f][j] + offset;
+  out.wrist_camera = hp.wrist + offset;
+  out.skeleton_valid = true;
 }
 
 ScriptTracker::ScriptTracker(HandScript script, std::string name, bool repeat)

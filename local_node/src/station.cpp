@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
@@ -27,6 +28,7 @@
 #include "telex/base/triple_buffer.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
+#include "telex/local/stereo_view.h"
 
 namespace telex::local {
 namespace {
@@ -114,6 +116,20 @@ class Station::Run {
   void print_status();
   std::string status_text(double fps);
   cv::Mat3b render_view();
+  cv::Mat3b eye_image(int eye);  // the newest JPEG of eye 0 (left) or 1 (right), decoded
+  void request_stereo_view();
+  void write_view_files();
+  void stereo_loop(std::stop_token stop);
+  std::mutex stereo_mu_;
+  std::condition_variable_any stereo_cv_;
+  struct StereoRequest {
+    HandState hand{};
+    std::array<FingertipForce, kFingerCount> forces{};
+    std::string status;
+    bool pending = false;
+  } stereo_request_;             // guarded by stereo_mu_
+  bool warned_one_eye_ = false;  // view thread
+  std::jthread stereo_thread_;
   StationSummary summarize();
   // A thread's error: the first one is kept (run() rethrows it) and the station stops.
   void fail(std::exception_ptr error);
@@ -143,7 +159,7 @@ class Station::Run {
   std::mutex watch_mu_;
   std::vector<cv::Rect> watch_rects_;  // the fingertip windows as read (surface -> network)
   std::mutex video_mu_;
-  std::vector<std::uint8_t> latest_jpeg_;
+  std::array<std::vector<std::uint8_t>, 2> latest_jpeg_;  // by eye: 0 left, 1 right
 
   // ---- surface thread -> haptic thread and view ----
   TripleBuffer<std::shared_ptr<const Surface>> surfaces_;
@@ -280,7 +296,7 @@ StationSummary Station::Run::execute() {
   };
   events.on_video = [this](const proto::Header&, const proto::VideoFrame& v) {
     std::lock_guard lock(video_mu_);
-    latest_jpeg_ = v.jpeg;
+    latest_jpeg_[v.eye == 0 ? 0 : 1] = v.jpeg;
   };
   events.on_state = [](ClientState s, const std::string& why) {
     std::fprintf(stderr, "telex-local: remote %s: %s\n", std::string(to_string(s)).c_str(),
@@ -292,6 +308,8 @@ StationSummary Station::Run::execute() {
   ClientConfig client_cfg = cfg_.client;
   client_cfg.want_video = client_cfg.want_video || view_window_ || !view_dir_.empty();
   client_ = std::make_unique<SurfaceClient>(client_cfg, std::move(events));
+  if (!view_dir_.empty())
+    stereo_thread_ = std::jthread([this](std::stop_token st) { stereo_loop(st); });
   // The surface thread warms its buffers before the first frame can arrive.
   surface_thread_ = std::jthread([this](std::stop_token st) { surface_loop(st); });
   surface_ready_.wait();
@@ -553,6 +571,9 @@ void Station::Run::main_loop() {
       print_status();
     }
   }
+  // The last picture shows how the run ended, not how it stood at the last whole second.
+  drain();
+  write_view_files();
 }
 
 // Orderly end: the haptic thread first (it zeroes the display), then what it logged, then the
@@ -568,6 +589,10 @@ void Station::Run::stop_threads() {
   frames_.close();
   if (surface_thread_.joinable()) surface_thread_.join();
   client_->stop();
+  if (stereo_thread_.joinable()) {
+    stereo_thread_.request_stop();  // after drawing what is pending
+    stereo_thread_.join();
+  }
   if (forces_csv_.is_open()) forces_csv_.flush();
   if (recorder_) recorder_->finish();  // everything queued is written and the bag closed
 }
@@ -687,14 +712,20 @@ void Station::Run::print_status() {
     std::fprintf(stderr, "telex-local: %s |%s\n", text.c_str(), forces.c_str());
   }
   last_status_ = text;
+  write_view_files();
+  window_periods_.clear();
+  window_latency_.clear();
+}
+
+// --view png:DIR: the 2D view now, the stereo pair on the view thread.
+void Station::Run::write_view_files() {
   if (!view_dir_.empty()) {
     const cv::Mat3b img = render_view();
     const auto path = std::filesystem::path(view_dir_) / "view.png";
     const auto tmp = std::filesystem::path(view_dir_) / "view.tmp.png";
     if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
+    request_stereo_view();
   }
-  window_periods_.clear();
-  window_latency_.clear();
 }
 
 std::string Station::Run::status_text(double fps) {
@@ -721,14 +752,77 @@ cv::Mat3b Station::Run::render_view() {
   vi.hand = view_hand_;
   vi.forces = last_.forces;
   vi.status = last_status_;
+  vi.camera_bgr = eye_image(1);
+  return render_operator_view(vi);
+}
+
+cv::Mat3b Station::Run::eye_image(int eye) {
+  std::vector<std::uint8_t> jpeg;
   {
     std::lock_guard lock(video_mu_);
-    if (!latest_jpeg_.empty()) {
-      cv::Mat raw(1, static_cast<int>(latest_jpeg_.size()), CV_8U, latest_jpeg_.data());
-      vi.camera_bgr = cv::imdecode(raw, cv::IMREAD_COLOR);
-    }
+    jpeg = latest_jpeg_[static_cast<std::size_t>(eye)];
   }
-  return render_operator_view(vi);
+  if (jpeg.empty()) return {};
+  return cv::imdecode(jpeg, cv::IMREAD_COLOR);
+}
+
+// The main thread hands the stereo view what it knows (hand, forces, status) once a second.
+void Station::Run::request_stereo_view() {
+  {
+    std::lock_guard lock(stereo_mu_);
+    stereo_request_.hand = view_hand_;
+    stereo_request_.forces = last_.forces;
+    stereo_request_.status = last_status_;
+    stereo_request_.pending = true;
+  }
+  stereo_cv_.notify_one();
+}
+
+// ---- view thread (--view png:DIR): the stereo pair, off the main thread. Its GL context is made
+// while the station connects; a machine without EGL stops the station here, named. ----
+void Station::Run::stereo_loop(std::stop_token stop) {
+  try {
+    StereoView view(640, 480);
+    for (;;) {
+      StereoViewInputs in;
+      {
+        std::unique_lock lock(stereo_mu_);
+        stereo_cv_.wait(lock, stop, [this] { return stereo_request_.pending; });
+        if (!stereo_request_.pending) return;  // stopped with nothing left to draw
+        stereo_request_.pending = false;
+        in.hand = stereo_request_.hand;
+        in.forces = stereo_request_.forces;
+        in.status = stereo_request_.status;
+      }
+      std::shared_ptr<const Surface> vs;
+      {
+        std::lock_guard lock(view_mu_);
+        vs = view_surface_;
+        in.depth_mm = view_depth_;
+      }
+      if (!vs) continue;  // no intrinsics before the first surface
+      in.surface = vs.get();
+      in.k = vs->intrinsics;
+      in.baseline_m = cfg_.stereo_baseline_m;
+      in.eye_bgr = {eye_image(0), eye_image(1)};
+      const StereoViewImages v = view.render(in);
+      if (v.one_eye && !warned_one_eye_) {
+        std::fprintf(stderr,
+                     "telex-local: the remote sends one eye's video only: the stereo view uses "
+                     "it for both eyes\n");
+        warned_one_eye_ = true;
+      }
+      const std::filesystem::path dir(view_dir_);
+      for (const auto& [name, img] :
+           {std::pair{"left", &v.left}, std::pair{"right", &v.right}, std::pair{"sbs", &v.sbs}}) {
+        const auto tmp = dir / (std::string(name) + ".tmp.png");
+        if (cv::imwrite(tmp.string(), *img))
+          std::filesystem::rename(tmp, dir / (std::string(name) + ".png"));
+      }
+    }
+  } catch (...) {
+    fail(std::current_exception());
+  }
 }
 
 StationSummary Station::Run::summarize() {

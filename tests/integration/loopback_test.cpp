@@ -204,6 +204,42 @@ TEST(Loopback, ViewPngShowsHandAndForceArrow) {
   EXPECT_EQ(img.at<cv::Vec3b>(img.rows / 2, img.cols / 2), contact);
 }
 
+TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
+  const auto dir = scratch_dir("loopback_stereo_view");
+  // The synthetic stereo source: both eyes' renders of the plane at 30 fps over UDP with the depth.
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  const double seconds = 5.0;
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:press", "--repeat", "--duration",
+                            std::to_string(seconds), "--view", "png:" + (dir / "view").string()}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(40s).value_or(-1), 0) << local.stderr_text();
+  // Video must not starve the depth: its datagrams once carried their own frame ids and the
+  // reassembler dropped the depth as stale (one surface in 5 s).
+  const auto j = summary_of(local);
+  EXPECT_GT(j["surfaces"].get<int>(), 60) << j.dump();
+  const cv::Mat left = cv::imread((dir / "view" / "left.png").string(), cv::IMREAD_COLOR);
+  const cv::Mat right = cv::imread((dir / "view" / "right.png").string(), cv::IMREAD_COLOR);
+  const cv::Mat sbs = cv::imread((dir / "view" / "sbs.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(left.empty() || right.empty() || sbs.empty()) << local.stderr_text();
+  EXPECT_EQ(left.size(), cv::Size(640, 480));
+  EXPECT_EQ(sbs.size(), cv::Size(1280, 480));
+  for (const cv::Mat* eye : {&left, &right}) {
+    // The eye's video (the plane's shaded render, light grey), not the no-video fallback (64).
+    const cv::Vec3b bg = eye->at<cv::Vec3b>(200, 40);
+    EXPECT_GT(bg[0], 100) << bg;
+    // The arm and hand: skin-shaded pixels (red above blue).
+    int skin = 0;
+    for (int y = 0; y < eye->rows; ++y)
+      for (int x = 0; x < eye->cols; ++x) {
+        const auto c = eye->at<cv::Vec3b>(y, x);
+        skin += c[2] > c[0] + 30;
+      }
+    EXPECT_GT(skin, 3000);
+  }
+  EXPECT_EQ(local.stderr_text().find("one eye's video only"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace telex::test
 

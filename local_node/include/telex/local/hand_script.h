@@ -43,6 +43,8 @@ class HandScript {
   // finger points right and into the scene), valid for scripted fingers only. Sets out.time_ns only
   // via caller.
   void sample(double t_s, HandState& out) const;
+  // The skeleton of a pointing right hand around the first scripted fingertip (sample() calls it).
+  static void pose_hand(HandState& out);
 
  private:
   std::array<std::vector<ScriptKey>, kFingerCount> keys_{};

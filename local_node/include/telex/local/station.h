@@ -46,9 +46,12 @@ struct StationConfig {
   std::filesystem::path record_bag;
   double record_rate_hz = 100.0;
   std::string view_spec = "none";  // none | png:DIR | window
-  double print_forces_hz = 0.0;    // live force lines on stdout (0 = off)
-  bool status_line = true;         // one status line per second on stderr
-  bool roi_requests = true;        // ask the remote for full-rate tiles near the hands
+  // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
+  // source's 65 mm by default); the stereo view's left eye sees the depth from there.
+  double stereo_baseline_m = 0.065;
+  double print_forces_hz = 0.0;  // live force lines on stdout (0 = off)
+  bool status_line = true;       // one status line per second on stderr
+  bool roi_requests = true;      // ask the remote for full-rate tiles near the hands
   // Test seam, never set by telex-local: called at the top of every pass of the named loop; an
   // exception it throws takes that loop's error path (tests/integration/station_faults_test.cpp).
   std::function<void(StationLoop)> fault_hook;

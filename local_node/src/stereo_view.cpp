@@ -1,0 +1,138 @@
+// SPDX-License-Identifier: MIT
+// The operator's stereo view: body capsules from the tracked hand, the remote depth registered to
+// the left eye, both eyes rendered, the overlay drawn to fit.
+#include "telex/local/stereo_view.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "telex/common/colorize.h"
+#include "telex/common/registration.h"
+
+namespace telex::local {
+namespace {
+
+BodyDims camera_frame_body() {
+  BodyDims d;
+  d.up_world = {0.0, -1.0, 0.0};  // the camera's y points down; a level head assumed
+  // The tracker gives no wrist orientation here (HandState): the posture rule places the elbow.
+  d.forearm_axis_from_wrist = false;
+  return d;
+}
+
+// Green (light touch) to red (3 N and more).
+cv::Vec3b pressure_bgr(double n) {
+  const double t = std::clamp(n / 3.0, 0.0, 1.0);
+  return {40, static_cast<unsigned char>(220 * (1.0 - t)),
+          static_cast<unsigned char>(80 + 175 * t)};
+}
+
+// The overlay: the normal-map inset (top right, a quarter of the width) and the status text,
+// shrunk until it fits the width.
+void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
+  if (in.surface != nullptr && !in.surface->normals.empty()) {
+    const cv::Mat3b inset = colorize_normals(in.surface->normals);
+    const int w = img.cols / 4, h = w * inset.rows / std::max(1, inset.cols);
+    if (w > 0 && h > 0 && h < img.rows) {
+      cv::Mat3b small;
+      cv::resize(inset, small, {w, h}, 0, 0, cv::INTER_AREA);
+      small.copyTo(img(cv::Rect(img.cols - w - 4, 4, w, h)));
+    }
+  }
+  if (in.status.empty()) return;
+  double scale = 0.45;
+  int base = 0;
+  cv::Size text = cv::getTextSize(in.status, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
+  if (text.width > img.cols - 12) {
+    scale *= static_cast<double>(img.cols - 12) / text.width;
+    text = cv::getTextSize(in.status, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
+  }
+  const cv::Rect band(0, img.rows - text.height - base - 8, img.cols, text.height + base + 8);
+  img(band) *= 0.4;
+  cv::putText(img, in.status, {6, img.rows - base - 4}, cv::FONT_HERSHEY_SIMPLEX, scale,
+              {255, 255, 255}, 1, cv::LINE_AA);
+}
+
+}  // namespace
+
+std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
+  const HandState& hand = in.hand;
+  BodyInputs bi;
+  bi.time_ns = hand.time_ns;
+  const std::size_t r = index_of(Side::Right);
+  if (hand.skeleton_valid) {
+    bi.shoulder[r] = Pose{hand.shoulder_valid ? hand.shoulder_camera : in.default_shoulder_camera,
+                          {1.0, 0.0, 0.0, 0.0}};
+    bi.wrist[r] = Pose{hand.wrist_camera, {1.0, 0.0, 0.0, 0.0}};
+  }
+  BodyState state = body.update(bi);
+  // The hand as the tracker chained it (its own glove bends and geometry), not recomputed.
+  ArmState& arm = state.arms[r];
+  if (arm.visible && hand.skeleton_valid)
+    for (std::size_t f = 0; f < kFingerCount; ++f)
+      for (std::size_t j = 0; j < 4; ++j) arm.hand.joints[f][j] = hand.joints_camera[f][j];
+  std::vector<Capsule> out = body_capsules(state, [](const glm::dvec3& p) { return p; });
+  // Fingertips in contact, coloured by pressure, and the force on each as an arrow (a thin
+  // capsule with a round head) from the fingertip.
+  for (std::size_t i = 0; i < kFingerCount; ++i) {
+    const Fingertip& tip = hand.tips[i];
+    const FingertipForce& f = in.forces[i];
+    if (!tip.valid || !f.contact) continue;
+    const glm::dvec3 p = tip.p_CameraFingertip;
+    out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N)});
+    const glm::dvec3 end = p + f.force_N * in.arrow_m_per_N;
+    if (glm::length(end - p) > 1e-4) {
+      out.push_back({p, end, 0.002, {0, 200, 255}});
+      out.push_back({end, end, 0.004, {0, 200, 255}});
+    }
+  }
+  return out;
+}
+
+StereoView::StereoView() : body_(camera_frame_body()) {}
+StereoView::StereoView(int width, int height)
+    : renderer_(std::make_unique<StereoRenderer>(width, height)),
+      renderer_size_(width, height),
+      body_(camera_frame_body()) {}
+StereoView::~StereoView() = default;
+
+StereoViewImages StereoView::render(const StereoViewInputs& in) {
+  StereoViewImages out;
+  const cv::Size size(in.k.width, in.k.height);
+  if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
+    renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
+    renderer_size_ = size;
+  }
+  const auto fit = [&size](const cv::Mat3b& m) {
+    if (m.empty() || m.size() == size) return m;
+    cv::Mat3b r;
+    cv::resize(m, r, size, 0, 0, cv::INTER_AREA);
+    return r;
+  };
+  std::array<cv::Mat3b, 2> eye{fit(in.eye_bgr[0]), fit(in.eye_bgr[1])};
+  out.one_eye = eye[0].empty() != eye[1].empty();
+  if (eye[0].empty()) eye[0] = eye[1];
+  if (eye[1].empty()) eye[1] = eye[0];
+
+  const std::vector<Capsule> capsules = view_capsules(body_, in);
+  EyeView right, left;
+  right.k = left.k = in.k;
+  left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
+  right.background = eye[index_of(Side::Right)];
+  left.background = eye[index_of(Side::Left)];
+  if (!in.depth_mm.empty() && in.depth_mm.size() == size) {
+    right.depth_mm = in.depth_mm;
+    // The remote depth is registered to the right eye; the left eye sees it from B to the left.
+    const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
+    left.depth_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+  }
+  out.right = renderer_->render(right, capsules);
+  out.left = renderer_->render(left, capsules);
+  overlay(out.left, in);
+  overlay(out.right, in);
+  cv::hconcat(out.left, out.right, out.sbs);
+  return out;
+}
+
+}  // namespace telex::local

@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: MIT
+// The operator's stereo view: the tracked arm and hand appear in both eyes with the right
+// disparity, a fingertip in contact shows its pressure colour, one eye's video serves both with a
+// flag, and the status text fits the image.
+#include "telex/local/stereo_view.h"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+
+namespace telex::local {
+namespace {
+
+// A right hand reaching forward, 45 cm in front of the eyes, fingers along +z.
+HandState reaching_hand() {
+  HandState h;
+  h.time_ns = 1;
+  h.skeleton_valid = true;
+  h.wrist_camera = {0.05, 0.10, 0.40};
+  for (std::size_t f = 0; f < kFingerCount; ++f) {
+    const double x = 0.05 + (static_cast<double>(f) - 2.0) * 0.02;
+    for (std::size_t j = 0; j < 4; ++j)
+      h.joints_camera[f][j] = {x, 0.10, 0.48 + 0.025 * static_cast<double>(j)};
+    h.tips[f].valid = true;
+    h.tips[f].finger = static_cast<int>(f);
+    h.tips[f].p_CameraFingertip = h.joints_camera[f][3];
+  }
+  return h;
+}
+
+int count(const cv::Mat3b& img, const std::function<bool(const cv::Vec3b&)>& pred) {
+  int n = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) n += pred(img(y, x));
+  return n;
+}
+
+TEST(StereoView, TheTrackedArmAndHandAppearInBothEyesShiftedByTheDisparity) {
+  StereoView view(640, 480);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  const cv::Vec3b grey(60, 60, 60);
+  in.eye_bgr = {cv::Mat3b(480, 640, grey), cv::Mat3b(480, 640, grey)};
+  const StereoViewImages v = view.render(in);
+  ASSERT_EQ(v.sbs.size(), cv::Size(1280, 480));
+  EXPECT_FALSE(v.one_eye);
+  // Skin-shaded pixels (red channel above blue) in both eyes: the forearm and the hand.
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  const int right_px = count(v.right, skin), left_px = count(v.left, skin);
+  EXPECT_GT(right_px, 2000);
+  EXPECT_GT(left_px, 2000);
+  // The index fingertip (0.03, 0.10, 0.555): the left eye sees it f*B/Z to the right.
+  const glm::dvec3 tip = in.hand.joints_camera[1][3];
+  const double u = in.k.fx * tip.x / tip.z + in.k.cx, vv = in.k.fy * tip.y / tip.z + in.k.cy;
+  const double d = in.k.fx * in.baseline_m / tip.z;
+  EXPECT_TRUE(skin(v.right(static_cast<int>(vv), static_cast<int>(u))));
+  EXPECT_TRUE(skin(v.left(static_cast<int>(vv), static_cast<int>(u + d))));
+}
+
+TEST(StereoView, AFingertipInContactShowsItsPressureAndOneEyeServesBoth) {
+  StereoView view(640, 480);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  in.forces[1].contact = true;
+  in.forces[1].normal_force_N = 3.0;  // red
+  in.forces[1].force_N = {0.0, 0.0, -3.0};
+  in.eye_bgr[1] = cv::Mat3b(480, 640, cv::Vec3b(60, 60, 60));  // right eye only
+  in.status = std::string(300, 'x');  // far wider than the image: shrunk to fit
+  const StereoViewImages v = view.render(in);
+  EXPECT_TRUE(v.one_eye);
+  const auto red = [](const cv::Vec3b& c) { return c[2] > 150 && c[1] < 60 && c[0] < 60; };
+  EXPECT_GT(count(v.right, red), 30);
+  EXPECT_GT(count(v.left, red), 30);
+  // The status band spans the bottom rows and the text stays inside the image.
+  EXPECT_LT(v.right(470, 635)[0], 60);
+}
+
+}  // namespace
+}  // namespace telex::local
