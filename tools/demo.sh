@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Quick-start command 1: install what is missing, build, then run both nodes on loopback with the
-# built-in synthetic scene and a scripted hand, printing fingertip forces live and writing the
-# operator's view to demo_view/view.png once a second (TELEX_DEMO_VIEW=DIR elsewhere). Ctrl-C stops
+# built-in synthetic scene (depth and both eyes' video) and a scripted hand, printing fingertip
+# forces live and writing the operator's view once a second to demo_view/ (TELEX_DEMO_VIEW=DIR
+# elsewhere): the stereo pair left.png, right.png, sbs.png and the overview view.png. Ctrl-C stops
 # both. Extra arguments go to telex-local (e.g. --hand script:stroke).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,4 +23,4 @@ trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 # sends those tiles first, the lowest-latency path (docs/BENCHMARKS.md, "Defaults").
 "$bin/telex-local" --connect "127.0.0.1:$port" --hand script:press --repeat --duration "$duration" \
   --haptics sim --print-forces 10 --view "png:$view" "$@"
-echo "demo: the operator's view is in $view/view.png"
+echo "demo: the operator's view is in $view/sbs.png (both eyes), left.png, right.png and view.png"

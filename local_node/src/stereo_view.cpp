@@ -73,13 +73,13 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
     for (std::size_t f = 0; f < kFingerCount; ++f)
       for (std::size_t j = 0; j < 4; ++j) arm.hand.joints[f][j] = hand.joints_camera[f][j];
   std::vector<Capsule> out = body_capsules(state, [](const glm::dvec3& p) { return p; });
-  // Fingertips in contact, coloured by pressure, and the force on each as an arrow (a thin
-  // capsule with a round head) from the fingertip.
+  // Fingertips in contact: a marker at the god-point on the remote surface (the finger itself
+  // is inside the surface then, hidden by it), coloured by pressure, and the force as an arrow (a
+  // thin capsule with a round head) from it.
   for (std::size_t i = 0; i < kFingerCount; ++i) {
-    const Fingertip& tip = hand.tips[i];
     const FingertipForce& f = in.forces[i];
-    if (!tip.valid || !f.contact) continue;
-    const glm::dvec3 p = tip.p_CameraFingertip;
+    if (!hand.tips[i].valid || !f.contact) continue;
+    const glm::dvec3 p = f.proxy_camera;
     out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N)});
     const glm::dvec3 end = p + f.force_N * in.arrow_m_per_N;
     if (glm::length(end - p) > 1e-4) {
