@@ -116,7 +116,9 @@ class Station::Run {
   void print_status();
   std::string status_text(double fps);
   cv::Mat3b render_view();
-  cv::Mat3b eye_image(int eye);  // the newest JPEG of eye 0 (left) or 1 (right), decoded
+  // Eye 0 (left) or 1 (right): the received frame captured nearest to `want_capture_ns` (0: the
+  // newest), decoded; *offset_ns is its capture time minus the one wanted.
+  cv::Mat3b eye_image(int eye, std::int64_t want_capture_ns = 0, std::int64_t* offset_ns = nullptr);
   void request_stereo_view();
   void write_view_files();
   void stereo_loop(std::stop_token stop);
@@ -159,7 +161,11 @@ class Station::Run {
   std::mutex watch_mu_;
   std::vector<cv::Rect> watch_rects_;  // the fingertip windows as read (surface -> network)
   std::mutex video_mu_;
-  std::array<std::vector<std::uint8_t>, 2> latest_jpeg_;  // by eye: 0 left, 1 right
+  struct EyeFrame {
+    std::int64_t capture_ns = 0;  // sender clock, as the depth frames'
+    std::vector<std::uint8_t> jpeg;
+  };
+  std::array<std::deque<EyeFrame>, 2> eye_frames_;  // by eye (0 left, 1 right): the last 8
 
   // ---- surface thread -> haptic thread and view ----
   TripleBuffer<std::shared_ptr<const Surface>> surfaces_;
@@ -294,9 +300,11 @@ StationSummary Station::Run::execute() {
     if (r.nack) client_->send_nack(*r.nack);
     if (r.key_frame) client_->request_key_frame();
   };
-  events.on_video = [this](const proto::Header&, const proto::VideoFrame& v) {
+  events.on_video = [this](const proto::Header& h, const proto::VideoFrame& v) {
     std::lock_guard lock(video_mu_);
-    latest_jpeg_[v.eye == 0 ? 0 : 1] = v.jpeg;
+    auto& q = eye_frames_[v.eye == 0 ? 0 : 1];
+    q.push_back({static_cast<std::int64_t>(h.capture_ns), v.jpeg});
+    if (q.size() > 8) q.pop_front();
   };
   events.on_state = [](ClientState s, const std::string& why) {
     std::fprintf(stderr, "telex-local: remote %s: %s\n", std::string(to_string(s)).c_str(),
@@ -756,11 +764,20 @@ cv::Mat3b Station::Run::render_view() {
   return render_operator_view(vi);
 }
 
-cv::Mat3b Station::Run::eye_image(int eye) {
+cv::Mat3b Station::Run::eye_image(int eye, std::int64_t want_capture_ns, std::int64_t* offset_ns) {
   std::vector<std::uint8_t> jpeg;
   {
     std::lock_guard lock(video_mu_);
-    jpeg = latest_jpeg_[static_cast<std::size_t>(eye)];
+    const auto& q = eye_frames_[static_cast<std::size_t>(eye)];
+    if (q.empty()) return {};
+    std::size_t pick = q.size() - 1;
+    if (want_capture_ns != 0) {
+      std::array<std::int64_t, 8> captures{};
+      for (std::size_t i = 0; i < q.size(); ++i) captures[i] = q[i].capture_ns;
+      pick = *nearest_capture(std::span(captures.data(), q.size()), want_capture_ns);
+      if (offset_ns) *offset_ns = q[pick].capture_ns - want_capture_ns;
+    }
+    jpeg = q[pick].jpeg;
   }
   if (jpeg.empty()) return {};
   return cv::imdecode(jpeg, cv::IMREAD_COLOR);
@@ -804,7 +821,17 @@ void Station::Run::stereo_loop(std::stop_token stop) {
       in.surface = vs.get();
       in.k = vs->intrinsics;
       in.baseline_m = cfg_.stereo_baseline_m;
-      in.eye_bgr = {eye_image(0), eye_image(1)};
+      // Each eye's frame captured nearest to the depth drawn over it; the larger gap is shown.
+      std::int64_t gap_left = 0, gap_right = 0;
+      in.eye_bgr = {eye_image(0, vs->capture_ns, &gap_left),
+                    eye_image(1, vs->capture_ns, &gap_right)};
+      if (!in.eye_bgr[0].empty() || !in.eye_bgr[1].empty()) {
+        const double gap_ms =
+            static_cast<double>(std::max(std::abs(gap_left), std::abs(gap_right))) / 1e6;
+        char pairing[48];
+        std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms", gap_ms);
+        in.status += pairing;
+      }
       const StereoViewImages v = view.render(in);
       if (v.one_eye && !warned_one_eye_) {
         std::fprintf(stderr,

@@ -56,6 +56,19 @@ void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
 
 }  // namespace
 
+std::optional<std::size_t> nearest_capture(std::span<const std::int64_t> captures,
+                                           std::int64_t want_ns) {
+  std::optional<std::size_t> best;
+  for (std::size_t i = 0; i < captures.size(); ++i) {
+    const auto gap = [&](std::size_t k) {
+      const std::int64_t d = captures[k] - want_ns;
+      return d < 0 ? -static_cast<std::uint64_t>(d) : static_cast<std::uint64_t>(d);
+    };
+    if (!best || gap(i) < gap(*best)) best = i;
+  }
+  return best;
+}
+
 std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
   const HandState& hand = in.hand;
   BodyInputs bi;

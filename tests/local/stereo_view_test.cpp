@@ -78,5 +78,16 @@ TEST(StereoView, AFingertipInContactShowsItsPressureAndOneEyeServesBoth) {
   EXPECT_LT(v.right(470, 635)[0], 60);
 }
 
+TEST(StereoView, EachEyeIsPairedWithTheVideoFrameCapturedNearestToTheDepth) {
+  const std::vector<std::int64_t> captures{100, 133, 166, 200};
+  EXPECT_EQ(nearest_capture(captures, 150), 2u);  // 166 is 16 away, 133 is 17
+  EXPECT_EQ(nearest_capture(captures, 0), 0u);
+  EXPECT_EQ(nearest_capture(captures, 1000), 3u);
+  EXPECT_EQ(nearest_capture(captures, 133), 1u);
+  const std::vector<std::int64_t> tie{10, 20};
+  EXPECT_EQ(nearest_capture(tie, 15), 0u);  // the first of equals
+  EXPECT_FALSE(nearest_capture({}, 5).has_value());
+}
+
 }  // namespace
 }  // namespace telex::local

@@ -8,6 +8,8 @@
 #include <array>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
+#include <span>
 #include <string>
 
 #include "telex/common/body.h"
@@ -53,6 +55,11 @@ class StereoView {
   cv::Size renderer_size_;
   Body body_;
 };
+
+// Index of the capture time in `captures` nearest to `want_ns` (the first of equals); nullopt
+// for none. The view pairs each eye's video with the depth frame it draws over this way.
+std::optional<std::size_t> nearest_capture(std::span<const std::int64_t> captures,
+                                           std::int64_t want_ns);
 
 // The arm and hand of `hand` (camera frame) and the fingertips' contact and force capsules.
 std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in);
