@@ -122,16 +122,6 @@ class Station::Run {
   void request_stereo_view();
   void write_view_files();
   void stereo_loop(std::stop_token stop);
-  std::mutex stereo_mu_;
-  std::condition_variable_any stereo_cv_;
-  struct StereoRequest {
-    HandState hand{};
-    std::array<FingertipForce, kFingerCount> forces{};
-    std::string status;
-    bool pending = false;
-  } stereo_request_;             // guarded by stereo_mu_
-  bool warned_one_eye_ = false;  // view thread
-  std::jthread stereo_thread_;
   StationSummary summarize();
   // A thread's error: the first one is kept (run() rethrows it) and the station stops.
   void fail(std::exception_ptr error);
@@ -213,6 +203,17 @@ class Station::Run {
   std::unique_ptr<SurfaceClient> client_;
   std::jthread surface_thread_;
   std::jthread haptic_thread_;
+  // The view thread (--view png:DIR), last: it reads the members above until it is joined.
+  std::mutex stereo_mu_;
+  std::condition_variable_any stereo_cv_;
+  struct StereoRequest {
+    HandState hand{};
+    std::array<FingertipForce, kFingerCount> forces{};
+    std::string status;
+    bool pending = false;
+  } stereo_request_;             // guarded by stereo_mu_
+  bool warned_one_eye_ = false;  // view thread
+  std::jthread stereo_thread_;
 };
 
 namespace {
