@@ -197,11 +197,32 @@ std::array<double, 5> finger_bends(const GloveRaw& raw, const GloveCalibration& 
   return bend;
 }
 
+JointBends joint_bends(const GloveRaw& raw, const GloveCalibration& cal) {
+  auto norm = [&](int i) {
+    const double range = cal.max[i] - cal.min[i];
+    if (!(range > 0.0)) return 0.0;
+    return std::clamp((raw.sensors[i] - cal.min[i]) / range, 0.0, 1.0);
+  };
+  JointBends out{};
+  for (int f = 0; f < 5; ++f) {
+    if (raw.sensor_count == 14) {
+      static constexpr int kNear[5] = {0, 3, 6, 9, 12};
+      const double near = norm(kNear[f]), far = norm(kNear[f] + 1);
+      out[static_cast<std::size_t>(f)] = {near, far, far};
+    } else {
+      const double b = norm(f);
+      out[static_cast<std::size_t>(f)] = {b, b, b};
+    }
+  }
+  return out;
+}
+
 GloveDevice::~GloveDevice() = default;
 
 void GloveDevice::publish(const GloveRaw& raw) {
   GloveSample s;
   s.bend = finger_bends(raw, calibration_);
+  s.joints = joint_bends(raw, calibration_);
   s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                       std::chrono::steady_clock::now().time_since_epoch())
                       .count();

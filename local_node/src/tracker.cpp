@@ -40,7 +40,8 @@ class NatNetTracker final : public HandTracker {
     if (shoulder_id_ >= 0) ccfg.body_ids.push_back(shoulder_id_);
     hand_cfg_ = cfg.hand;
     hand_cfg_.left = cfg.use_left_hand;
-    bend_ = cfg.default_bend;
+    for (std::size_t f = 0; f < 5; ++f)
+      bend_[f] = {cfg.default_bend[f], cfg.default_bend[f], cfg.default_bend[f]};
     name_ = "natnet:" + ccfg.server_ip + (glove_ ? "+" + glove_->name() : "");
     client_ = std::make_unique<NatNetClient>(std::move(ccfg));
   }
@@ -54,7 +55,7 @@ class NatNetTracker final : public HandTracker {
     }
     GloveSample g;
     if (glove_ && glove_->latest(g)) {
-      bend_ = g.bend;
+      bend_ = g.joints;
       fresh = true;
     }
     if (!fresh || !have_sample_) return false;
@@ -109,7 +110,7 @@ class NatNetTracker final : public HandTracker {
   std::int32_t hand_id_ = -1, shoulder_id_ = -1;
   NatNetSample sample_;
   bool have_sample_ = false;
-  std::array<double, 5> bend_{};
+  JointBends bend_{};  // each joint's bend: the glove's, or the configured default
   HandState previous_;
   std::string name_;
   TrackerStats stats_;
@@ -136,7 +137,8 @@ class GloveTracker final : public HandTracker {
     GloveSample g;
     if (!glove_->latest(g)) return false;
     HandState cur;
-    fill_hand_state(hand_cfg_, Pose{}, hand_forward(hand_cfg_, wrist_, g.bend), g.received_ns, cur);
+    fill_hand_state(hand_cfg_, Pose{}, hand_forward(hand_cfg_, wrist_, g.joints), g.received_ns,
+                    cur);
     if (have_previous_) update_velocities(previous_, cur);
     previous_ = cur;
     have_previous_ = true;

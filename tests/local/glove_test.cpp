@@ -202,6 +202,18 @@ TEST(Glove, CalibrationMapsToBends) {
   const auto b14 = finger_bends(r14, GloveCalibration::full_range(14));
   EXPECT_DOUBLE_EQ(b14[1], 0.5);
   EXPECT_DOUBLE_EQ(b14[2], 0.0);
+
+  // Per joint: the near sensor bends the MCP, the far one the PIP and (coupled) the DIP.
+  r14.sensors[9] = 0.25;   // ring near
+  r14.sensors[10] = 0.75;  // ring far
+  const JointBends j14 = joint_bends(r14, GloveCalibration::full_range(14));
+  EXPECT_EQ(j14[1], (std::array<double, 3>{1.0, 0.0, 0.0}));
+  EXPECT_EQ(j14[3], (std::array<double, 3>{0.25, 0.75, 0.75}));
+  EXPECT_EQ(j14[2], (std::array<double, 3>{0.0, 0.0, 0.0}));  // abduction ignored
+  // Five sensors: one bend for all three joints, the same as finger_bends.
+  const JointBends j5 = joint_bends(mid, cal);
+  for (std::size_t f = 0; f < 5; ++f)
+    for (double b : j5[f]) EXPECT_DOUBLE_EQ(b, finger_bends(mid, cal)[f]);
 }
 
 TEST(Glove, CalibrationFileRoundTripAndErrors) {

@@ -30,6 +30,31 @@ TEST(HandModel, StraightFingersExtendAlongTheirDirection) {
   }
 }
 
+TEST(HandModel, EachJointBendsOnlyFromItsJointOn) {
+  HandModelConfig cfg;
+  const std::array<double, 5> half{0.5, 0.5, 0.5, 0.5, 0.5};
+  JointBends equal{};
+  for (auto& f : equal) f = {0.5, 0.5, 0.5};
+  // Equal joint bends are the one-bend hand, exactly.
+  const HandPoints a = hand_forward(cfg, Pose{}, half), b = hand_forward(cfg, Pose{}, equal);
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; j < 4; ++j) EXPECT_EQ(a.joints[i][j], b.joints[i][j]);
+  // Bending the index's PIP alone leaves its knuckle and PIP joint where a straight finger has
+  // them and moves the DIP joint and the tip.
+  const HandPoints straight = hand_forward(cfg, Pose{}, std::array<double, 5>{});
+  JointBends pip{};
+  pip[1] = {0.0, 1.0, 0.0};
+  const HandPoints p = hand_forward(cfg, Pose{}, pip);
+  expect_near(p.joints[1][0], straight.joints[1][0]);
+  expect_near(p.joints[1][1], straight.joints[1][1]);
+  EXPECT_GT(glm::length(p.joints[1][2] - straight.joints[1][2]), 0.01);
+  // The PIP angle turns the middle phalanx: (cos a, -sin a, 0) with a = max PIP angle.
+  const auto& g = cfg.fingers[1];
+  const double ang = g.max_angle_rad[1];
+  expect_near(p.joints[1][2],
+              p.joints[1][1] + glm::dvec3{std::cos(ang), -std::sin(ang), 0.0} * g.segment_m[1]);
+}
+
 TEST(HandModel, FullyBentIndexMatchesPlanarChain) {
   HandModelConfig cfg;
   const std::array<double, 5> bend{0, 1, 0, 0, 0};

@@ -40,8 +40,14 @@ struct HandPoints {
   glm::dvec3 wrist{0.0};
 };
 
-// Forward kinematics in the wrist pose's frame (world); bends are 0 (straight) .. 1 (fist),
-// clamped (NaN counts as 0). Pure.
+// Per finger (thumb first), the bend of each joint: MCP, PIP, DIP, 0 (straight) .. 1 (the
+// joint's max_angle_rad).
+using JointBends = std::array<std::array<double, 3>, 5>;
+
+// Forward kinematics in the wrist pose's frame (world); bends are clamped to 0..1 (NaN counts as
+// 0). Pure.
+HandPoints hand_forward(const HandGeometry& hand, const Pose& X_WorldWrist, const JointBends& bend);
+// One bend per finger for all three of its joints (a 5-sensor glove, scripted hands).
 HandPoints hand_forward(const HandGeometry& hand, const Pose& X_WorldWrist,
                         std::span<const double, 5> bend);
 

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "telex/base/triple_buffer.h"
+#include "telex/common/hand_kinematics.h"
 
 namespace telex::local {
 
@@ -108,8 +109,15 @@ struct GloveCalibration {
 // is the mean of a finger's near and far knuckle sensors; abduction sensors are not used.
 std::array<double, 5> finger_bends(const GloveRaw& raw, const GloveCalibration& cal);
 
+// Sensor values -> each joint's bend, thumb first: the 14-sensor glove's near-knuckle sensor bends
+// the MCP joint and its far-knuckle sensor the PIP joint, and the DIP joint follows the PIP (the
+// glove has no DIP sensor; the joints are coupled in a real finger); a 5-sensor glove's one sensor
+// per finger bends all three.
+JointBends joint_bends(const GloveRaw& raw, const GloveCalibration& cal);
+
 struct GloveSample {
   std::array<double, 5> bend{};
+  JointBends joints{};  // joint_bends() of the same report
   std::int64_t received_ns = 0;
 };
 

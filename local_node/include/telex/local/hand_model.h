@@ -18,6 +18,7 @@ struct HandState;
 using telex::FingerGeometry;
 using telex::hand_forward;
 using telex::HandPoints;
+using telex::JointBends;
 using telex::Pose;
 
 // The hand's geometry (telex/common/hand_kinematics.h) and where the camera sits on the head.
