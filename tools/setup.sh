@@ -13,6 +13,7 @@ PACKAGES=(
   libboost-dev libboost-system-dev
   libglm-dev
   libepoxy-dev libegl-dev libegl1 libegl-mesa0 libgl1-mesa-dri
+  libglfw3-dev libxrandr2 libx11-dev xvfb
   libhidapi-dev libusb-1.0-0-dev libfreenect-dev libfreenect-bin
   libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
