@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: MIT
+// The rig file (docs/RIG.md): one JSON file that both daemons read with --rig, holding everything
+// about a lab's setup that is not a tuning choice: the depth sensor's and the eyes' intrinsics and
+// distortion, the extrinsics between them, the robot head's joints, the operator's marker bodies,
+// body segments, gloves and haptic display channels. Every key is optional: an absent key keeps
+// the built-in default, so a rig file grows as a lab calibrates. Unknown keys, wrong types and
+// out-of-range values are errors naming the key's full path.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "telex/common/body.h"
+#include "telex/common/depth_image.h"
+#include "telex/common/registration.h"
+
+namespace telex {
+
+// A bad rig file: the message starts with "rig FILE: " and names the key ("eyes.left.fx_px").
+class RigError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+// A camera with lens distortion (OpenCV's model: k1, k2, p1, p2, k3).
+struct CameraModel {
+  Intrinsics k;
+  std::array<double, 5> distortion{};
+};
+
+// One joint of the robot head (yaw, pitch, roll in that order, each turning the ones after it).
+struct RobotHeadJoint {
+  std::string name;
+  glm::dvec3 axis{0.0, 1.0, 0.0};  // unit, in the head base's frame at zero angles
+  double min_rad = -1.0, max_rad = 1.0;
+  double max_rate_rad_s = 3.14159265358979323846;
+  int servo_id = -1;  // Dynamixel id; -1 = none given
+};
+
+struct RobotHead {
+  std::array<RobotHeadJoint, 3> joints = default_joints();
+  // The right eye camera in the head's last link: p_link = rotation * p_eye + translation_m.
+  RigidTransform X_LinkRightEye{};
+  static std::array<RobotHeadJoint, 3> default_joints();
+};
+
+// Rigid body ids the tracking system streams (-1 = not streamed).
+struct MarkerBodies {
+  int head = 1;
+  int right_hand = 2;
+  int right_shoulder = 3;
+  int left_hand = -1;
+  int left_shoulder = -1;
+  int right_elbow = -1;
+  int left_elbow = -1;
+};
+
+// A glove's calibration: per sensor (5 or 14) the raw value with the hand flat and in a fist.
+struct GloveRange {
+  std::vector<double> min, max;
+};
+
+struct Rig {
+  std::filesystem::path path;  // where it was read from (empty for a built-in rig)
+
+  // The depth sensor as it delivers frames; absent = the source's own intrinsics.
+  std::optional<Intrinsics> depth;
+  // The eye cameras (index by Side: 0 left, 1 right); absent = the depth's intrinsics, no
+  // distortion.
+  std::array<std::optional<CameraModel>, 2> eye;
+  // p_right = rotation * p_left + translation_m (a calibrated stereo pair: the left eye about one
+  // baseline to the left, translation x ~ +baseline).
+  std::optional<RigidTransform> X_RightEyeLeftEye;
+  // p_right = rotation * p_depth + translation_m.
+  std::optional<RigidTransform> X_RightEyeDepth;
+
+  RobotHead robot_head;
+
+  // The operator: the right-eye camera in the head marker body's frame (Motive's: x right, y up,
+  // z backward): p_HeadCamera, and the rotation head -> camera.
+  glm::dvec3 p_HeadCamera{0.032, 0.0, -0.08};
+  glm::dmat3 R_CameraHead{1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0};
+  MarkerBodies bodies;
+  BodyDims body;
+  std::array<std::optional<GloveRange>, 2> glove;  // by Side
+  // Haptic display channel each finger drives (thumb first), per hand.
+  std::array<std::array<int, 5>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
+  // The Gravity Grabber's settings object (docs/HARDWARE.md); null = none given. Checked by the
+  // station's display, which owns its keys.
+  nlohmann::json gravity_grabber;
+
+  // The stereo baseline, |translation| of X_RightEyeLeftEye; nullopt without it.
+  std::optional<double> baseline_m() const;
+};
+
+// Parses a rig from JSON text; `origin` names it in errors. Throws RigError.
+Rig parse_rig(std::string_view text, const std::string& origin);
+// Reads FILE; a missing file is a RigError naming the path.
+Rig load_rig(const std::filesystem::path& path);
+// The rig as JSON, every key written (what load_rig of the result gives back).
+nlohmann::json rig_to_json(const Rig& rig);
+
+// Merges `patch` into the rig file at `path` (RFC 7386 merge patch; the file is created when
+// missing), checks the result as load_rig does and writes it atomically. Calibration commands
+// write their results with this. Throws RigError when the result is not a valid rig.
+void update_rig_file(const std::filesystem::path& path, const nlohmann::json& patch);
+
+// JSON helpers for the calibration commands' patches.
+nlohmann::json camera_model_json(const CameraModel& camera);
+nlohmann::json transform_json(const RigidTransform& x);
+
+// The command-line convention of both daemons: "--rig FILE" or "--rig=FILE" in argv, found before
+// the flags are parsed so the rig sets the defaults and the flags given override them. nullopt
+// when absent; throws RigError when --rig has no value.
+std::optional<std::filesystem::path> rig_path_in_args(int argc, const char* const* argv);
+
+}  // namespace telex
