@@ -82,4 +82,14 @@ RegistrationConfig parse_registration(std::string_view mode, std::string_view ey
   return c;
 }
 
+void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, RegistrationConfig& reg) {
+  if (rig.depth) reg.depth = rig.depth;
+  if (rig.eye[index_of(Side::Right)] && !given.eye) reg.eye = rig.eye[index_of(Side::Right)]->k;
+  if (rig.X_RightEyeDepth) {
+    if (!given.centre) reg.X_EyeDepth.translation_m = rig.X_RightEyeDepth->translation_m;
+    if (!given.rotation) reg.X_EyeDepth.rotation = rig.X_RightEyeDepth->rotation;
+    if (!given.mode) reg.mode = RegisterMode::Full;
+  }
+}
+
 }  // namespace telex::remote

@@ -4,6 +4,7 @@
 
 #include <string_view>
 
+#include "telex/common/rig.h"
 #include "telex/remote/pipeline.h"
 
 namespace telex::remote {
@@ -18,5 +19,15 @@ RegisterMode parse_register_mode(std::string_view text);
 RegistrationConfig parse_registration(std::string_view mode, std::string_view eye_centre_m,
                                       std::string_view rotation_deg, std::string_view eye,
                                       double nominal_depth_m);
+
+// Which registration flags the command line gave (they override the rig).
+struct RegistrationFlagsGiven {
+  bool mode = false, centre = false, rotation = false, eye = false;
+};
+
+// The rig's registration (docs/RIG.md): the right eye's intrinsics (eyes.right), the depth-to-eye
+// extrinsics (extrinsics.right_eye_from_depth), the depth's calibrated intrinsics (depth). With
+// the extrinsics and no --register, the mode becomes full. Flags given win.
+void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, RegistrationConfig& reg);
 
 }  // namespace telex::remote

@@ -203,7 +203,7 @@ void Body::update_arm(Side side, const BodyInputs& in) {
   s.shoulder = shoulder;
   s.wrist = wrist.p_m;
   if (in.elbow[i] && finite(*in.elbow[i])) s.elbow_marker = *in.elbow[i];
-  if (dims_.forearm_axis_from_wrist)
+  if (dims_.forearm_axis_from_wrist && in.wrist_orientation[i])
     s.forearm_axis = glm::normalize(wrist.q * dims_.forearm_axis_wrist);
   s.posture_dir = posture_pull(side, out);
   s.previous_swivel = swivel_[i];

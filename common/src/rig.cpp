@@ -278,7 +278,7 @@ void read_operator(Node& n, Rig& rig) {
     for (const Side s : kSides) {
       const char* name = s == Side::Left ? "left" : "right";
       if (!d.has(name)) continue;
-      const auto c = d.at(name).numbers(5, 5, 0, 15);
+      const auto c = d.at(name).numbers(5, 5, 0, 4);
       for (std::size_t f = 0; f < 5; ++f) {
         if (c[f] != std::floor(c[f])) d.at(name).item(f).fail("must be an integer channel");
         rig.display_channel[index_of(s)][f] = static_cast<int>(c[f]);

@@ -172,6 +172,23 @@ GloveCalibration GloveCalibration::load(const std::filesystem::path& path, int n
   return c;
 }
 
+GloveCalibration GloveCalibration::from_range(const GloveRange& range, int n,
+                                              const std::string& where) {
+  if (range.min.size() != static_cast<std::size_t>(n) || range.max.size() != range.min.size())
+    throw std::runtime_error(where + " holds " + std::to_string(range.min.size()) +
+                             " sensors but the glove has " + std::to_string(n) +
+                             " (recalibrate it with this glove: telex calibrate glove)");
+  GloveCalibration c;
+  c.sensor_count = n;
+  for (int i = 0; i < n; ++i) {
+    c.min[static_cast<std::size_t>(i)] = range.min[static_cast<std::size_t>(i)];
+    c.max[static_cast<std::size_t>(i)] = range.max[static_cast<std::size_t>(i)];
+    if (!(c.max[static_cast<std::size_t>(i)] > c.min[static_cast<std::size_t>(i)]))
+      throw std::runtime_error(where + ": sensor " + std::to_string(i) + " has max <= min");
+  }
+  return c;
+}
+
 void GloveCalibration::save(const std::filesystem::path& path) const {
   nlohmann::json j;
   j["min"] = std::vector<double>(min.begin(), min.begin() + sensor_count);
@@ -232,13 +249,17 @@ void GloveDevice::publish(const GloveRaw& raw) {
 
 namespace {
 
-GloveCalibration calibration_for(const std::string& path, int n) {
-  return path.empty() ? GloveCalibration::full_range(n) : GloveCalibration::load(path, n);
+GloveCalibration calibration_for(const std::string& path, const std::optional<GloveRange>& range,
+                                 int n) {
+  if (!path.empty()) return GloveCalibration::load(path, n);
+  if (range) return GloveCalibration::from_range(*range, n, "the rig's glove range");
+  return GloveCalibration::full_range(n);
 }
 
 class Usb5dtGlove final : public GloveDevice {
  public:
-  Usb5dtGlove(const std::string& path, const std::string& calibration_path) {
+  Usb5dtGlove(const std::string& path, const std::string& calibration_path,
+              const std::optional<GloveRange>& range) {
     if (hid_init() != 0) throw std::runtime_error("5DT USB glove: hidapi failed to initialise");
     hid_device_info* list = hid_enumerate(k5dtVendorId, 0);
     std::optional<GloveModel> model;
@@ -273,7 +294,7 @@ class Usb5dtGlove final : public GloveDevice {
       throw std::runtime_error("5DT USB glove: found at " + chosen +
                                " but cannot open it (permissions? see the udev rule in "
                                "docs/HARDWARE.md)");
-    calibration_ = calibration_for(calibration_path, sensor_count(model_));
+    calibration_ = calibration_for(calibration_path, range, sensor_count(model_));
     thread_ = std::thread([this] { run(); });
   }
   ~Usb5dtGlove() override {
@@ -310,7 +331,8 @@ class Usb5dtGlove final : public GloveDevice {
 
 class Serial5dtGlove final : public GloveDevice {
  public:
-  Serial5dtGlove(const std::string& dev, bool wireless, const std::string& calibration_path)
+  Serial5dtGlove(const std::string& dev, bool wireless, const std::string& calibration_path,
+                 const std::optional<GloveRange>& range)
       : dev_(dev), wireless_(wireless), parser_(wireless) {
     fd_ = ::open(dev.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
     if (fd_ < 0)
@@ -338,7 +360,7 @@ class Serial5dtGlove final : public GloveDevice {
       ::close(fd_);
       throw;
     }
-    calibration_ = calibration_for(calibration_path, 5);
+    calibration_ = calibration_for(calibration_path, range, 5);
     thread_ = std::thread([this] { run(); });
   }
   ~Serial5dtGlove() override {
@@ -419,10 +441,11 @@ class Serial5dtGlove final : public GloveDevice {
 }  // namespace
 
 std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
-                                        const std::string& calibration_path) {
-  if (spec == "5dt-usb") return std::make_unique<Usb5dtGlove>("", calibration_path);
+                                        const std::string& calibration_path,
+                                        const std::optional<GloveRange>& range) {
+  if (spec == "5dt-usb") return std::make_unique<Usb5dtGlove>("", calibration_path, range);
   if (spec.rfind("5dt-usb:", 0) == 0)
-    return std::make_unique<Usb5dtGlove>(spec.substr(8), calibration_path);
+    return std::make_unique<Usb5dtGlove>(spec.substr(8), calibration_path, range);
   if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) {
     std::string dev = spec.substr(11);
     bool wireless = false;
@@ -433,7 +456,7 @@ std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
       wireless = true;
       dev.resize(comma);
     }
-    return std::make_unique<Serial5dtGlove>(dev, wireless, calibration_path);
+    return std::make_unique<Serial5dtGlove>(dev, wireless, calibration_path, range);
   }
   throw std::invalid_argument(
       "glove spec '" + spec +

@@ -29,6 +29,11 @@ GravityGrabberConfig GravityGrabberConfig::load(const std::filesystem::path& pat
   } catch (const nlohmann::json::exception& e) {
     throw std::runtime_error(where + ": not JSON: " + e.what());
   }
+  return from_json(j, where);
+}
+
+GravityGrabberConfig GravityGrabberConfig::from_json(const nlohmann::json& j,
+                                                     const std::string& where) {
   if (!j.is_object()) throw std::runtime_error(where + ": expected a JSON object");
   GravityGrabberConfig c;
   auto number = [&](const nlohmann::json& o, const std::string& key, double lo, double hi,
@@ -277,14 +282,17 @@ class GravityGrabberDisplay final : public HapticDisplay {
 }  // namespace
 
 std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
-                                                    const std::string& config_path) {
+                                                    const std::string& config_path,
+                                                    const nlohmann::json& rig_config) {
   if (target.empty())
     throw std::invalid_argument(
         "display spec 'gravity-grabber:' needs the HID path or the controller's USB ids, e.g. "
         "gravity-grabber:/dev/hidraw3 or gravity-grabber:16c0:05df");
   const HidTarget t = parse_hid_target(target);
   const GravityGrabberConfig cfg =
-      config_path.empty() ? GravityGrabberConfig{} : GravityGrabberConfig::load(config_path);
+      !config_path.empty()     ? GravityGrabberConfig::load(config_path)
+      : rig_config.is_object() ? GravityGrabberConfig::from_json(rig_config, "rig gravity_grabber")
+                               : GravityGrabberConfig{};
   return std::make_unique<GravityGrabberDisplay>(t, cfg);
 }
 

@@ -142,7 +142,8 @@ std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const Displ
   if (spec.rfind("sim:", 0) == 0 && spec.size() > 4)
     return std::make_unique<SimDisplay>(spec.substr(4), config.sim_ring_capacity);
   if (spec.rfind("gravity-grabber:", 0) == 0)
-    return open_gravity_grabber(spec.substr(16), config.gravity_grabber_config_path);
+    return open_gravity_grabber(spec.substr(16), config.gravity_grabber_config_path,
+                                config.gravity_grabber);
   if (spec.rfind("udp:", 0) == 0 && spec.size() > 4) {
     const std::string rest = spec.substr(4);
     const auto colon = rest.rfind(':');

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "telex/common/colorize.h"
@@ -13,11 +14,9 @@
 namespace telex::local {
 namespace {
 
-BodyDims camera_frame_body() {
-  BodyDims d;
-  d.up_world = {0.0, -1.0, 0.0};  // the camera's y points down; a level head assumed
-  // The tracker gives no wrist orientation here (HandState): the posture rule places the elbow.
-  d.forearm_axis_from_wrist = false;
+// The body is solved in the right eye's frame: its up is the camera's -y (a level head assumed).
+BodyDims camera_frame_body(BodyDims d) {
+  d.up_world = {0.0, -1.0, 0.0};
   return d;
 }
 
@@ -73,18 +72,34 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
   const HandState& hand = in.hand;
   BodyInputs bi;
   bi.time_ns = hand.time_ns;
-  const std::size_t r = index_of(Side::Right);
-  if (hand.skeleton_valid) {
-    bi.shoulder[r] = Pose{hand.shoulder_valid ? hand.shoulder_camera : in.default_shoulder_camera,
-                          {1.0, 0.0, 0.0, 0.0}};
-    bi.wrist[r] = Pose{hand.wrist_camera, {1.0, 0.0, 0.0, 0.0}};
+  // Per side, the hand's joints as the tracker chained them (its own glove bends and geometry).
+  std::array<const std::array<std::array<glm::dvec3, 4>, kFingerCount>*, 2> joints{};
+  for (const Side side : kSides) {
+    const std::size_t i = index_of(side);
+    const ArmTrack& a = hand.arms[i];
+    const auto shoulder = [&](bool valid, const glm::dvec3& p) {
+      return Pose{valid ? p : in.default_shoulder_camera[i], {1.0, 0.0, 0.0, 0.0}};
+    };
+    if (a.wrist_valid) {  // a tracked hand body: its orientation, shoulder and elbow if tracked
+      bi.wrist[i] = a.X_CameraWrist;
+      bi.wrist_orientation[i] = a.wrist_orientation;
+      bi.shoulder[i] = shoulder(a.shoulder_valid, a.p_CameraShoulder);
+      if (a.elbow_valid) bi.elbow[i] = a.p_CameraElbow;
+      joints[i] = &a.joints_camera;
+    } else if (side == Side::Right && hand.skeleton_valid) {  // a scripted or glove-only hand
+      bi.wrist[i] = Pose{hand.wrist_camera, {1.0, 0.0, 0.0, 0.0}};
+      bi.wrist_orientation[i] = false;
+      bi.shoulder[i] = shoulder(hand.shoulder_valid, hand.shoulder_camera);
+      joints[i] = &hand.joints_camera;
+    }
   }
   BodyState state = body.update(bi);
-  // The hand as the tracker chained it (its own glove bends and geometry), not recomputed.
-  ArmState& arm = state.arms[r];
-  if (arm.visible && hand.skeleton_valid)
+  for (const Side side : kSides) {
+    ArmState& arm = state.arms[index_of(side)];
+    if (!arm.visible || joints[index_of(side)] == nullptr) continue;
     for (std::size_t f = 0; f < kFingerCount; ++f)
-      for (std::size_t j = 0; j < 4; ++j) arm.hand.joints[f][j] = hand.joints_camera[f][j];
+      for (std::size_t j = 0; j < 4; ++j) arm.hand.joints[f][j] = (*joints[index_of(side)])[f][j];
+  }
   std::vector<Capsule> out = body_capsules(state, [](const glm::dvec3& p) { return p; });
   // Fingertips in contact: a marker at the god-point on the remote surface (the finger itself
   // is inside the surface then, hidden by it), coloured by pressure, and the force as an arrow (a
@@ -103,11 +118,45 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
   return out;
 }
 
-StereoView::StereoView() : body_(camera_frame_body()) {}
-StereoView::StereoView(int width, int height)
+EyeRectifier::EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye)
+    : camera_(camera), R_TargetEye_(R_TargetEye) {}
+
+cv::Mat3b EyeRectifier::apply(const cv::Mat3b& image, const Intrinsics& target) {
+  if (image.empty()) return image;
+  if (image.size() != for_size_ || !(target == for_target_)) {
+    const Intrinsics k = camera_.k.width == image.cols && camera_.k.height == image.rows
+                             ? camera_.k
+                             : camera_.k.scaled(image.cols, image.rows);
+    const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
+    const cv::Matx33d P(target.fx, 0, target.cx, 0, target.fy, target.cy, 0, 0, 1);
+    cv::Matx33d R;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R(r, c) = R_TargetEye_[c][r];  // glm is column-major
+    cv::initUndistortRectifyMap(K, camera_.distortion, R, P, {target.width, target.height},
+                                CV_16SC2, map1_, map2_);
+    for_size_ = image.size();
+    for_target_ = target;
+  }
+  cv::Mat3b out;
+  cv::remap(image, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  return out;
+}
+
+void StereoView::set_eye_cameras(const std::array<std::optional<CameraModel>, 2>& eyes,
+                                 const glm::dmat3& R_RightEyeLeftEye) {
+  for (const Side side : kSides) {
+    auto& r = rectifier_[index_of(side)];
+    r.reset();
+    if (eyes[index_of(side)])
+      r.emplace(*eyes[index_of(side)], side == Side::Left ? R_RightEyeLeftEye : glm::dmat3(1.0));
+  }
+}
+
+StereoView::StereoView(const BodyDims& dims) : body_(camera_frame_body(dims)) {}
+StereoView::StereoView(int width, int height, const BodyDims& dims)
     : renderer_(std::make_unique<StereoRenderer>(width, height)),
       renderer_size_(width, height),
-      body_(camera_frame_body()) {}
+      body_(camera_frame_body(dims)) {}
 StereoView::~StereoView() = default;
 
 StereoViewImages StereoView::render(const StereoViewInputs& in) {
@@ -123,7 +172,12 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     cv::resize(m, r, size, 0, 0, cv::INTER_AREA);
     return r;
   };
-  std::array<cv::Mat3b, 2> eye{fit(in.eye_bgr[0]), fit(in.eye_bgr[1])};
+  // A calibrated eye is undistorted (and the left one rectified) into the depth's camera; an
+  // uncalibrated one is only resized to it.
+  const auto bring = [&](std::size_t i) {
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], in.k) : fit(in.eye_bgr[i]);
+  };
+  std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   out.one_eye = eye[0].empty() != eye[1].empty();
   if (eye[0].empty()) eye[0] = eye[1];
   if (eye[1].empty()) eye[1] = eye[0];

@@ -26,23 +26,37 @@ int to_port(std::string_view text, const std::string& spec) {
   return v;
 }
 
-// NatNet rigid bodies + hand model; finger bends from a glove when one is attached.
+// NatNet rigid bodies + hand model; finger bends from a glove when one is attached. The haptic
+// hand gives the fingertips; both hands, shoulders and elbows that have body ids are tracked for
+// the view's body (HandState::arms).
 class NatNetTracker final : public HandTracker {
  public:
   NatNetTracker(NatNetClientConfig ccfg, const TrackerConfig& cfg,
-                std::unique_ptr<GloveDevice> glove)
-      : cfg_(cfg), glove_(std::move(glove)) {
-    hand_id_ = cfg.use_left_hand ? cfg.left_hand_body_id : cfg.right_hand_body_id;
-    shoulder_id_ = cfg.use_left_hand ? cfg.left_shoulder_body_id : cfg.right_shoulder_body_id;
-    if (hand_id_ < 0 || cfg.head_body_id < 0)
+                std::unique_ptr<GloveDevice> glove, std::unique_ptr<GloveDevice> other_glove)
+      : cfg_(cfg), glove_(std::move(glove)), other_glove_(std::move(other_glove)) {
+    haptic_ = cfg.use_left_hand ? Side::Left : Side::Right;
+    const auto by_side = [](int left, int right) {
+      return std::array<std::int32_t, 2>{left, right};
+    };
+    hand_id_ = by_side(cfg.left_hand_body_id, cfg.right_hand_body_id);
+    shoulder_id_ = by_side(cfg.left_shoulder_body_id, cfg.right_shoulder_body_id);
+    elbow_id_ = by_side(cfg.left_elbow_body_id, cfg.right_elbow_body_id);
+    if (hand_id_[index_of(haptic_)] < 0 || cfg.head_body_id < 0)
       throw std::invalid_argument("natnet tracker: head and hand rigid body ids must be set");
-    ccfg.body_ids = {cfg.head_body_id, hand_id_};
-    if (shoulder_id_ >= 0) ccfg.body_ids.push_back(shoulder_id_);
-    hand_cfg_ = cfg.hand;
-    hand_cfg_.left = cfg.use_left_hand;
-    for (std::size_t f = 0; f < 5; ++f)
-      bend_[f] = {cfg.default_bend[f], cfg.default_bend[f], cfg.default_bend[f]};
-    name_ = "natnet:" + ccfg.server_ip + (glove_ ? "+" + glove_->name() : "");
+    ccfg.body_ids = {cfg.head_body_id};
+    for (const auto& ids : {hand_id_, shoulder_id_, elbow_id_})
+      for (const std::int32_t id : ids)
+        if (id >= 0) ccfg.body_ids.push_back(id);
+    hand_cfg_[index_of(Side::Right)] = cfg.hand;
+    hand_cfg_[index_of(Side::Left)] = cfg.hand;  // the head-to-camera offset is shared
+    static_cast<HandGeometry&>(hand_cfg_[index_of(Side::Left)]) = cfg.left_hand;
+    hand_cfg_[index_of(Side::Right)].left = false;
+    hand_cfg_[index_of(Side::Left)].left = true;
+    for (auto& bends : bend_)
+      for (std::size_t f = 0; f < 5; ++f)
+        bends[f] = {cfg.default_bend[f], cfg.default_bend[f], cfg.default_bend[f]};
+    name_ = "natnet:" + ccfg.server_ip + (glove_ ? "+" + glove_->name() : "") +
+            (other_glove_ ? "+" + other_glove_->name() : "");
     client_ = std::make_unique<NatNetClient>(std::move(ccfg));
   }
 
@@ -55,28 +69,57 @@ class NatNetTracker final : public HandTracker {
     }
     GloveSample g;
     if (glove_ && glove_->latest(g)) {
-      bend_ = g.joints;
+      bend_[index_of(haptic_)] = g.joints;
+      fresh = true;
+    }
+    if (other_glove_ && other_glove_->latest(g)) {
+      bend_[1 - index_of(haptic_)] = g.joints;
       fresh = true;
     }
     if (!fresh || !have_sample_) return false;
     const auto* head = sample_.find(cfg_.head_body_id);
-    const auto* hand = sample_.find(hand_id_);
+    const bool head_valid = head && head->valid;
+    const auto body = [&](std::int32_t id) -> const NatNetSample::Body* {
+      const auto* b = id >= 0 ? sample_.find(id) : nullptr;
+      return b && b->valid && head_valid ? b : nullptr;
+    };
     HandState cur = previous_;
-    if (head && hand && head->valid && hand->valid) {
-      const HandPoints pts = hand_forward(hand_cfg_, hand->pose, bend_);
-      // Velocities use the server's frame stamps (jitter-free), so they only change with a new
-      // mocap frame; a glove-only update moves the fingers and keeps the last velocity.
-      fill_hand_state(hand_cfg_, head->pose, pts,
-                      static_cast<std::int64_t>(std::llround(sample_.timestamp_s * 1e9)), cur);
-      if (mocap_fresh) update_velocities(previous_, cur);
-      const auto* shoulder = shoulder_id_ >= 0 ? sample_.find(shoulder_id_) : nullptr;
-      cur.shoulder_valid = shoulder && shoulder->valid;
-      if (cur.shoulder_valid)
-        cur.shoulder_camera = world_to_camera(hand_cfg_, head->pose, shoulder->pose.p_m);
-    } else {
-      for (auto& t : cur.tips) t.valid = false;
-      cur.skeleton_valid = false;
+    const std::size_t h = index_of(haptic_);
+    for (const Side side : kSides) {
+      const std::size_t i = index_of(side);
+      const HandModelConfig& hc = hand_cfg_[i];
+      ArmTrack& arm = cur.arms[i];
+      const auto* hand = body(hand_id_[i]);
+      arm.wrist_valid = arm.wrist_orientation = hand != nullptr;
+      if (hand) {
+        const HandPoints pts = hand_forward(hc, hand->pose, bend_[i]);
+        if (i == h) {
+          // Velocities use the server's frame stamps (jitter-free), so they only change with a
+          // new mocap frame; a glove-only update moves the fingers and keeps the last velocity.
+          fill_hand_state(hc, head->pose, pts,
+                          static_cast<std::int64_t>(std::llround(sample_.timestamp_s * 1e9)), cur);
+          if (mocap_fresh) update_velocities(previous_, cur);
+        }
+        arm.X_CameraWrist.p_m = world_to_camera(hc, head->pose, hand->pose.p_m);
+        arm.X_CameraWrist.q =
+            glm::quat_cast(hc.R_CameraHead * glm::mat3_cast(glm::conjugate(head->pose.q))) *
+            hand->pose.q;
+        for (std::size_t f = 0; f < kFingerCount; ++f)
+          for (std::size_t j = 0; j < 4; ++j)
+            arm.joints_camera[f][j] = world_to_camera(hc, head->pose, pts.joints[f][j]);
+      } else if (i == h) {
+        for (auto& t : cur.tips) t.valid = false;
+        cur.skeleton_valid = false;
+      }
+      const auto* shoulder = body(shoulder_id_[i]);
+      arm.shoulder_valid = shoulder != nullptr;
+      if (shoulder) arm.p_CameraShoulder = world_to_camera(hc, head->pose, shoulder->pose.p_m);
+      const auto* elbow = body(elbow_id_[i]);
+      arm.elbow_valid = elbow != nullptr;
+      if (elbow) arm.p_CameraElbow = world_to_camera(hc, head->pose, elbow->pose.p_m);
     }
+    cur.shoulder_valid = cur.arms[h].shoulder_valid;
+    if (cur.shoulder_valid) cur.shoulder_camera = cur.arms[h].p_CameraShoulder;
     cur.body_count = 0;
     for (const auto& b : sample_.bodies) {
       if (!b.present || cur.body_count >= kMaxTrackedBodies) continue;
@@ -95,22 +138,30 @@ class NatNetTracker final : public HandTracker {
   TrackerStats stats() const override {
     TrackerStats s = stats_;
     const auto c = client_->stats();
-    s.frames_in = c.frames + (glove_ ? glove_->reports() : 0);
-    s.frames_dropped = client_->overwritten() + (glove_ ? glove_->overwritten() : 0);
-    s.parse_errors = c.parse_errors + (glove_ ? glove_->bad_reports() : 0);
-    s.io_errors = c.io_errors + (glove_ ? glove_->read_errors() : 0);
+    s.frames_in = c.frames;
+    s.frames_dropped = client_->overwritten();
+    s.parse_errors = c.parse_errors;
+    s.io_errors = c.io_errors;
+    for (const auto* gl : {glove_.get(), other_glove_.get()}) {
+      if (!gl) continue;
+      s.frames_in += gl->reports();
+      s.frames_dropped += gl->overwritten();
+      s.parse_errors += gl->bad_reports();
+      s.io_errors += gl->read_errors();
+    }
     return s;
   }
 
  private:
   TrackerConfig cfg_;
-  HandModelConfig hand_cfg_;
-  std::unique_ptr<GloveDevice> glove_;
+  Side haptic_ = Side::Right;
+  std::array<HandModelConfig, 2> hand_cfg_;  // by Side
+  std::unique_ptr<GloveDevice> glove_, other_glove_;
   std::unique_ptr<NatNetClient> client_;
-  std::int32_t hand_id_ = -1, shoulder_id_ = -1;
+  std::array<std::int32_t, 2> hand_id_{-1, -1}, shoulder_id_{-1, -1}, elbow_id_{-1, -1};
   NatNetSample sample_;
   bool have_sample_ = false;
-  JointBends bend_{};  // each joint's bend: the glove's, or the configured default
+  std::array<JointBends, 2> bend_{};  // each joint's bend by Side: the glove's, or the default
   HandState previous_;
   std::string name_;
   TrackerStats stats_;
@@ -123,6 +174,7 @@ class GloveTracker final : public HandTracker {
   GloveTracker(std::unique_ptr<GloveDevice> glove, const TrackerConfig& cfg)
       : glove_(std::move(glove)) {
     hand_cfg_ = cfg.hand;
+    if (cfg.use_left_hand) static_cast<HandGeometry&>(hand_cfg_) = cfg.left_hand;
     hand_cfg_.left = cfg.use_left_hand;
     // The tracking "world" is the camera frame itself.
     hand_cfg_.p_HeadCamera = glm::dvec3{0.0};
@@ -202,9 +254,14 @@ std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerC
           "' (valid: multicast, unicast, local=IP, cmd=PORT, data=PORT, version=X.Y)");
     }
   }
-  std::unique_ptr<GloveDevice> glove;
-  if (!cfg.glove_spec.empty()) glove = open_glove(cfg.glove_spec, cfg.glove_calibration_path);
-  return std::make_unique<NatNetTracker>(std::move(c), cfg, std::move(glove));
+  std::unique_ptr<GloveDevice> glove, other_glove;
+  const std::size_t haptic = index_of(cfg.use_left_hand ? Side::Left : Side::Right);
+  if (!cfg.glove_spec.empty())
+    glove = open_glove(cfg.glove_spec, cfg.glove_calibration_path, cfg.glove_range[haptic]);
+  if (!cfg.other_glove_spec.empty())
+    other_glove = open_glove(cfg.other_glove_spec, "", cfg.glove_range[1 - haptic]);
+  return std::make_unique<NatNetTracker>(std::move(c), cfg, std::move(glove),
+                                         std::move(other_glove));
 }
 
 }  // namespace
@@ -222,7 +279,10 @@ std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const Tracker
   }
   if (spec.rfind("natnet:", 0) == 0) return make_natnet(spec, config);
   if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0)
-    return std::make_unique<GloveTracker>(open_glove(spec, config.glove_calibration_path), config);
+    return std::make_unique<GloveTracker>(
+        open_glove(spec, config.glove_calibration_path,
+                   config.glove_range[index_of(config.use_left_hand ? Side::Left : Side::Right)]),
+        config);
   throw std::invalid_argument(
       "tracker spec '" + spec +
       "' is not one of script:press|stroke|tap|FILE, natnet:SERVER_IP[,options], "

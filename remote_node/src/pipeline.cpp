@@ -90,17 +90,26 @@ FramePipeline::FramePipeline(PipelineConfig config)
 const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
   const RegistrationConfig& reg = config_.registration;
   if (reg.mode == RegisterMode::None) return in;
-  const Intrinsics eye = reg.eye.width == 0 ? in.intrinsics : reg.eye;
+  // A calibrated depth camera replaces the source's nominal intrinsics (a header copy: the pixels
+  // are shared).
+  DepthImage calibrated = in;
+  if (reg.depth)
+    calibrated.intrinsics =
+        reg.depth->width == in.intrinsics.width && reg.depth->height == in.intrinsics.height
+            ? *reg.depth
+            : reg.depth->scaled(in.intrinsics.width, in.intrinsics.height);
+  const DepthImage& src = calibrated;
+  const Intrinsics eye = reg.eye.width == 0 ? src.intrinsics : reg.eye;
   if (reg.mode == RegisterMode::Full) {
-    registered_ = reproject_depth(in, eye, reg.X_EyeDepth, /*fill_cracks=*/true);
+    registered_ = reproject_depth(src, eye, reg.X_EyeDepth, /*fill_cracks=*/true);
   } else {
     // Shift+scale models a translated camera: the rotation is ignored.
-    if (shift_scale_for_ != in.intrinsics) {
-      shift_scale_ = shift_scale_from_calibration(in.intrinsics, eye, reg.X_EyeDepth.translation_m,
+    if (shift_scale_for_ != src.intrinsics) {
+      shift_scale_ = shift_scale_from_calibration(src.intrinsics, eye, reg.X_EyeDepth.translation_m,
                                                   reg.nominal_depth_m);
-      shift_scale_for_ = in.intrinsics;
+      shift_scale_for_ = src.intrinsics;
     }
-    registered_ = register_shift_scale(in, shift_scale_, eye);
+    registered_ = register_shift_scale(src, shift_scale_, eye);
   }
   return registered_;
 }

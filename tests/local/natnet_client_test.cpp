@@ -9,6 +9,7 @@
 #include <fstream>
 #include <thread>
 
+#include "telex/local/stereo_view.h"
 #include "telex/local/tracker.h"
 #include "telex/sim/natnet_server.h"
 
@@ -215,6 +216,102 @@ TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
   tracker.reset();
   server.stop();
   srv.join();
+  std::filesystem::remove_all(dir);
+}
+
+TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("telex_nnarms_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto csv = dir / "pose.csv";
+  // Head at 1.6 m looking along -z; both hands forward, shoulders and elbow markers where an
+  // operator's would be (the elbows 2 cm off the joint, as a marker on the skin is).
+  std::ofstream(csv) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
+                        "0,1,0,1.6,0,0,0,0,1\n"
+                        "0,2,0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
+                        "0,3,0.2,1.45,0.05,0,0,0,1\n"
+                        "0,4,-0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
+                        "0,5,-0.2,1.45,0.05,0,0,0,1\n"
+                        "0,6,0.3,1.2,-0.1,0,0,0,1\n"
+                        "0,7,-0.3,1.2,-0.1,0,0,0,1\n";
+  NatNetServerConfig scfg;
+  scfg.command_port = 0;
+  scfg.version = {3, 1};
+  NatNetServer server(scfg, load_natnet_csv(csv, false));
+  std::thread srv([&] { server.run_for(20.0); });
+
+  TrackerConfig cfg;
+  cfg.head_body_id = 1;
+  cfg.right_hand_body_id = 2;
+  cfg.right_shoulder_body_id = 3;
+  cfg.left_hand_body_id = 4;
+  cfg.left_shoulder_body_id = 5;
+  cfg.right_elbow_body_id = 6;
+  cfg.left_elbow_body_id = 7;
+  auto tracker =
+      make_tracker("natnet:127.0.0.1,unicast,cmd=" + std::to_string(server.command_port()), cfg);
+  HandState st;
+  bool got = false;
+  for (int i = 0; i < 2000 && !got; ++i) {
+    got = tracker->poll(i, st) && st.arms[0].wrist_valid && st.arms[1].elbow_valid;
+    if (!got) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(got);
+  tracker.reset();
+  server.stop();
+  srv.join();
+
+  natnet::Frame truth;
+  load_natnet_csv(csv, false)(0.0, truth);
+  auto pose_of = [&](int id) {
+    const auto* b = truth.find_body(id);
+    return Pose{{b->p_m.x, b->p_m.y, b->p_m.z},
+                glm::normalize(glm::dquat(b->qw, b->qx, b->qy, b->qz))};
+  };
+  const Pose head = pose_of(1);
+  const auto near = [](const glm::dvec3& a, const glm::dvec3& b) {
+    return glm::length(a - b) < 1e-5;
+  };
+  for (const Side side : kSides) {
+    const ArmTrack& a = st.arms[index_of(side)];
+    const int hand_id = side == Side::Left ? 4 : 2, shoulder_id = side == Side::Left ? 5 : 3,
+              elbow_id = side == Side::Left ? 7 : 6;
+    ASSERT_TRUE(a.wrist_valid && a.wrist_orientation && a.shoulder_valid && a.elbow_valid);
+    EXPECT_TRUE(
+        near(a.p_CameraShoulder, world_to_camera(cfg.hand, head, pose_of(shoulder_id).p_m)));
+    EXPECT_TRUE(near(a.p_CameraElbow, world_to_camera(cfg.hand, head, pose_of(elbow_id).p_m)));
+    EXPECT_TRUE(near(a.X_CameraWrist.p_m, world_to_camera(cfg.hand, head, pose_of(hand_id).p_m)));
+    // The wrist's orientation maps its axes as the world pose does, seen from the camera.
+    const glm::dvec3 x_world = pose_of(hand_id).q * glm::dvec3(1, 0, 0);
+    EXPECT_TRUE(near(a.X_CameraWrist.q * glm::dvec3(1, 0, 0),
+                     world_dir_to_camera(cfg.hand, head, x_world)));
+    // Each hand is chained with its own side's geometry (a left hand is mirrored).
+    HandGeometry g = side == Side::Left ? cfg.left_hand : static_cast<HandGeometry>(cfg.hand);
+    g.left = side == Side::Left;
+    const HandPoints h = hand_forward(g, pose_of(hand_id), cfg.default_bend);
+    for (std::size_t f = 0; f < kFingerCount; ++f)
+      EXPECT_TRUE(near(a.joints_camera[f][3], world_to_camera(cfg.hand, head, h.joints[f][3])))
+          << f;
+  }
+  // The two hands are mirror images about the head's midline (x = 0 in the world), so their
+  // thumbs are on opposite sides: the left thumb right of the left little finger, and vice versa.
+  EXPECT_GT(st.arms[0].joints_camera[0][3].x, st.arms[0].joints_camera[4][3].x);
+  EXPECT_LT(st.arms[1].joints_camera[0][3].x, st.arms[1].joints_camera[4][3].x);
+
+  // The view's body takes both arms, its elbows from the markers, and draws both.
+  Body body(BodyDims{});
+  StereoViewInputs in;
+  in.hand = st;
+  const auto capsules = view_capsules(body, in);
+  const BodyState& bs = body.state();
+  for (const Side side : kSides) {
+    const ArmState& arm = bs.arms[index_of(side)];
+    EXPECT_TRUE(arm.visible);
+    EXPECT_EQ(arm.elbow_from, ElbowFrom::Marker) << elbow_from_name(arm.elbow_from);
+    EXPECT_LT(glm::length(arm.elbow - st.arms[index_of(side)].p_CameraElbow), 0.06);
+  }
+  // Two arms of 2 segments + 5 fingers x 4 capsules each.
+  EXPECT_EQ(capsules.size(), 2u * (2 + 5 * 4));
   std::filesystem::remove_all(dir);
 }
 

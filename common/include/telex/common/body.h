@@ -104,6 +104,9 @@ struct BodyInputs {
   std::array<std::optional<Pose>, 2> wrist;        // the hand (wrist) rigid bodies
   std::array<std::optional<glm::dvec3>, 2> elbow;  // optional elbow markers
   std::array<std::array<double, 5>, 2> bend{};     // glove bends 0..1, thumb first
+  // false where the wrist pose's orientation is unknown (a scripted hand): its forearm axis is
+  // then not used, whatever BodyDims::forearm_axis_from_wrist says.
+  std::array<bool, 2> wrist_orientation{true, true};
 };
 
 struct ArmState {

@@ -14,6 +14,7 @@
 
 #include "telex/base/triple_buffer.h"
 #include "telex/common/hand_kinematics.h"
+#include "telex/common/rig.h"
 
 namespace telex::local {
 
@@ -99,6 +100,10 @@ struct GloveCalibration {
   // JSON {"min": [...], "max": [...]} with sensor_count entries each; throws std::runtime_error
   // naming the file and the problem.
   static GloveCalibration load(const std::filesystem::path& path, int sensor_count);
+  // The rig's range (operator.gloves.SIDE); throws std::runtime_error naming `where` when it does
+  // not hold sensor_count sensors.
+  static GloveCalibration from_range(const GloveRange& range, int sensor_count,
+                                     const std::string& where);
   void save(const std::filesystem::path& path) const;
   // Auto-calibration: start from an empty range and widen it while the user opens and closes.
   static GloveCalibration empty(int sensor_count);
@@ -145,8 +150,10 @@ class GloveDevice {
 // Data Glove 5: 19200 baud, reset 'A', info 'G', stream 'D') or "5dt-serial:DEV,wireless" (the
 // send-only 5-W: 9600 baud, 10-byte reports).
 // Throws std::invalid_argument for a malformed spec and std::runtime_error naming the device and
-// what to try when it cannot be opened. Empty calibration path = full sensor range.
+// what to try when it cannot be opened. The calibration: the file at calibration_path, else the
+// rig's range, else the full sensor range.
 std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
-                                        const std::string& calibration_path);
+                                        const std::string& calibration_path,
+                                        const std::optional<GloveRange>& range = std::nullopt);
 
 }  // namespace telex::local

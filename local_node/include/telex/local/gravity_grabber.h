@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
 #include <string>
@@ -38,6 +39,8 @@ struct GravityGrabberConfig {
   // Missing keys keep their defaults; unknown keys and out-of-range values throw
   // std::runtime_error naming the file and the key.
   static GravityGrabberConfig load(const std::filesystem::path& path);
+  // The same keys from a JSON object (the rig's gravity_grabber); errors start with `where`.
+  static GravityGrabberConfig from_json(const nlohmann::json& j, const std::string& where);
 };
 
 // Motor commands in [-1, 1], finger-major: {A0, B0, A1, B1, ...}. Motors turning opposite ways
@@ -70,9 +73,11 @@ std::optional<std::string> choose_hid_device(const HidTarget& target,
                                              std::span<const HidCandidate> candidates);
 
 // Opens the display `target` names (parse_hid_target) through hidapi, with the calibration in
-// `config_path` (empty = defaults). Reports go out on a writer thread so write() never waits on
-// USB. Throws std::runtime_error naming the path or the ids, what was found, and what to try.
+// `config_path`, else the rig's object `rig_config` (null = defaults). Reports go out on a writer
+// thread so write() never waits on USB. Throws std::runtime_error naming the path or the ids, what
+// was found, and what to try.
 std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
-                                                    const std::string& config_path);
+                                                    const std::string& config_path,
+                                                    const nlohmann::json& rig_config = nullptr);
 
 }  // namespace telex::local

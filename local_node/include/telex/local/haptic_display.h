@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <span>
 #include <string>
 
@@ -46,6 +47,7 @@ struct DisplayCounters {
 struct DisplayConfig {
   // Gravity Grabber calibration and limits (JSON, docs/HARDWARE.md); empty = defaults.
   std::string gravity_grabber_config_path;
+  nlohmann::json gravity_grabber;  // the rig's object, used when no path is given (null = none)
   int udp_default_port = 1234;
   std::size_t sim_ring_capacity = 8192;  // records buffered between the haptic and writer threads
 };

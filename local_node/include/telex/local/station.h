@@ -8,9 +8,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "telex/common/haptic_model.h"
+#include "telex/common/rig.h"
 #include "telex/local/haptic_display.h"
 #include "telex/local/recorder.h"
 #include "telex/local/surface_builder.h"
@@ -49,6 +51,15 @@ struct StationConfig {
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;
+  // Each eye's intrinsics and distortion (the rig's eyes.*), by Side: the view undistorts that
+  // eye's video into the depth's pinhole camera, the left eye also rotated by R_RightEyeLeftEye
+  // (rectified). Absent: the video is drawn as it comes.
+  std::array<std::optional<CameraModel>, 2> eye_camera;
+  glm::dmat3 R_RightEyeLeftEye{1.0};
+  // The operator's body for the view (the rig's operator.body).
+  BodyDims body;
+  // The haptic display channel each finger drives (thumb first), by the haptic hand's Side.
+  std::array<std::array<int, kFingerCount>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
   double print_forces_hz = 0.0;  // live force lines on stdout (0 = off)
   bool status_line = true;       // one status line per second on stderr
   bool roi_requests = true;      // ask the remote for full-rate tiles near the hands
@@ -123,5 +134,10 @@ class Station {
   StationConfig cfg_;
   std::atomic<bool> stop_{false};
 };
+
+// Sets what the rig file holds (docs/RIG.md): marker body ids, the head-to-camera offset, both
+// hands' geometry and gloves, the body, the eyes and the baseline, the display channels and the
+// Gravity Grabber settings. Called before the flags are parsed, so flags override it.
+void apply_rig(const Rig& rig, StationConfig& cfg);
 
 }  // namespace telex::local

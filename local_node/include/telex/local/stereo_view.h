@@ -14,6 +14,7 @@
 
 #include "telex/common/body.h"
 #include "telex/common/haptic_model.h"
+#include "telex/common/rig.h"
 #include "telex/local/stereo_renderer.h"
 #include "telex/local/tracker.h"
 
@@ -29,9 +30,11 @@ struct StereoViewInputs {
   const Surface* surface = nullptr;  // for the normal-map inset; may be null
   std::string status;
   double arrow_m_per_N = 0.02;  // force arrow length in the scene per newton
-  // Where the operator's right shoulder sits in the camera frame when the tracker has no shoulder
-  // body (scripted hands): 20 cm right of, 30 cm below and 10 cm behind the eyes.
-  glm::dvec3 default_shoulder_camera{0.20, 0.30, -0.10};
+  // Where the operator's shoulders sit in the camera (right eye) frame, by Side, when the tracker
+  // has no shoulder body: 30 cm below and 10 cm behind the eyes, the right one 20 cm right of the
+  // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
+  std::array<glm::dvec3, 2> default_shoulder_camera{glm::dvec3{-0.264, 0.30, -0.10},
+                                                    glm::dvec3{0.20, 0.30, -0.10}};
 };
 
 struct StereoViewImages {
@@ -39,18 +42,41 @@ struct StereoViewImages {
   bool one_eye = false;  // only one eye's image came: it was used for both
 };
 
+// One eye's video brought into the view's pinhole camera: undistorted with that eye's intrinsics
+// and distortion (scaled to the image's size when the video was resized) and, for the left eye,
+// rotated into the right eye's orientation (rectified), resampled to `target`'s size. The maps are
+// built once per (image size, target) and reused.
+class EyeRectifier {
+ public:
+  EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye);
+  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target);
+
+ private:
+  CameraModel camera_;
+  glm::dmat3 R_TargetEye_;
+  cv::Size for_size_;
+  Intrinsics for_target_;
+  cv::Mat map1_, map2_;
+};
+
 // Owns the renderer (created at the first frame's size on the calling thread, which must be the
 // one every later call comes from) and the body's swivel history.
 class StereoView {
  public:
-  StereoView();
+  // The body's segment lengths and wrist-axis rule from `dims` (the rig's operator.body).
+  explicit StereoView(const BodyDims& dims = {});
   // Creates the renderer now, for eyes of this size (a later frame of another size makes a new
   // one): a machine without EGL fails here with the renderer's error.
-  StereoView(int width, int height);
+  StereoView(int width, int height, const BodyDims& dims = {});
   ~StereoView();
   StereoViewImages render(const StereoViewInputs& in);
+  // The eyes' calibration (the rig's eyes.*; absent = drawn as they come) and the left eye's
+  // rotation into the right's (p_right = R p_left).
+  void set_eye_cameras(const std::array<std::optional<CameraModel>, 2>& eyes,
+                       const glm::dmat3& R_RightEyeLeftEye);
 
  private:
+  std::array<std::optional<EyeRectifier>, 2> rectifier_;
   std::unique_ptr<StereoRenderer> renderer_;
   cv::Size renderer_size_;
   Body body_;

@@ -6,8 +6,11 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "telex/common/body.h"
+#include "telex/common/rig.h"
 #include "telex/local/hand_model.h"
 
 namespace telex::local {
@@ -33,6 +36,18 @@ struct TrackedBody {
 };
 inline constexpr int kMaxTrackedBodies = 8;
 
+// One arm as tracked, in the remote camera frame, for the view's body (both arms are drawn; the
+// haptic fingertips are those of HandState::tips).
+struct ArmTrack {
+  bool wrist_valid = false;
+  bool wrist_orientation = false;  // X_CameraWrist.q is measured (a NatNet hand body)
+  Pose X_CameraWrist;              // the hand (wrist) rigid body
+  bool shoulder_valid = false, elbow_valid = false;
+  glm::dvec3 p_CameraShoulder{0.0}, p_CameraElbow{0.0};
+  // Per finger: MCP, PIP, DIP, tip (valid with wrist_valid).
+  std::array<std::array<glm::dvec3, 4>, kFingerCount> joints_camera{};
+};
+
 // One tracker sample, everything in the remote camera frame (x right, y down, z forward, metres).
 struct HandState {
   std::int64_t time_ns = 0;  // when the sample was taken, on the caller's clock (poll's now_ns)
@@ -43,6 +58,9 @@ struct HandState {
   glm::dvec3 shoulder_camera{0.0};  // valid when shoulder_valid (NatNet with a shoulder body)
   bool skeleton_valid = false;
   bool shoulder_valid = false;
+  // Both arms by Side (telex/common/body.h: 0 left, 1 right), NatNet only; the haptic hand's arm
+  // repeats wrist_camera and shoulder_camera with the wrist's orientation and an elbow marker.
+  std::array<ArmTrack, 2> arms{};
   // Raw rigid bodies behind this state (NatNet only; body_count 0 for scripts and gloves), logged
   // by --log-tracking.
   std::array<TrackedBody, kMaxTrackedBodies> bodies{};
@@ -72,18 +90,25 @@ struct TrackerConfig {
   int left_hand_body_id = -1;
   int right_shoulder_body_id = 3;
   int left_shoulder_body_id = -1;
-  bool use_left_hand = false;
+  int right_elbow_body_id = -1;
+  int left_elbow_body_id = -1;
+  bool use_left_hand = false;  // the haptic fingertips are the left hand's
   int natnet_command_port = 1510;
   int natnet_data_port = 1511;
   std::string natnet_multicast_group = "239.255.42.99";
   std::string natnet_local_address = "0.0.0.0";  // interface to join the group on
 
-  HandModelConfig hand;  // segment lengths and head-to-camera offset
+  HandModelConfig hand;  // the right hand's geometry and the head-to-camera offset
+  HandGeometry left_hand = BodyDims::left_hand();  // the left hand's geometry
   // Finger bends (0 straight .. 1 fist) used when no glove is attached.
   std::array<double, kFingerCount> default_bend{0.3, 0.1, 0.3, 0.4, 0.4};
   // Glove spec combined with a NatNet wrist: "" (none), "5dt-usb[:PATH]", "5dt-serial:DEV".
   std::string glove_spec;
-  std::string glove_calibration_path;  // JSON from docs/HARDWARE.md; empty = full sensor range
+  std::string glove_calibration_path;  // JSON from docs/HARDWARE.md; empty = glove_range or full
+  // The gloves' ranges by Side from the rig (operator.gloves), used when no path is given.
+  std::array<std::optional<GloveRange>, 2> glove_range;
+  // The other hand's glove (that hand is drawn, not felt).
+  std::string other_glove_spec;
   // Wrist pose in the camera frame for a glove used without NatNet.
   glm::dvec3 p_CameraGloveWrist{0.0, 0.05, 0.45};
 };

@@ -42,6 +42,9 @@ struct RegistrationConfig {
   // centre sits 2.5 cm to the right of the depth camera (the Kinect v1 depth-to-RGB baseline).
   RigidTransform X_EyeDepth{glm::dmat3(1.0), glm::dvec3(-0.025, 0.0, 0.0)};
   double nominal_depth_m = 1.0;  // shift: the depth at which shift+scale is exact
+  // The depth sensor's calibrated intrinsics (the rig's depth key), scaled to each frame's size;
+  // nullopt: the source's own.
+  std::optional<Intrinsics> depth;
 };
 
 struct PipelineConfig {
