@@ -166,6 +166,10 @@ int main(int argc, char** argv) {
   app.add_option("--duration", cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-stats", no_stats, "No stats line every second");
+  app.add_option("--head", cfg.head,
+                 "Robot head driver: none | sim[,tau_ms=80] (first-order servos) | "
+                 "dynamixel:DEV[,ids=1,2,3][,baud=57600] (Protocol 2.0 servos yaw, pitch, roll) | "
+                 "udp:HOST:PORT (a lab's own head controller; docs/PROTOCOL.md)");
   app.add_option("--psk", psk_file,
                  "Pre-shared key FILE (16..1024 raw bytes, mode 0600): every message carries an "
                  "HMAC-SHA256 tag and replays are dropped; the station needs the same key");
@@ -239,6 +243,7 @@ int main(int argc, char** argv) {
     std::cerr << "telex-remote: " << e.what() << "\n";
     return 1;
   }
+  spdlog::info("telex-remote: head {}", daemon->head()->name());
   spdlog::info(
       "telex-remote: {} -> listening on {}:{} ({}{})", daemon->depth_source().describe(),
       cfg.server.host, daemon->port(), cfg.server.force_tcp ? "tcp" : "udp if the client offers it",

@@ -34,6 +34,8 @@ void validate(const DaemonConfig& c) {
   if (c.pipeline.tile_width < 8 || c.pipeline.tile_height < 8)
     throw std::invalid_argument("--tile must be at least 8x8 pixels");
   if (c.pipeline.stabilise_k_sigma < 0) throw std::invalid_argument("--stabilise must be >= 0");
+  (void)parse_head_spec(c.head);
+  c.head_limits.validate();
 }
 
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
@@ -90,6 +92,8 @@ void RemoteDaemon::set_frame_observer(std::function<void(const ProcessedFrame&)>
 
 void RemoteDaemon::start() {
   if (running_) return;
+  // First, so a missing or silent head fails the start before anything else opens.
+  if (!head_) head_ = make_head_driver(config_.head, config_.head_limits);
   depth_->start();
   if (stereo_) stereo_->start();
   config_.server.fps = static_cast<float>(depth_->nominal_fps());

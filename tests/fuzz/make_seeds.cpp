@@ -13,6 +13,7 @@
 
 #include "stream_fixtures.h"
 #include "telex/bag/bag.h"
+#include "telex/dynamixel/protocol.h"
 #include "telex/local/glove.h"
 #include "telex/local/natnet.h"
 #include "telex/proto/depth_codec.h"
@@ -238,6 +239,28 @@ int main(int argc, char** argv) {
       w.tf(t0, {{"a", "b", {{1, 2, 3}, {0, 0, 0, 1}}}});
     });
     one("text.bag", [&](telex::bag::Writer& w) { w.text("/s", t0, "{}"); });
+  }
+  // dynamixel_fuzz: byte 0 = bit 0 kind (0 status, 1 instruction), bit 1 small bound, bits 2..7
+  // chunk size - 1; then a byte stream of packets, one with stuffing.
+  {
+    namespace dxl = telex::dynamixel;
+    const std::uint8_t ids[] = {1, 2, 3};
+    const Bytes goals =
+        cat({dxl::le_bytes(2048, 4), dxl::le_bytes(3072, 4), dxl::le_bytes(1024, 4)});
+    const Bytes status = cat({dxl::status_packet(1, 0, Bytes{0x06, 0x04, 0x26}),
+                              dxl::status_packet(2, 0, dxl::le_bytes(2079, 4)),
+                              dxl::status_packet(3, 0x80, Bytes{0xFF, 0xFF, 0xFD, 0x00}),
+                              dxl::status_packet(1, 0x07, {})});
+    const Bytes instructions =
+        cat({dxl::ping_packet(1), dxl::read_packet(2, 132, 4),
+             dxl::write_packet(3, 116, Bytes{0xFF, 0xFF, 0xFD, 0x00}),
+             dxl::sync_read_packet(132, 4, ids), dxl::sync_write_packet(116, 4, ids, goals)});
+    write(out / "dynamixel_fuzz", "status", cat({{0x00}, status}));
+    write(out / "dynamixel_fuzz", "status_chunks", cat({{0x0E}, status}));
+    write(out / "dynamixel_fuzz", "instructions", cat({{0x01}, instructions}));
+    write(out / "dynamixel_fuzz", "instructions_small", cat({{0x23}, instructions}));
+    write(out / "dynamixel_fuzz", "mixed_with_garbage",
+          cat({{0x40}, Bytes{0x00, 0xFF, 0xFF, 0xFD, 0xFD, 0x13}, instructions, status}));
   }
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;

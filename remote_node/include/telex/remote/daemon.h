@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "telex/base/latest_slot.h"
+#include "telex/remote/head.h"
 #include "telex/remote/pipeline.h"
 #include "telex/remote/server.h"
 #include "telex/remote/sources.h"
@@ -26,8 +27,10 @@ struct DaemonConfig {
   int jpeg_quality = 80;  // 1..100
   int video_width = 0;    // 0: the stereo source's size
   int video_height = 0;
-  double duration_s = 0.0;  // 0: until SIGINT/SIGTERM
-  bool stats_line = true;   // one line a second on stderr
+  double duration_s = 0.0;    // 0: until SIGINT/SIGTERM
+  bool stats_line = true;     // one line a second on stderr
+  std::string head = "none";  // the robot head's driver: see make_head_driver
+  HeadLimits head_limits = kDefaultHeadLimits;
 };
 
 // Throws std::invalid_argument naming the first bad value.
@@ -74,6 +77,8 @@ class RemoteDaemon {
   std::uint16_t port() const;
   DaemonStats stats() const;
   const DepthSource& depth_source() const { return *depth_; }
+  // The robot head's driver, made by start() (nullptr before).
+  HeadDriver* head() { return head_.get(); }
   // Called on the processing thread with every processed frame, before it is published.
   void set_frame_observer(std::function<void(const ProcessedFrame&)> observer);
 
@@ -90,6 +95,7 @@ class RemoteDaemon {
   DaemonConfig config_;
   std::unique_ptr<DepthSource> depth_;
   std::unique_ptr<StereoSource> stereo_;
+  std::unique_ptr<HeadDriver> head_;
   std::unique_ptr<RemoteServer> server_;
   FramePipeline pipeline_;
   LatestSlot<DepthFrame> depth_slot_;

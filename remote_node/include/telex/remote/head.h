@@ -1,0 +1,185 @@
+// SPDX-License-Identifier: MIT
+// The robot head (yaw, pitch, roll) behind one interface: its limits, the controller that clamps,
+// rate-limits and holds still when the operator's link is lost, and the drivers chosen by a spec
+// (none | sim | dynamixel:DEV | udp:HOST:PORT).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace telex::remote {
+
+inline constexpr std::size_t kHeadJoints = 3;
+// Joint angles in radians, in the order yaw, pitch, roll; zero is the head looking straight ahead
+// (for Dynamixel servos, position 2048).
+using HeadAngles = std::array<double, kHeadJoints>;
+const char* head_joint_name(std::size_t joint);  // "yaw", "pitch", "roll"
+
+struct HeadJointLimits {
+  double min_rad = 0, max_rad = 0, max_rate_rad_s = 0;
+};
+
+struct HeadLimits {
+  std::array<HeadJointLimits, kHeadJoints> joint{};
+  // Throws std::invalid_argument naming the joint and the value: limits must be finite,
+  // -pi <= min < max <= pi (one servo turn), 0 < max_rate.
+  void validate() const;
+};
+
+// The defaults, in this one place: yaw +-90 deg, pitch +-45 deg, roll +-30 deg, each at most
+// 180 deg/s (a rig file overrides them).
+inline constexpr double kHeadDeg = std::numbers::pi / 180.0;
+inline constexpr HeadLimits kDefaultHeadLimits{{{
+    {-90.0 * kHeadDeg, 90.0 * kHeadDeg, 180.0 * kHeadDeg},
+    {-45.0 * kHeadDeg, 45.0 * kHeadDeg, 180.0 * kHeadDeg},
+    {-30.0 * kHeadDeg, 30.0 * kHeadDeg, 180.0 * kHeadDeg},
+}}};
+
+// The head's joint angles at time_ns (the remote's steady clock, steady_now_ns()). valid = false
+// when the driver has none (no head, nothing read yet, a failed read).
+struct HeadPose {
+  HeadAngles joint_rad{};
+  std::int64_t time_ns = 0;
+  bool valid = false;
+};
+
+// What a driver counted since it was made. Errors never throw in the running loop; they are
+// counted here, and the newest is described in last_error.
+struct HeadStats {
+  std::uint64_t commands = 0;         // command() calls that reached the head
+  std::uint64_t rejected = 0;         // command() calls with a non-finite angle, not sent
+  std::uint64_t reads = 0;            // measured() calls
+  std::uint64_t reads_valid = 0;      // ... that returned a valid pose
+  std::uint64_t clamped = 0;          // joint targets clamped to the limits
+  std::uint64_t timeouts = 0;         // answers that did not come in time (one per servo)
+  std::uint64_t crc_errors = 0;       // packets whose CRC did not match
+  std::uint64_t bad_packets = 0;      // malformed, unexpected or wrongly sized answers
+  std::uint64_t status_errors = 0;    // a servo refused an instruction (the ERROR byte's number)
+  std::uint64_t hardware_errors = 0;  // answers with the hardware alert bit set
+  std::uint64_t io_errors = 0;        // failed reads and writes on the port or socket
+  std::uint64_t stale = 0;            // udp: poses older than the newest one, dropped
+  std::string last_error;
+};
+
+class HeadDriver {
+ public:
+  virtual ~HeadDriver() = default;
+  // Moves the head toward target_rad, clamped to the driver's limits (HeadController also limits
+  // the rate). Never throws; a failed write is counted.
+  virtual void command(const HeadAngles& target_rad, std::int64_t now_ns) = 0;
+  // The newest measured pose. Never throws; valid = false (and counted) when none could be read.
+  // dynamixel reads the servos here: one bus round trip (about 12 ms for three servos at 57600
+  // baud, under 1 ms at 1 Mbaud), so call it from the head's own loop, not a latency-critical one.
+  virtual HeadPose measured(std::int64_t now_ns) = 0;
+  virtual std::string name() const = 0;
+  virtual HeadStats stats() const = 0;
+};
+
+// A parsed --head spec.
+struct HeadSpec {
+  enum class Kind { None, Sim, Dynamixel, Udp };
+  Kind kind = Kind::None;
+  double sim_tau_s = 0.08;                             // sim: the servos' time constant
+  std::string device;                                  // dynamixel: the serial port
+  std::array<std::uint8_t, kHeadJoints> ids{1, 2, 3};  // dynamixel: yaw, pitch, roll servo ids
+  int baud = 57600;                                    // dynamixel: the X series' factory default
+  std::string host;                                    // udp
+  std::uint16_t port = 0;                              // udp
+};
+
+inline constexpr std::string_view kHeadSpecForms =
+    "none | sim[,tau_ms=80] | dynamixel:DEV[,ids=1,2,3][,baud=57600] | udp:HOST:PORT";
+// Bauds a dynamixel spec accepts (X series rates that Linux termios names).
+inline constexpr std::array<int, 7> kDynamixelBauds{9600,    57600,   115200, 1000000,
+                                                    2000000, 3000000, 4000000};
+
+// Throws std::invalid_argument naming the spec, the part that is wrong and the valid forms.
+HeadSpec parse_head_spec(std::string_view spec);
+
+// Makes the driver of a spec: validates `limits`, opens the device and checks it answers.
+// Throws std::invalid_argument on a bad spec or limits, std::runtime_error when a device is
+// missing or silent (naming the device, the ids that did not answer and what to try).
+std::unique_ptr<HeadDriver> make_head_driver(std::string_view spec,
+                                             const HeadLimits& limits = kDefaultHeadLimits);
+
+// Each angle clamped into [min_rad, max_rad] of its joint; returns how many were clamped.
+std::size_t clamp_to_limits(HeadAngles& angles_rad, const HeadLimits& limits);
+
+// One servo of the sim head: a first-order lag of time constant tau_s behind `target`, its speed
+// capped at max_rate: dx/dt = clamp((target - x) / tau_s, -max_rate, max_rate). The exact solution
+// after dt_s with the target held (linear at max_rate while |target - x| > max_rate * tau_s,
+// exponential after), so the result does not depend on how time is split into calls.
+double sim_joint_advance(double x_rad, double target_rad, double dt_s, double tau_s,
+                         double max_rate_rad_s);
+
+struct HeadControllerConfig {
+  HeadLimits limits = kDefaultHeadLimits;
+  // No operator target for longer than this: the link is lost and the head holds still.
+  double link_timeout_s = 0.2;
+  // Throws std::invalid_argument naming the bad value.
+  void validate() const;
+};
+
+struct HeadControlStats {
+  std::uint64_t targets = 0;           // operator targets taken
+  std::uint64_t rejected_targets = 0;  // non-finite targets, dropped
+  std::uint64_t clamped = 0;           // joint targets clamped to the limits
+  std::uint64_t rate_limited = 0;      // joint commands held back by max_rate
+  std::uint64_t link_losses = 0;       // times the link went silent for link_timeout_s
+};
+
+// What the remote commands the head, whatever the driver (pure: time is passed in). Each update
+// moves the previous command toward the operator's newest target, clamped to the joint limits, by
+// at most max_rate_rad_s * dt. Without a target for more than link_timeout_s (or before the
+// first), the head holds still: the command becomes the pose measured when the link was lost and
+// stays there until a new target arrives (that pose is where the head already is, so the jump to
+// it is not rate-limited; from there the rate limit applies again). The first command starts
+// from the first valid measured pose; a head that never reported one is taken to be at zero.
+class HeadController {
+ public:
+  explicit HeadController(HeadControllerConfig config = {});  // validates (throws)
+
+  // A target from the operator's head (the station's head-pose message) that arrived at now_ns.
+  void set_target(const HeadAngles& target_rad, std::int64_t now_ns);
+  // The command for now_ns given the newest measured pose; nullopt while there is nothing to
+  // command (no target yet and no pose known).
+  std::optional<HeadAngles> update(const HeadPose& measured, std::int64_t now_ns);
+
+  bool holding() const { return holding_; }
+  const HeadControlStats& stats() const { return stats_; }
+  const HeadControllerConfig& config() const { return config_; }
+
+ private:
+  HeadControllerConfig config_;
+  HeadControlStats stats_;
+  std::optional<HeadAngles> target_;
+  std::int64_t target_ns_ = 0;
+  std::optional<HeadAngles> last_command_;
+  std::int64_t last_update_ns_ = 0;
+  std::optional<HeadAngles> last_measured_;
+  std::optional<HeadAngles> hold_;  // the pose held while the link is lost
+  bool holding_ = true;
+};
+
+// --head udp: the datagram both ways (docs/PROTOCOL.md, "Head controller datagrams"): 40 bytes,
+// little endian: magic "THD1", u32 sequence, i64 time_ns, f64 yaw, pitch, roll in radians.
+inline constexpr std::uint32_t kHeadDatagramMagic = 0x31444854;  // bytes 'T' 'H' 'D' '1'
+inline constexpr std::size_t kHeadDatagramBytes = 40;
+struct HeadDatagram {
+  std::uint32_t sequence = 0;
+  std::int64_t time_ns = 0;
+  HeadAngles joint_rad{};
+};
+std::vector<std::uint8_t> encode_head_datagram(const HeadDatagram& d);
+// nullopt unless exactly 40 bytes with the magic and finite angles.
+std::optional<HeadDatagram> decode_head_datagram(std::span<const std::uint8_t> bytes);
+
+}  // namespace telex::remote

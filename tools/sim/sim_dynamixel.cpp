@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+// telex-sim-dynamixel: emulated DYNAMIXEL X-series servos on a pseudo-terminal, for --head
+// dynamixel.
+#include <CLI/CLI.hpp>
+#include <csignal>
+#include <ctime>
+#include <iostream>
+#include <sstream>
+
+#include "telex/sim/dynamixel_servos.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "telex-sim-dynamixel: DYNAMIXEL Protocol 2.0 servos (X series, position mode) on a "
+      "pseudo-terminal; prints the device to give telex-remote --head dynamixel:DEV"};
+  std::string ids_text = "1,2,3";
+  double duration_s = 0.0;
+  app.add_option("--ids", ids_text, "servo ids, comma-separated")->capture_default_str();
+  app.add_option("--duration", duration_s, "seconds to run (0 = until SIGINT/SIGTERM)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    std::vector<std::uint8_t> ids;
+    std::stringstream in(ids_text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+      std::size_t used = 0;
+      int id = -1;
+      try {
+        id = std::stoi(item, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != item.size() || id < 0 || id > 252)
+        throw std::invalid_argument("--ids '" + ids_text + "': '" + item + "' is not an id 0..252");
+      ids.push_back(static_cast<std::uint8_t>(id));
+    }
+    if (ids.empty()) throw std::invalid_argument("--ids is empty");
+    // Signals are taken synchronously on this thread, as in telex-sim-natnet.
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+    telex::sim::DynamixelPtyServer server(ids);
+    std::cout << "telex-sim-dynamixel: servos " << ids_text << " on " << server.device()
+              << "\n  telex-remote --head dynamixel:" << server.device() << ",ids=" << ids_text
+              << std::endl;
+    const timespec tick{0, 100'000'000};
+    for (int ticks = 0; duration_s <= 0 || ticks < duration_s * 10; ++ticks)
+      if (sigtimedwait(&stop_signals, nullptr, &tick) > 0) break;
+    const auto c = server.bus().counters();
+    std::cerr << "telex-sim-dynamixel: " << c.instructions << " instructions, " << c.answers
+              << " answers, " << c.crc_errors << " CRC errors, " << c.malformed << " malformed\n";
+    return 0;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "telex-sim-dynamixel: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "telex-sim-dynamixel: " << e.what() << "\n";
+    return 1;
+  }
+}
