@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "telex/local/station.h"
+#include "telex/local/view_window.h"
 
 namespace {
 
@@ -149,7 +150,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--view", cfg.view_spec,
                  "operator view: none | png:DIR (view.png, and the stereo pair left.png, "
-                 "right.png, sbs.png, once a second) | window")
+                 "right.png, sbs.png, once a second) | window (the stereo pair side by side in a "
+                 "resizable window; Esc or closing it stops the station) | hmd[:MONITOR] (the "
+                 "same, full screen on a monitor: a name as xrandr lists it or a 0-based index; "
+                 "default the last; an unknown one lists those present). window and hmd need an X "
+                 "display (DISPLAY)")
+      ->check([](const std::string& text) {
+        try {
+          ViewSpec::parse(text);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      })
       ->capture_default_str();
   app.add_option("--stereo-baseline", cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")

@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: MIT
 // The operator station's threads: network (SurfaceClient), surface building, the haptic loop, and
-// the main thread for logging, status lines and the operator view.
+// the main thread for logging, status lines and the operator view's window.
 #include "telex/local/station.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -15,8 +18,8 @@
 #include <fstream>
 #include <latch>
 #include <mutex>
-#include <opencv2/highgui.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <stop_token>
 #include <thread>
@@ -29,6 +32,7 @@
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
 #include "telex/local/stereo_view.h"
+#include "telex/local/view_window.h"
 
 namespace telex::local {
 namespace {
@@ -61,20 +65,18 @@ double centre_depth_m(const cv::Mat1w& depth_mm) {
   return v[v.size() / 2] * 1e-3;
 }
 
-std::string view_dir_of(const std::string& spec) {
-  if (spec == "none" || spec.empty()) return {};
-  if (spec.rfind("png:", 0) == 0 && spec.size() > 4) return spec.substr(4);
-  if (spec == "window") {
-    // highgui exits the process when it cannot open a display: refuse up front instead.
-    const char* x = std::getenv("DISPLAY");
-    const char* w = std::getenv("WAYLAND_DISPLAY");
-    if ((x == nullptr || *x == '\0') && (w == nullptr || *w == '\0'))
-      throw std::invalid_argument(
-          "--view window needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); use "
-          "--view png:DIR to write the view to a file instead");
-    return {};
-  }
-  throw std::invalid_argument("--view '" + spec + "': expected none, window or png:DIR");
+// On a screen (--view window | hmd) the stereo pair is drawn at video rate (the synthetic and V4L2
+// stereo sources send 30 fps); into PNGs once a second.
+constexpr std::int64_t kOnScreenViewPeriodNs = 33'333'333;
+
+// What the window shows until the first pair: the same text in both eyes.
+cv::Mat3b waiting_image(const std::string& remote) {
+  cv::Mat3b img(480, 1280, cv::Vec3b(40, 40, 40));
+  const std::string text = "waiting for the remote at " + remote;
+  for (const int x0 : {0, 640})
+    cv::putText(img, text, {x0 + 40, 240}, cv::FONT_HERSHEY_SIMPLEX, 0.6, {230, 230, 230}, 1,
+                cv::LINE_AA);
+  return img;
 }
 
 const char* kFingerNames[kFingerCount] = {"thumb", "index", "middle", "ring", "little"};
@@ -90,7 +92,7 @@ Station::Station(StationConfig config) : cfg_(std::move(config)) {
   if (!(cfg_.rate_hz >= 10 && cfg_.rate_hz <= 10000))
     throw std::invalid_argument("haptic rate must be within 10..10000 Hz");
   if (cfg_.log_every < 1) throw std::invalid_argument("--log-every must be >= 1");
-  view_dir_of(cfg_.view_spec);
+  ViewSpec::parse(cfg_.view_spec);
 }
 
 Station::~Station() = default;
@@ -110,6 +112,7 @@ class Station::Run {
   bool wait_first_surface();
   void start_haptics();
   void main_loop();
+  bool pump_window();
   void stop_threads();
   void drain();
   void drain_tracking();
@@ -140,8 +143,10 @@ class Station::Run {
   std::ofstream forces_csv_;
   std::ofstream tracking_csv_;
   std::unique_ptr<SessionRecorder> recorder_;  // --record; finished after the threads stop
-  const std::string view_dir_;
-  const bool view_window_;
+  const ViewSpec view_;
+  // --view window | hmd: GLFW's window, used on this (the main) thread only; opened before
+  // anything connects, so a missing display or an unknown monitor stops the start.
+  std::unique_ptr<ViewWindow> window_;
 
   // ---- network thread (inside SurfaceClient): tiles -> frames ----
   FrameAssembler assembler_;
@@ -203,7 +208,9 @@ class Station::Run {
   std::unique_ptr<SurfaceClient> client_;
   std::jthread surface_thread_;
   std::jthread haptic_thread_;
-  // The view thread (--view png:DIR), last: it reads the members above until it is joined.
+  // The view thread (--view png:DIR | window | hmd), last: it reads the members above until it is
+  // joined. On a screen it hands each side-by-side pair to the main thread's window, newest wins.
+  LatestSlot<cv::Mat3b> sbs_for_window_;
   std::mutex stereo_mu_;
   std::condition_variable_any stereo_cv_;
   struct StereoRequest {
@@ -261,13 +268,20 @@ Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
       tracking_csv_(open_csv(cfg.log_tracking_csv, "--log-tracking",
                              "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n")),
       recorder_(open_recorder(cfg)),
-      view_dir_(view_dir_of(cfg.view_spec)),
-      view_window_(cfg.view_spec == "window"),
+      view_(ViewSpec::parse(cfg.view_spec)),
+      window_(view_.on_screen() ? std::make_unique<ViewWindow>(view_) : nullptr),
       assembler_(static_cast<std::int64_t>(cfg.max_tile_age_s * 1e9)),
       model_(cfg.haptic, kFingerCount),
       samples_(1 << 14),
       tracking_(tracking_csv_.is_open() || recorder_ ? 1024 : 1) {
-  if (!view_dir_.empty()) std::filesystem::create_directories(view_dir_);
+  if (view_.kind == ViewSpec::Kind::Png) std::filesystem::create_directories(view_.dir);
+  if (window_) {
+    const MonitorInfo& m = window_->monitor();
+    std::fprintf(stderr, "telex-local: view %s on monitor '%s' (%dx%d at %d,%d), %s\n",
+                 view_.kind == ViewSpec::Kind::Hmd ? "full screen" : "in a window", m.name.c_str(),
+                 m.rect.width, m.rect.height, m.rect.x, m.rect.y, window_->gl_renderer().c_str());
+    window_->show(waiting_image(cfg.client.host + ":" + std::to_string(cfg.client.port)));
+  }
 }
 
 StationSummary Station::Run::execute() {
@@ -315,9 +329,9 @@ StationSummary Station::Run::execute() {
     std::fprintf(stderr, "telex-local: %s\n", what.c_str());
   };
   ClientConfig client_cfg = cfg_.client;
-  client_cfg.want_video = client_cfg.want_video || view_window_ || !view_dir_.empty();
+  client_cfg.want_video = client_cfg.want_video || view_.stereo();
   client_ = std::make_unique<SurfaceClient>(client_cfg, std::move(events));
-  if (!view_dir_.empty())
+  if (view_.stereo())
     stereo_thread_ = std::jthread([this](std::stop_token st) { stereo_loop(st); });
   // The surface thread warms its buffers before the first frame can arrive.
   surface_thread_ = std::jthread([this](std::stop_token st) { surface_loop(st); });
@@ -329,6 +343,13 @@ StationSummary Station::Run::execute() {
     main_loop();
   }
   stop_threads();
+  if (window_)
+    std::fprintf(stderr,
+                 "telex-local: view window: %llu stereo pairs shown, %llu replaced by a newer one "
+                 "before the window drew them, %llu redraws\n",
+                 static_cast<unsigned long long>(window_->images_uploaded()),
+                 static_cast<unsigned long long>(sbs_for_window_.dropped()),
+                 static_cast<unsigned long long>(window_->frames_shown()));
   if (error_) std::rethrow_exception(error_);
   return summarize();
 }
@@ -458,6 +479,7 @@ bool Station::Run::wait_first_surface() {
   const std::int64_t deadline =
       monotonic_ns() + static_cast<std::int64_t>(cfg_.first_surface_timeout_s * 1e9);
   while (surfaces_built_.load() == 0 && !stop_.load()) {
+    if (window_ && pump_window()) break;
     if (monotonic_ns() > deadline) {
       const auto& cs = client_->stats();
       const std::uint64_t auth_drops = cs.auth_failed.load() + cs.unexpected_tag.load();
@@ -560,16 +582,17 @@ void Station::Run::main_loop() {
   const std::int64_t end_ns =
       cfg_.duration_s > 0 ? t_start_ns_ + static_cast<std::int64_t>(cfg_.duration_s * 1e9) : 0;
   std::int64_t next_status = monotonic_ns() + 1'000'000'000;
-  std::int64_t next_window = 0;
+  std::int64_t next_view = 0;
   next_print_ns_ = monotonic_ns();
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
     check(StationLoop::Main);
-    if (view_window_ && monotonic_ns() >= next_window) {
-      // A window at 20 Hz; highgui runs its event loop in waitKey on this thread.
-      next_window = monotonic_ns() + 50'000'000;
-      cv::imshow("telex-local", render_view());
-      if (cv::waitKey(1) == 27) break;  // Esc closes the station
+    if (window_) {
+      if (monotonic_ns() >= next_view) {
+        next_view = monotonic_ns() + kOnScreenViewPeriodNs;
+        request_stereo_view();
+      }
+      if (pump_window()) break;
     }
     drain();
     drain_tracking();
@@ -583,6 +606,20 @@ void Station::Run::main_loop() {
   // The last picture shows how the run ended, not how it stood at the last whole second.
   drain();
   write_view_files();
+}
+
+// The window's turn on the main thread: the newest stereo pair when one came, else the window's
+// events (and a redraw when it was uncovered or resized). True once the operator closed it (Esc
+// or the window's close button): the station then stops as on a signal.
+bool Station::Run::pump_window() {
+  if (auto sbs = sbs_for_window_.take(milliseconds(0)))
+    window_->show(*sbs);
+  else
+    window_->refresh();
+  if (!window_->should_close()) return false;
+  if (!stop_.exchange(true))
+    std::fprintf(stderr, "telex-local: the view window was closed: stopping\n");
+  return true;
 }
 
 // Orderly end: the haptic thread first (it zeroes the display), then what it logged, then the
@@ -728,10 +765,10 @@ void Station::Run::print_status() {
 
 // --view png:DIR: the 2D view now, the stereo pair on the view thread.
 void Station::Run::write_view_files() {
-  if (!view_dir_.empty()) {
+  if (view_.kind == ViewSpec::Kind::Png) {
     const cv::Mat3b img = render_view();
-    const auto path = std::filesystem::path(view_dir_) / "view.png";
-    const auto tmp = std::filesystem::path(view_dir_) / "view.tmp.png";
+    const auto path = view_.dir / "view.png";
+    const auto tmp = view_.dir / "view.tmp.png";
     if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
     request_stereo_view();
   }
@@ -784,8 +821,10 @@ cv::Mat3b Station::Run::eye_image(int eye, std::int64_t want_capture_ns, std::in
   return cv::imdecode(jpeg, cv::IMREAD_COLOR);
 }
 
-// The main thread hands the stereo view what it knows (hand, forces, status) once a second.
+// The main thread hands the stereo view what it knows (hand, forces, status): once a second for
+// PNGs, at video rate for a window.
 void Station::Run::request_stereo_view() {
+  hand_for_view_.take(view_hand_);
   {
     std::lock_guard lock(stereo_mu_);
     stereo_request_.hand = view_hand_;
@@ -796,9 +835,15 @@ void Station::Run::request_stereo_view() {
   stereo_cv_.notify_one();
 }
 
-// ---- view thread (--view png:DIR): the stereo pair, off the main thread. Its GL context is made
-// while the station connects; a machine without EGL stops the station here, named. ----
+// ---- view thread (--view png:DIR | window | hmd): the stereo pair, off the main thread (and off
+// the haptic one). Its headless EGL context is made while the station connects; a machine without
+// EGL stops the station here, named. A window gets the pair through sbs_for_window_. ----
 void Station::Run::stereo_loop(std::stop_token stop) {
+  // At video rate on a machine without a GPU (llvmpipe) the view would take a core from the
+  // surface thread and the remote: it runs at nice 10, and so do llvmpipe's rasterizer threads,
+  // which its context starts and which inherit the niceness. The haptic thread is unaffected
+  // (SCHED_FIFO, or its own thread at nice 0).
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
   try {
     StereoView view(640, 480);
     for (;;) {
@@ -840,7 +885,11 @@ void Station::Run::stereo_loop(std::stop_token stop) {
                      "it for both eyes\n");
         warned_one_eye_ = true;
       }
-      const std::filesystem::path dir(view_dir_);
+      if (view_.on_screen()) {
+        sbs_for_window_.put(v.sbs);
+        continue;
+      }
+      const std::filesystem::path& dir = view_.dir;
       for (const auto& [name, img] :
            {std::pair{"left", &v.left}, std::pair{"right", &v.right}, std::pair{"sbs", &v.sbs}}) {
         const auto tmp = dir / (std::string(name) + ".tmp.png");
