@@ -122,7 +122,9 @@ class DynamixelHead final : public HeadDriver {
   bool send_goal(const HeadAngles& angles_rad) {
     std::vector<std::uint8_t> data;
     for (const double a : angles_rad) {
-      const auto counts = static_cast<std::uint32_t>(xs::counts_from_rad(a));
+      // pi rad would be 4096, one past the position mode's range (a limit of +-pi is allowed).
+      const auto counts =
+          static_cast<std::uint32_t>(std::clamp(xs::counts_from_rad(a), 0, xs::kCountsPerTurn - 1));
       const auto b = dxl::le_bytes(counts, 4);
       data.insert(data.end(), b.begin(), b.end());
     }

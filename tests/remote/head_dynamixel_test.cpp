@@ -121,6 +121,17 @@ TEST(HeadDynamixel, IdsAndBaudFromTheSpec) {
   EXPECT_EQ(goal_after_write(servos.bus(), 8, roll), roll);
 }
 
+TEST(HeadDynamixel, GoalsStayWithinOneTurn) {
+  sim::DynamixelPtyServer servos({1, 2, 3});
+  HeadLimits limits = kDefaultHeadLimits;
+  limits.joint[0] = {-kPi, kPi, kPi};
+  auto head = make_head_driver("dynamixel:" + servos.device(), limits);
+  head->command({kPi, 0.0, 0.0}, steady_now_ns());
+  EXPECT_EQ(goal_after_write(servos.bus(), 1, 4095), 4095);  // not 4096, which a servo refuses
+  head->command({-kPi, 0.0, 0.0}, steady_now_ns());
+  EXPECT_EQ(goal_after_write(servos.bus(), 1, 0), 0);
+}
+
 TEST(HeadDynamixel, ReadsWhereTheServosAreAtStart) {
   sim::DynamixelPtyServer servos({1, 2, 3});
   servos.bus().set_present_counts(1, 2048 + 512);  // yaw 45 deg, the goal still at 2048
