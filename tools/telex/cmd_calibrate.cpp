@@ -1,0 +1,585 @@
+// SPDX-License-Identifier: MIT
+// `telex calibrate stereo|depth-eye|render`: chessboard calibration of the eyes and of the depth
+// sensor against the right eye, written into a rig file; `render` makes boards with known answers.
+#include <fmt/format.h>
+#include <glob.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "command.h"
+#include "telex/calib/board.h"
+#include "telex/calib/calibrate.h"
+#include "telex/calib/render.h"
+#include "telex/common/rig.h"
+
+namespace telex::tool {
+namespace {
+
+namespace fs = std::filesystem;
+using calib::BoardSpec;
+using calib::CalibrationError;
+using calib::ViewCorners;
+
+constexpr double kDeg = 180.0 / 3.14159265358979323846;
+
+// A bad flag value (exit 2); everything else that stops a calibration exits 1.
+class FlagError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+BoardSpec board_from_flags(const std::string& cxr, double square_mm) {
+  try {
+    return calib::parse_board(cxr, square_mm);
+  } catch (const std::invalid_argument& e) {
+    throw FlagError(e.what());
+  }
+}
+
+// The files a glob pattern matches, in sorted order (glob(3) sorts); directories left out.
+std::vector<std::string> expand(const std::string& pattern, const char* flag) {
+  glob_t g{};
+  const int rc = ::glob(pattern.c_str(), GLOB_TILDE, nullptr, &g);
+  std::vector<std::string> files;
+  if (rc == 0)
+    for (std::size_t i = 0; i < g.gl_pathc; ++i) {
+      std::error_code ec;
+      if (!fs::is_directory(g.gl_pathv[i], ec)) files.emplace_back(g.gl_pathv[i]);
+    }
+  globfree(&g);
+  if (rc != 0 && rc != GLOB_NOMATCH)
+    throw FlagError(fmt::format("{} '{}': cannot read the directories it names", flag, pattern));
+  if (files.empty()) throw FlagError(fmt::format("{} '{}' matches no file", flag, pattern));
+  return files;
+}
+
+// An existing --out must be a rig already (checked before the slow part, so a typo in the file
+// name of another JSON file costs no calibration run).
+void check_out(const std::string& out) {
+  std::error_code ec;
+  if (!fs::exists(out, ec)) return;
+  try {
+    load_rig(out);
+  } catch (const RigError& e) {
+    throw FlagError(std::string(e.what()) + " (--out updates a rig file in place)");
+  }
+}
+
+void same_count(const std::vector<std::string>& a, const char* flag_a,
+                const std::vector<std::string>& b, const char* flag_b) {
+  if (a.size() != b.size())
+    throw FlagError(fmt::format(
+        "{} matches {} files but {} matches {}: views are paired in sorted name order, so the "
+        "counts must agree",
+        flag_a, a.size(), flag_b, b.size()));
+}
+
+cv::Mat read_gray(const std::string& path) {
+  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (img.empty()) throw std::runtime_error("cannot read image " + path);
+  return img;
+}
+
+cv::Mat1w read_depth(const std::string& path, const Intrinsics& depth) {
+  const cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (img.empty()) throw std::runtime_error("cannot read depth image " + path);
+  if (img.type() != CV_16UC1)
+    throw CalibrationError("depth image " + path + " is not a 16-bit single-channel PNG (mm)");
+  if (img.cols != depth.width || img.rows != depth.height)
+    throw CalibrationError(fmt::format("depth image {} is {}x{} but the depth intrinsics are {}x{}",
+                                       path, img.cols, img.rows, depth.width, depth.height));
+  return img;
+}
+
+// Every image of one camera must have one size: the one its intrinsics give, or else the first
+// image's.
+class SizeCheck {
+ public:
+  SizeCheck(const char* camera, std::optional<cv::Size> expected, std::string expected_from)
+      : camera_(camera), size_(expected), from_(std::move(expected_from)), given_(expected) {}
+  void check(const cv::Mat& img, const std::string& path) {
+    if (!size_) {
+      size_ = img.size();
+      from_ = path;
+      return;
+    }
+    if (img.size() == *size_) return;
+    throw CalibrationError(fmt::format("{}{} image {} is {}x{} but {} is {}x{}",
+                                       given_ ? "" : "mixed image sizes: ", camera_, path, img.cols,
+                                       img.rows, from_, size_->width, size_->height));
+  }
+  cv::Size size() const { return *size_; }
+
+ private:
+  const char* camera_;
+  std::optional<cv::Size> size_;
+  std::string from_;
+  bool given_;
+};
+
+// The corners of the views where every camera found the board; the others named on stderr.
+struct PairedCorners {
+  std::vector<ViewCorners> corners;  // per camera
+  std::vector<std::size_t> used;     // view indices
+  std::vector<std::string> not_found;
+};
+
+PairedCorners detect_views(const char* command, const std::vector<std::vector<std::string>>& files,
+                           const std::vector<const char*>& cameras, std::vector<SizeCheck>& sizes,
+                           const BoardSpec& board) {
+  PairedCorners out;
+  out.corners.resize(files.size());
+  const std::size_t views = files[0].size();
+  for (std::size_t v = 0; v < views; ++v) {
+    std::vector<std::vector<cv::Point2f>> found(files.size());
+    bool all = true;
+    for (std::size_t c = 0; c < files.size(); ++c) {
+      const std::string& path = files[c][v];
+      const cv::Mat img = read_gray(path);
+      sizes[c].check(img, path);
+      calib::CornerDetection d = calib::detect_corners(img, board);
+      if (!d.found) {
+        std::fprintf(stderr,
+                     "telex calibrate %s: no %dx%d board found in %s (%s); view %zu skipped\n",
+                     command, board.cols, board.rows, path.c_str(), cameras[c], v);
+        out.not_found.push_back(path);
+        all = false;
+      }
+      found[c] = std::move(d.corners_px);
+    }
+    if (!all) continue;
+    for (std::size_t c = 0; c < files.size(); ++c) out.corners[c].push_back(std::move(found[c]));
+    out.used.push_back(v);
+  }
+  return out;
+}
+
+void check_enough(const PairedCorners& p, std::size_t views, int min_views) {
+  if (static_cast<int>(p.used.size()) >= min_views) return;
+  throw CalibrationError(fmt::format(
+      "the board was found in every camera in only {} of {} views; at least {} are needed (take "
+      "more views, or check --board: it counts inner corners)",
+      p.used.size(), views, min_views));
+}
+
+nlohmann::json intrinsics_summary(const calib::CameraCalibration& c) {
+  return {{"fx_px", c.model.k.fx},
+          {"fy_px", c.model.k.fy},
+          {"cx_px", c.model.k.cx},
+          {"cy_px", c.model.k.cy},
+          {"width", c.model.k.width},
+          {"height", c.model.k.height},
+          {"distortion", c.model.distortion},
+          {"rms_px", c.rms_px}};
+}
+
+std::vector<double> rotation_vector_deg(const glm::dmat3& r) {
+  const cv::Vec3d v = calib::rotation_vector_rad(r);
+  return {v[0] * kDeg, v[1] * kDeg, v[2] * kDeg};
+}
+
+std::vector<double> vec(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
+
+// ---- stereo ------------------------------------------------------------------------------------
+
+struct StereoOptions {
+  std::string left, right, board, out;
+  double square_mm = 0.0;
+  int min_views = 5;
+  bool k3 = false;
+  bool json = false;
+};
+
+int run_stereo(const StereoOptions& o) {
+  const BoardSpec board = board_from_flags(o.board, o.square_mm);
+  const auto left = expand(o.left, "--left");
+  const auto right = expand(o.right, "--right");
+  same_count(left, "--left", right, "--right");
+  check_out(o.out);
+  std::vector<SizeCheck> sizes{{"left", std::nullopt, ""}, {"right", std::nullopt, ""}};
+  const PairedCorners p = detect_views("stereo", {left, right}, {"left", "right"}, sizes, board);
+  check_enough(p, left.size(), o.min_views);
+  calib::CalibrateOptions opt;
+  opt.min_views = o.min_views;
+  opt.fix_k3 = !o.k3;
+  const calib::StereoCalibration s = calib::calibrate_stereo(p.corners[0], p.corners[1], board,
+                                                             sizes[0].size(), sizes[1].size(), opt);
+
+  nlohmann::json patch;
+  patch["eyes"]["left"] = camera_model_json(s.left.model);
+  patch["eyes"]["right"] = camera_model_json(s.right.model);
+  patch["extrinsics"]["right_eye_from_left_eye"] = transform_json(s.X_RightEyeLeftEye);
+  update_rig_file(o.out, patch);
+
+  if (s.rms_px > 1.0)
+    std::fprintf(stderr,
+                 "telex calibrate stereo: warning: RMS %.2f px is high (a board that is not flat, "
+                 "a wrong --board, or left and right images not taken together?)\n",
+                 s.rms_px);
+  if (o.json) {
+    nlohmann::json j{{"rms_px", s.rms_px},
+                     {"baseline_m", s.baseline_m()},
+                     {"left", intrinsics_summary(s.left)},
+                     {"right", intrinsics_summary(s.right)},
+                     {"translation_m", vec(s.X_RightEyeLeftEye.translation_m)},
+                     {"rotation_deg", rotation_vector_deg(s.X_RightEyeLeftEye.rotation)},
+                     {"views", left.size()},
+                     {"views_used", p.used.size()},
+                     {"skipped", p.not_found},
+                     {"view_rms_px", s.view_rms_px},
+                     {"rig", o.out}};
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf("views: %zu of %zu pairs used\n", p.used.size(), left.size());
+    for (const auto* c : {&s.left, &s.right})
+      std::printf(
+          "%-5s fx %.2f fy %.2f cx %.2f cy %.2f px, distortion [%.4f %.4f %.5f %.5f %.4f], RMS "
+          "%.3f px\n",
+          c == &s.left ? "left" : "right", c->model.k.fx, c->model.k.fy, c->model.k.cx,
+          c->model.k.cy, c->model.distortion[0], c->model.distortion[1], c->model.distortion[2],
+          c->model.distortion[3], c->model.distortion[4], c->rms_px);
+    const glm::dvec3 t = s.X_RightEyeLeftEye.translation_m;
+    const double angle = cv::norm(calib::rotation_vector_rad(s.X_RightEyeLeftEye.rotation)) * kDeg;
+    std::printf(
+        "baseline %.2f mm (right from left: t = [%.2f %.2f %.2f] mm, turned %.3f deg), "
+        "stereo RMS %.3f px\n",
+        s.baseline_m() * 1e3, t.x * 1e3, t.y * 1e3, t.z * 1e3, angle, s.rms_px);
+    std::printf("wrote eyes.left, eyes.right, extrinsics.right_eye_from_left_eye into %s\n",
+                o.out.c_str());
+  }
+  return 0;
+}
+
+// ---- depth-eye ---------------------------------------------------------------------------------
+
+struct DepthEyeOptions {
+  std::string ir, right, depth, board, rig, out;
+  std::vector<double> depth_intrinsics;
+  double square_mm = 0.0;
+  int min_views = 5;
+  bool json = false;
+};
+
+Intrinsics intrinsics_from_flag(const std::vector<double>& v) {
+  if (v.size() != 6)
+    throw FlagError("--depth-intrinsics: needs FX,FY,CX,CY,W,H (6 numbers), got " +
+                    std::to_string(v.size()));
+  Intrinsics k;
+  k.fx = v[0];
+  k.fy = v[1];
+  k.cx = v[2];
+  k.cy = v[3];
+  if (v[4] != std::floor(v[4]) || v[5] != std::floor(v[5]) || v[4] < 1 || v[5] < 1 || v[4] > 8192 ||
+      v[5] > 8192)
+    throw FlagError("--depth-intrinsics: W and H must be whole numbers of pixels in [1, 8192]");
+  k.width = static_cast<int>(v[4]);
+  k.height = static_cast<int>(v[5]);
+  if (!(k.fx > 0 && k.fy > 0)) throw FlagError("--depth-intrinsics: FX and FY must be positive");
+  return k;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+int run_depth_eye(const DepthEyeOptions& o) {
+  const BoardSpec board = board_from_flags(o.board, o.square_mm);
+  const auto ir = expand(o.ir, "--ir");
+  const auto right = expand(o.right, "--right");
+  same_count(ir, "--ir", right, "--right");
+  std::vector<std::string> depth_files;
+  if (!o.depth.empty()) {
+    depth_files = expand(o.depth, "--depth");
+    same_count(ir, "--ir", depth_files, "--depth");
+  }
+  Rig rig;
+  try {
+    rig = load_rig(o.rig);
+  } catch (const RigError& e) {
+    throw FlagError(e.what());
+  }
+  if (!rig.eye[1])
+    throw FlagError("rig " + o.rig +
+                    " has no eyes.right: calibrate the eyes first (telex calibrate stereo --out " +
+                    o.rig + ")");
+  const CameraModel right_eye = *rig.eye[1];
+  if (!o.out.empty() && o.out != o.rig) check_out(o.out);
+  Intrinsics depth;
+  if (!o.depth_intrinsics.empty())
+    depth = intrinsics_from_flag(o.depth_intrinsics);
+  else if (rig.depth)
+    depth = *rig.depth;
+  else
+    throw FlagError(
+        "no depth intrinsics: give --depth-intrinsics FX,FY,CX,CY,W,H or a `depth` "
+        "key in " +
+        o.rig);
+  std::vector<SizeCheck> sizes{
+      {"IR", cv::Size(depth.width, depth.height),
+       o.depth_intrinsics.empty() ? "the rig's depth intrinsics" : "--depth-intrinsics"},
+      {"right", cv::Size(right_eye.k.width, right_eye.k.height), "the rig's eyes.right"}};
+  const PairedCorners p = detect_views("depth-eye", {ir, right}, {"IR", "right"}, sizes, board);
+  check_enough(p, ir.size(), o.min_views);
+  std::vector<cv::Mat1w> maps;
+  for (std::size_t v : p.used)
+    if (!depth_files.empty()) maps.push_back(read_depth(depth_files[v], depth));
+  calib::CalibrateOptions opt;
+  opt.min_views = o.min_views;
+  const calib::DepthEyeCalibration c =
+      calib::calibrate_depth_eye(p.corners[0], p.corners[1], board, depth, right_eye, maps, opt);
+
+  nlohmann::json patch;
+  patch["extrinsics"]["right_eye_from_depth"] = transform_json(c.X_RightEyeDepth);
+  if (!o.depth_intrinsics.empty())
+    patch["depth"] = {{"width", depth.width}, {"height", depth.height}, {"fx_px", depth.fx},
+                      {"fy_px", depth.fy},    {"cx_px", depth.cx},      {"cy_px", depth.cy}};
+  const std::string out = o.out.empty() ? o.rig : o.out;
+  update_rig_file(out, patch);
+
+  const std::vector<double> rot_deg = rotation_vector_deg(c.X_RightEyeDepth.rotation);
+  const double angle_deg = cv::norm(calib::rotation_vector_rad(c.X_RightEyeDepth.rotation)) * kDeg;
+  nlohmann::json planes;
+  if (!maps.empty()) {
+    std::vector<double> offset, angle, fit;
+    for (const auto& pl : c.planes)
+      if (pl.used) {
+        offset.push_back(pl.offset_to_ir_plane_mm);
+        angle.push_back(pl.angle_to_ir_plane_deg);
+        fit.push_back(pl.fit_rms_mm);
+      }
+    planes = {{"views", offset.size()},
+              {"offset_to_ir_plane_mm_median", median(offset)},
+              {"angle_to_ir_plane_deg_median", median(angle)},
+              {"fit_rms_mm_median", median(fit)}};
+    if (c.X_RightEyeDepth_from_planes) {
+      const RigidTransform& x = *c.X_RightEyeDepth_from_planes;
+      planes["from_planes"] = {
+          {"translation_m", vec(x.translation_m)},
+          {"rotation_deg", rotation_vector_deg(x.rotation)},
+          {"differs_mm", glm::length(x.translation_m - c.X_RightEyeDepth.translation_m) * 1e3},
+          {"differs_deg",
+           calib::rotation_angle_between_rad(x.rotation, c.X_RightEyeDepth.rotation) * kDeg}};
+    }
+  }
+  if (o.json) {
+    nlohmann::json j{{"translation_m", vec(c.X_RightEyeDepth.translation_m)},
+                     {"rotation_deg", rot_deg},
+                     {"rotation_angle_deg", angle_deg},
+                     {"residual_mm", c.residual_mm},
+                     {"rms_px", c.rms_px},
+                     {"views", ir.size()},
+                     {"views_used", p.used.size()},
+                     {"skipped", p.not_found},
+                     {"view_residual_mm", c.view_residual_mm},
+                     {"rig", out}};
+    if (!planes.is_null()) j["depth_planes"] = planes;
+    std::cout << j.dump(2) << "\n";
+  } else {
+    const glm::dvec3 t = c.X_RightEyeDepth.translation_m;
+    std::printf("views: %zu of %zu used\n", p.used.size(), ir.size());
+    std::printf(
+        "depth in the right eye: t = [%.2f %.2f %.2f] mm, rotation vector [%.3f %.3f %.3f] "
+        "deg (%.3f deg)\n",
+        t.x * 1e3, t.y * 1e3, t.z * 1e3, rot_deg[0], rot_deg[1], rot_deg[2], angle_deg);
+    std::printf(
+        "residual %.2f mm (board corners via the depth pose vs the eye's), reprojection "
+        "RMS %.3f px\n",
+        c.residual_mm, c.rms_px);
+    if (!planes.is_null()) {
+      std::printf(
+          "depth maps: board plane vs the IR pose's plane: median offset %.2f mm, angle "
+          "%.3f deg, fit RMS %.2f mm (%d views)\n",
+          planes["offset_to_ir_plane_mm_median"].get<double>(),
+          planes["angle_to_ir_plane_deg_median"].get<double>(),
+          planes["fit_rms_mm_median"].get<double>(), planes["views"].get<int>());
+      if (planes.contains("from_planes"))
+        std::printf("from the planes alone: differs by %.2f mm and %.3f deg\n",
+                    planes["from_planes"]["differs_mm"].get<double>(),
+                    planes["from_planes"]["differs_deg"].get<double>());
+    }
+    std::printf("wrote extrinsics.right_eye_from_depth%s into %s\n",
+                o.depth_intrinsics.empty() ? "" : " and depth", out.c_str());
+  }
+  return 0;
+}
+
+// ---- render ------------------------------------------------------------------------------------
+
+struct RenderOptions {
+  std::string out, board = "9x6";
+  double square_mm = 30.0;
+  int views = 14;
+  std::uint64_t seed = 1;
+  double noise = calib::RenderStyle{}.noise_sigma;
+  double blur_px = calib::RenderStyle{}.blur_sigma_px;
+  double depth_noise_mm = 1.0;
+};
+
+int run_render(const RenderOptions& o) {
+  const BoardSpec board = board_from_flags(o.board, o.square_mm);
+  if (o.views < 1 || o.views > 200) throw FlagError("--views: must be within [1, 200]");
+  if (!(o.noise >= 0.0 && o.blur_px >= 0.0 && o.depth_noise_mm >= 0.0))
+    throw FlagError("--noise, --blur-px and --depth-noise-mm must not be negative");
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) throw FlagError("--out " + o.out + ": cannot create it: " + ec.message());
+  calib::RenderStyle style;
+  style.noise_sigma = o.noise;
+  style.blur_sigma_px = o.blur_px;
+  const calib::RenderRig rig = calib::example_render_rig();
+  const auto views = calib::render_views(rig, board, o.views, o.seed, style, o.depth_noise_mm);
+  nlohmann::json poses = nlohmann::json::array();
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    const std::string n = fmt::format("{:02d}", i);
+    const fs::path dir(o.out);
+    for (const auto& [name, img] :
+         {std::pair{"left_", &views[i].left}, std::pair{"right_", &views[i].right},
+          std::pair{"ir_", &views[i].ir}})
+      if (!cv::imwrite((dir / (name + n + ".png")).string(), *img))
+        throw std::runtime_error("cannot write " + (dir / (name + n + ".png")).string());
+    if (!cv::imwrite((dir / ("depth_" + n + ".png")).string(), views[i].depth_mm))
+      throw std::runtime_error("cannot write " + (dir / ("depth_" + n + ".png")).string());
+    poses.push_back(transform_json(views[i].X_RightEyeBoard));
+  }
+  // The answers, as rig keys, and the board poses in the right eye's frame.
+  nlohmann::json truth;
+  truth["depth"] = camera_model_json(rig.depth);
+  truth["depth"].erase("distortion");
+  truth["eyes"]["left"] = camera_model_json(rig.left);
+  truth["eyes"]["right"] = camera_model_json(rig.right);
+  truth["extrinsics"]["right_eye_from_left_eye"] = transform_json(rig.X_RightEyeLeftEye);
+  truth["extrinsics"]["right_eye_from_depth"] = transform_json(rig.X_RightEyeDepth);
+  nlohmann::json j{{"board", fmt::format("{}x{}", board.cols, board.rows)},
+                   {"square_mm", o.square_mm},
+                   {"seed", o.seed},
+                   {"truth", truth},
+                   {"X_RightEyeBoard", poses}};
+  const fs::path truth_path = fs::path(o.out) / "truth.json";
+  std::ofstream f(truth_path);
+  f << j.dump(2) << "\n";
+  if (!f) throw std::runtime_error("cannot write " + truth_path.string());
+  std::printf("wrote %zu views (left_NN, right_NN, ir_NN, depth_NN .png) and truth.json into %s\n",
+              views.size(), o.out.c_str());
+  return 0;
+}
+
+template <typename F>
+int guarded(const char* name, F&& f) {
+  try {
+    return f();
+  } catch (const FlagError& e) {
+    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
+    return 1;
+  }
+}
+
+void board_flags(CLI::App& app, std::string& board, double& square_mm, bool required) {
+  auto* b = app.add_option("--board", board,
+                           "chessboard as CxR INNER corners (OpenCV's pattern size: a 10x7-square "
+                           "board is 9x6); best one side even, one odd");
+  auto* s = app.add_option("--square-mm", square_mm, "side of one square, millimetres");
+  if (required) {
+    b->required();
+    s->required();
+  }
+}
+
+const RegisterCommand kRegister{
+    "calibrate",
+    "Calibrate the eyes (stereo) and the depth sensor against the right eye (depth-eye) from "
+    "chessboard images into a rig file; render boards with known answers",
+    [](CLI::App& app) -> std::function<int()> {
+      app.require_subcommand(1);
+      auto so = std::make_shared<StereoOptions>();
+      CLI::App* stereo = app.add_subcommand(
+          "stereo",
+          "each eye's intrinsics and distortion, then the right eye's pose of the left; writes "
+          "eyes.left, eyes.right, extrinsics.right_eye_from_left_eye into --out");
+      stereo->add_option("--left", so->left, "glob of the left eye's images (quote it)")
+          ->required();
+      stereo
+          ->add_option("--right", so->right,
+                       "glob of the right eye's images, paired in sorted "
+                       "name order with --left")
+          ->required();
+      board_flags(*stereo, so->board, so->square_mm, true);
+      stereo->add_option("--out", so->out, "rig file to write (created or updated)")->required();
+      stereo
+          ->add_option("--min-views", so->min_views,
+                       "fewest pairs with the board found in both images")
+          ->check(CLI::Range(3, 1000));
+      stereo->add_flag("--k3", so->k3, "also estimate k3 (wide-angle lenses)");
+      stereo->add_flag("--json", so->json, "print one JSON object");
+
+      auto de = std::make_shared<DepthEyeOptions>();
+      CLI::App* depth_eye = app.add_subcommand(
+          "depth-eye",
+          "the depth sensor's pose in the right eye from the board seen in the sensor's IR image "
+          "and the right eye at once; writes extrinsics.right_eye_from_depth into --out");
+      depth_eye
+          ->add_option("--ir", de->ir, "glob of the depth sensor's IR images (projector covered)")
+          ->required();
+      depth_eye
+          ->add_option("--right", de->right,
+                       "glob of the right eye's images, paired in sorted name order")
+          ->required();
+      depth_eye->add_option("--depth", de->depth,
+                            "glob of the depth maps taken with the IR images (16-bit PNG, mm): "
+                            "adds the board-plane check and the plane-only estimate");
+      board_flags(*depth_eye, de->board, de->square_mm, true);
+      depth_eye
+          ->add_option("--rig", de->rig,
+                       "rig file with eyes.right (and depth, unless --depth-intrinsics)")
+          ->required();
+      depth_eye->add_option("--out", de->out, "rig file to write (default: --rig)");
+      depth_eye
+          ->add_option("--depth-intrinsics", de->depth_intrinsics,
+                       "FX,FY,CX,CY,W,H of the depth (IR) camera, overriding the rig's depth; "
+                       "also written into --out")
+          ->delimiter(',');
+      depth_eye->add_option("--min-views", de->min_views, "fewest views with the board in both")
+          ->check(CLI::Range(3, 1000));
+      depth_eye->add_flag("--json", de->json, "print one JSON object");
+
+      auto ro = std::make_shared<RenderOptions>();
+      CLI::App* render = app.add_subcommand(
+          "render",
+          "render boards with known answers (both eyes, the IR image and the depth map of a "
+          "paper-like head) and truth.json, for trying the other subcommands");
+      render->add_option("--out", ro->out, "directory to write into")->required();
+      board_flags(*render, ro->board, ro->square_mm, false);
+      render->add_option("--views", ro->views, "number of board poses");
+      render->add_option("--seed", ro->seed, "seed of the poses and the noise");
+      render->add_option("--noise", ro->noise, "image noise sigma, grey levels");
+      render->add_option("--blur-px", ro->blur_px, "Gaussian blur sigma, pixels");
+      render->add_option("--depth-noise-mm", ro->depth_noise_mm, "depth map noise sigma, mm");
+
+      return [=]() -> int {
+        if (stereo->parsed()) return guarded("stereo", [&] { return run_stereo(*so); });
+        if (depth_eye->parsed()) return guarded("depth-eye", [&] { return run_depth_eye(*de); });
+        if (render->parsed()) return guarded("render", [&] { return run_render(*ro); });
+        return 2;
+      };
+    }};
+
+}  // namespace
+}  // namespace telex::tool
