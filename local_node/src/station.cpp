@@ -840,10 +840,10 @@ void Station::Run::request_stereo_view() {
 // EGL stops the station here, named. A window gets the pair through sbs_for_window_. ----
 void Station::Run::stereo_loop(std::stop_token stop) {
   // At video rate on a machine without a GPU (llvmpipe) the view would take a core from the
-  // surface thread and the remote: it runs at nice 10, and so do llvmpipe's rasterizer threads,
+  // surface thread and the remote: it runs at nice 5, and so do llvmpipe's rasterizer threads,
   // which its context starts and which inherit the niceness. The haptic thread is unaffected
   // (SCHED_FIFO, or its own thread at nice 0).
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 10);
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
   try {
     StereoView view(640, 480);
     for (;;) {
