@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `telex calibrate stereo|depth-eye|render`: chessboard calibration of the eyes and of the depth
 // sensor against the right eye, written into a rig file; `render` makes boards with known answers.
+// `body` and `glove` (the operator) live in cmd_calibrate_body.cpp.
 #include <fmt/format.h>
 #include <glob.h>
 
@@ -9,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -26,6 +28,10 @@
 #include "telex/common/rig.h"
 
 namespace telex::tool {
+
+// cmd_calibrate_body.cpp: `body` and `glove`; the runner returns -1 when neither was parsed.
+std::function<int()> add_calibrate_operator(CLI::App& app);
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -506,7 +512,8 @@ void board_flags(CLI::App& app, std::string& board, double& square_mm, bool requ
 const RegisterCommand kRegister{
     "calibrate",
     "Calibrate the eyes (stereo) and the depth sensor against the right eye (depth-eye) from "
-    "chessboard images into a rig file; render boards with known answers",
+    "chessboard images, the operator's arms (body) and gloves (glove), into a rig file; render "
+    "boards with known answers",
     [](CLI::App& app) -> std::function<int()> {
       app.require_subcommand(1);
       auto so = std::make_shared<StereoOptions>();
@@ -573,10 +580,13 @@ const RegisterCommand kRegister{
       render->add_option("--blur-px", ro->blur_px, "Gaussian blur sigma, pixels");
       render->add_option("--depth-noise-mm", ro->depth_noise_mm, "depth map noise sigma, mm");
 
+      const std::function<int()> run_operator = add_calibrate_operator(app);
+
       return [=]() -> int {
         if (stereo->parsed()) return guarded("stereo", [&] { return run_stereo(*so); });
         if (depth_eye->parsed()) return guarded("depth-eye", [&] { return run_depth_eye(*de); });
         if (render->parsed()) return guarded("render", [&] { return run_render(*ro); });
+        if (const int rc = run_operator(); rc >= 0) return rc;
         return 2;
       };
     }};
