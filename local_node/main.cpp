@@ -31,12 +31,27 @@ std::pair<std::string, std::uint16_t> host_port(const std::string& s, const char
 int main(int argc, char** argv) {
   using namespace telex::local;
   StationConfig cfg;
+  // The rig sets the defaults before the flags are read, so any flag given overrides it.
+  std::string rig_file;
+  try {
+    if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
+      rig_file = rig_path->string();
+      apply_rig(telex::load_rig(*rig_path), cfg);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+    return 2;
+  }
   CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
+  app.add_option("--rig", rig_file,
+                 "rig FILE (docs/RIG.md): marker bodies, head-to-camera offset, body, hands, "
+                 "gloves, eyes, display channels; the flags below override it");
   app.set_config("--config", "", "read flags from an INI/TOML file (same names as the flags)");
   std::string connect = "127.0.0.1:7300";
   std::string transport = "udp";
   std::string glove;
   std::string psk_file;
+  std::string elbow_bodies;
   bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
   app.add_option("--connect", connect, "remote node HOST:PORT")->capture_default_str();
   app.add_option("--transport", transport, "depth transport: udp or tcp")
@@ -66,6 +81,30 @@ int main(int argc, char** argv) {
   app.add_option("--shoulder-body", cfg.tracker.right_shoulder_body_id,
                  "NatNet rigid body id of the shoulder (-1 none)")
       ->capture_default_str();
+  app.add_option("--left-hand-body", cfg.tracker.left_hand_body_id,
+                 "NatNet rigid body id of the left hand (-1 none; drawn, or felt with --left-hand)")
+      ->capture_default_str();
+  app.add_option("--left-shoulder-body", cfg.tracker.left_shoulder_body_id,
+                 "NatNet rigid body id of the left shoulder (-1 none)")
+      ->capture_default_str();
+  app.add_option("--elbow-bodies", elbow_bodies,
+                 "NatNet rigid body ids of the elbow markers LEFT,RIGHT (-1 none)");
+  bool no_head = false;
+  app.add_flag("--no-head", no_head,
+               "no head teleoperation: the operator's head is not sent to the remote, and the "
+               "fingertips are placed with the operator's head even when the remote reports its "
+               "head's pose (the naive transform)");
+  bool head_naive = false;
+  app.add_flag("--head-naive", head_naive,
+               "send the head, but place the fingertips with the operator's current head instead "
+               "of the remote head's pose at each frame's capture (for comparison)");
+  app.add_option("--head-rate", cfg.head_rate_hz, "head poses sent per second")
+      ->check(CLI::Range(1.0, 1000.0))
+      ->capture_default_str();
+  app.add_flag("--left-hand", cfg.tracker.use_left_hand,
+               "the haptic fingertips are the left hand's (the right hand is drawn)");
+  app.add_option("--other-glove", cfg.tracker.other_glove_spec,
+                 "the other hand's glove (that hand is drawn): 5dt-usb[:PATH] | 5dt-serial:DEV");
   app.add_option("--natnet-cmd-port", cfg.tracker.natnet_command_port, "NatNet command port")
       ->check(CLI::Range(1, 65535))
       ->capture_default_str();
@@ -186,6 +225,16 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
     auto [host, port] = host_port(connect, "--connect");
+    if (!elbow_bodies.empty()) {
+      int left = -2, right = -2;
+      char comma = 0, extra = 0;
+      if (std::sscanf(elbow_bodies.c_str(), "%d%c%d%c", &left, &comma, &right, &extra) != 3 ||
+          comma != ',' || left < -1 || right < -1)
+        throw CLI::ValidationError(
+            "--elbow-bodies", "expected LEFT,RIGHT body ids (-1 none), got '" + elbow_bodies + "'");
+      cfg.tracker.left_elbow_body_id = left;
+      cfg.tracker.right_elbow_body_id = right;
+    }
     cfg.client.host = host;
     cfg.client.port = port;
   } catch (const CLI::ParseError& e) {
@@ -205,6 +254,8 @@ int main(int argc, char** argv) {
   cfg.client.frame_parts = !no_frame_parts;
   cfg.client.repair = !no_repair;
   cfg.tracker.glove_spec = glove;
+  if (no_head) cfg.head_teleop = cfg.head_captured_pose = false;
+  if (head_naive) cfg.head_captured_pose = false;
   cfg.realtime = !no_realtime;
   cfg.surface.bilateral = !no_bilateral;
   cfg.surface.roi = !full_frame;
@@ -306,6 +357,7 @@ int main(int argc, char** argv) {
           {"tiles_repaired", s.tiles_repaired},
           {"repairs_useless", s.repairs_useless},
           {"key_frame_requests", s.key_frame_requests},
+          {"head_commands", s.head_commands},
           {"tile_age_watched_samples", s.tile_age_watched_samples},
           {"tile_age_watched_median_frames", s.tile_age_watched_median},
           {"tile_age_watched_p99_frames", s.tile_age_watched_p99},

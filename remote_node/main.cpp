@@ -71,6 +71,18 @@ bool parse_size(const std::string& text, int& w, int& h) {
 int main(int argc, char** argv) {
   using telex::remote::DaemonConfig;
   DaemonConfig cfg;
+  // The rig is read before the flags; the flags given override what it sets.
+  std::optional<telex::Rig> rig;
+  std::string rig_file;
+  try {
+    if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
+      rig = telex::load_rig(*rig_path);
+      rig_file = rig_path->string();
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "telex-remote: " << e.what() << "\n";
+    return 2;
+  }
   CLI::App app{
       "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
       "operator"};
@@ -84,6 +96,10 @@ int main(int argc, char** argv) {
   int client_timeout_ms = 3000;
   std::string psk_file;
   bool no_fill = false, no_temporal = false, no_stats = false;
+  app.add_option("--rig", rig_file,
+                 "Rig FILE (docs/RIG.md): the depth and eye cameras' calibration and the "
+                 "depth-to-right-eye extrinsics (registration becomes full), the robot head's "
+                 "joints; the flags below override it");
   app.add_option("--source", cfg.depth_source,
                  "Depth source: openni[:URI] | freenect[:INDEX] (Kinect v1; under fakenect a "
                  "recording) | oni:PATH[,loop][,realtime|fast] | "
@@ -211,6 +227,16 @@ int main(int argc, char** argv) {
     cfg.pipeline.registration =
         telex::remote::parse_registration(register_mode, register_baseline, register_rotation,
                                           register_eye, cfg.pipeline.registration.nominal_depth_m);
+    if (rig)
+      telex::remote::apply_rig(
+          *rig,
+          {app.count("--register") > 0, app.count("--register-baseline") > 0,
+           app.count("--register-rotation") > 0, app.count("--register-eye") > 0},
+          cfg.pipeline.registration);
+    if (rig) {
+      cfg.robot_head = rig->robot_head;
+      cfg.head_limits = telex::remote::head_limits_from(rig->robot_head);
+    }
     cfg.pipeline.fill = fill && !no_fill;
     cfg.pipeline.temporal_fill = !no_temporal;
     if (cfg.pipeline.hole_fill.window_px % 2 == 0)

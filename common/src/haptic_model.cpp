@@ -7,6 +7,7 @@
 #include <glm/geometric.hpp>
 #include <optional>
 #include <stdexcept>
+#include <tuple>
 
 namespace telex {
 
@@ -100,17 +101,27 @@ struct HapticModel::View {
   double alpha = 1.0;             // weight of cur
   StepTolerance steps;
 
+  // A surface's query in the model's frame: p into its camera, the answer back.
+  static SurfaceQuery plane_of(const Surface& s, const glm::dvec3& p, LocalPlane& out,
+                               const StepTolerance& steps) {
+    const SurfaceQuery q = local_plane(s, glm::transpose(s.R_ModelCamera) * p, out, steps);
+    out.q_camera = s.R_ModelCamera * out.q_camera;
+    out.n_camera = s.R_ModelCamera * out.n_camera;
+    return q;
+  }
+
   SurfaceQuery plane(const glm::dvec3& p, LocalPlane& out) const {
-    const SurfaceQuery qc = local_plane(*cur, p, out, steps);
+    const SurfaceQuery qc = plane_of(*cur, p, out, steps);
     if (prev == nullptr) return qc;
     LocalPlane old;
-    const SurfaceQuery qp = local_plane(*prev, p, old, steps);
+    const SurfaceQuery qp = plane_of(*prev, p, old, steps);
     if (qp != SurfaceQuery::Ok) return qc;
     if (qc != SurfaceQuery::Ok) {
       out = old;
       return qp;
     }
-    // Both points lie on the same camera ray, so the blend stays on it.
+    // Both points lie on the same camera ray (when both surfaces share a camera), so the blend
+    // stays on it.
     out.q_camera = old.q_camera + alpha * (out.q_camera - old.q_camera);
     const glm::dvec3 n = old.n_camera + alpha * (out.n_camera - old.n_camera);
     const double len = glm::length(n);
@@ -118,46 +129,58 @@ struct HapticModel::View {
     return SurfaceQuery::Ok;
   }
 
-  // Depth of the surface along the ray through p, or nothing where there is no data.
-  bool depth_on_ray(const glm::dvec3& p, double& z) const {
-    if (!(p.z > 1e-6)) return false;
-    const auto zc = depth_on_ray_of(*cur, p);
+  // How far p lies behind the surface along its camera's ray through p (p's depth minus the
+  // surface's there, in the camera of each surface; blended), and the surface's depth there; or
+  // nothing where there is no data.
+  bool behind(const glm::dvec3& p, double& d, double& z) const {
+    const auto c = behind_of(*cur, p);
     if (prev == nullptr) {
-      if (!zc) return false;
-      z = *zc;
+      if (!c) return false;
+      d = c->first;
+      z = c->second;
       return true;
     }
-    // Each frame projects with its own intrinsics: the stream may change resolution.
-    const auto zp = depth_on_ray_of(*prev, p);
-    if (zc && zp) {
-      z = *zp + alpha * (*zc - *zp);
-    } else if (zc) {
-      z = *zc;
-    } else if (zp) {
-      z = *zp;
+    // Each frame projects with its own intrinsics (the stream may change resolution) and its own
+    // camera (the head may have turned).
+    const auto o = behind_of(*prev, p);
+    if (c && o) {
+      d = o->first + alpha * (c->first - o->first);
+      z = o->second + alpha * (c->second - o->second);
+    } else if (c) {
+      std::tie(d, z) = *c;
+    } else if (o) {
+      std::tie(d, z) = *o;
     } else {
       return false;
     }
     return true;
   }
 
-  std::optional<double> depth_on_ray_of(const Surface& s, const glm::dvec3& p) const {
+  std::optional<std::pair<double, double>> behind_of(const Surface& s,
+                                                     const glm::dvec3& p_model) const {
+    const glm::dvec3 p = glm::transpose(s.R_ModelCamera) * p_model;
+    if (!(p.z > 1e-6)) return std::nullopt;
     const Intrinsics& k = s.intrinsics;
-    return depth_at(s, k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy, steps);
+    const auto z = depth_at(s, k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy, steps);
+    if (!z) return std::nullopt;
+    return std::pair{p.z - *z, *z};
   }
 
   bool inside(const glm::dvec3& p) const {
-    double z;
-    return depth_on_ray(p, z) && p.z > z;
+    double d, z;
+    return behind(p, d, z) && d > 0.0;
   }
 
   enum class Hit { None, Front, Side };
   // Walks from a (outside) towards b and stops at the first entry into the surface. A Front hit
   // enters through the visible surface (`stop` is on it); a Side hit enters through a step edge,
   // which the depth map does not show, so `stop` is the last free point before the edge.
-  Hit march(const glm::dvec3& a, const glm::dvec3& b, glm::dvec3& stop) const {
+  Hit march(const glm::dvec3& a_model, const glm::dvec3& b_model, glm::dvec3& stop) const {
     const Intrinsics& k = cur->intrinsics;
     int samples = kMaxMarchSamples;
+    // How many pixels the segment crosses in the current surface's camera.
+    const glm::dvec3 a = glm::transpose(cur->R_ModelCamera) * a_model;
+    const glm::dvec3 b = glm::transpose(cur->R_ModelCamera) * b_model;
     if (a.z > 1e-6 && b.z > 1e-6) {
       const double du = k.fx * (b.x / b.z - a.x / a.z);
       const double dv = k.fy * (b.y / b.z - a.y / a.z);
@@ -166,9 +189,9 @@ struct HapticModel::View {
           static_cast<int>(std::min<double>(kMaxMarchSamples, std::ceil(px * kSamplesPerPixel)));
       samples = std::max(samples, 1);
     }
-    glm::dvec3 prev_s = a;
+    glm::dvec3 prev_s = a_model;
     for (int i = 1; i <= samples; ++i) {
-      const glm::dvec3 s = a + (b - a) * (static_cast<double>(i) / samples);
+      const glm::dvec3 s = a_model + (b_model - a_model) * (static_cast<double>(i) / samples);
       if (!inside(s)) {
         prev_s = s;
         continue;
@@ -178,16 +201,16 @@ struct HapticModel::View {
         const glm::dvec3 mid = 0.5 * (lo + hi);
         (inside(mid) ? hi : lo) = mid;
       }
-      double z_hi = 0.0;
-      depth_on_ray(hi, z_hi);
-      if (hi.z - z_hi > steps.at(z_hi)) {
+      double d_hi = 0.0, z_hi = 0.0;
+      behind(hi, d_hi, z_hi);
+      if (d_hi > steps.at(z_hi)) {
         stop = lo;
         return Hit::Side;
       }
       stop = hi;
       return Hit::Front;
     }
-    stop = b;
+    stop = b_model;
     return Hit::None;
   }
 };

@@ -88,6 +88,27 @@ Scene Scene::at_time(double t_s) const {
   return out;
 }
 
+Scene Scene::seen_from(const glm::dmat3& R) const {
+  Scene out = *this;
+  for (auto& p : out.planes_) p.n = R * p.n;
+  for (auto& s : out.spheres_) {
+    s.c0 = R * s.c0;
+    s.c = R * s.c;
+  }
+  for (auto& b : out.boxes_) {
+    b.c0 = R * b.c0;
+    b.c = R * b.c;
+    b.rot = R * b.rot;
+  }
+  for (auto& c : out.cylinders_) {
+    c.c0 = R * c.c0;
+    c.c = R * c.c;
+    c.axis = R * c.axis;
+  }
+  for (auto& m : out.motions_) m.motion.amplitude_m = R * m.motion.amplitude_m;
+  return out;
+}
+
 bool Scene::animated() const { return !motions_.empty(); }
 
 std::optional<std::vector<int>> Scene::moved_since(const Scene& before) const {

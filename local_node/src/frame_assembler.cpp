@@ -110,6 +110,7 @@ std::optional<AssembledFrame> FrameAssembler::take_repaired(std::int64_t now_ns)
   out.part = AssembledPart::Repair;
   out.frame_id = last_frame_id_;
   out.capture_ns = last_capture_ns_;
+  out.head = last_head_;
   out.received_ns = now_ns;
   out.intrinsics =
       Intrinsics{config_.fx, config_.fy, config_.cx, config_.cy, config_.width, config_.height};
@@ -192,6 +193,7 @@ std::optional<AssembledFrame> FrameAssembler::finish(const proto::Header& header
                       : (closes_part ? AssembledPart::Rest : AssembledPart::Whole);
   out.frame_id = manifest.frame_id;
   out.capture_ns = static_cast<std::int64_t>(header.capture_ns);
+  out.head = manifest.head;
   out.received_ns = now_ns;
   out.intrinsics =
       Intrinsics{config_.fx, config_.fy, config_.cx, config_.cy, config_.width, config_.height};
@@ -241,6 +243,7 @@ std::optional<AssembledFrame> FrameAssembler::finish(const proto::Header& header
   have_frame_ = true;
   last_frame_id_ = manifest.frame_id;
   last_capture_ns_ = out.capture_ns;
+  last_head_ = out.head;
   roi_part_open_ = roi_part;
   repaired_.clear();  // this frame carries them
   if (closes && config_.fps > 0) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <glm/gtc/quaternion.hpp>
 
+#include "telex/common/head_kinematics.h"
 #include "telex/local/tracker.h"
 
 namespace telex::local {
@@ -48,5 +49,22 @@ void update_velocities(const HandState& previous, HandState& current) {
 }
 
 HandTracker::~HandTracker() = default;
+
+glm::dmat3 capture_correction(const RobotHead& head, const HandState& hand, bool frame_head_valid,
+                              const std::array<double, 3>& joint_rad) {
+  if (!hand.head_valid || !frame_head_valid) return glm::dmat3(1.0);
+  return glm::transpose(head_rotation(head, joint_rad)) * hand.R_BaseCamera;
+}
+
+void to_capture_camera(const glm::dmat3& c, HandState& hand) {
+  for (auto& t : hand.tips) {
+    t.p_CameraFingertip = c * t.p_CameraFingertip;
+    t.v_CameraFingertip = c * t.v_CameraFingertip;
+    t.axis_Camera = c * t.axis_Camera;
+  }
+  for (auto& finger : hand.joints_camera)
+    for (auto& j : finger) j = c * j;
+  hand.wrist_camera = c * hand.wrist_camera;
+}
 
 }  // namespace telex::local

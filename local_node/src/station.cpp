@@ -29,6 +29,7 @@
 #include "telex/base/periodic.h"
 #include "telex/base/spsc_ring.h"
 #include "telex/base/triple_buffer.h"
+#include "telex/common/head_kinematics.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
 #include "telex/local/stereo_view.h"
@@ -93,6 +94,9 @@ Station::Station(StationConfig config) : cfg_(std::move(config)) {
     throw std::invalid_argument("haptic rate must be within 10..10000 Hz");
   if (cfg_.log_every < 1) throw std::invalid_argument("--log-every must be >= 1");
   ViewSpec::parse(cfg_.view_spec);
+  if (cfg_.head_teleop) check_head_axes(cfg_.robot_head);
+  if (!(cfg_.head_rate_hz >= 1.0 && cfg_.head_rate_hz <= 1000.0))
+    throw std::invalid_argument("--head-rate must be within 1..1000 Hz");
 }
 
 Station::~Station() = default;
@@ -125,6 +129,17 @@ class Station::Run {
   void request_stereo_view();
   void write_view_files();
   void stereo_loop(std::stop_token stop);
+  // The fingertips of `hand` moved into the camera `frame` was captured with (head teleoperation).
+  void in_frame_camera(const AssembledFrame& frame, HandState& hand) const {
+    if (!cfg_.head_captured_pose || !frame.head.valid || !hand.head_valid) return;
+    to_capture_camera(capture_correction(cfg_.robot_head, hand, true,
+                                         {frame.head.joint_rad[0], frame.head.joint_rad[1],
+                                          frame.head.joint_rad[2]}),
+                      hand);
+  }
+  // The operator's head to the remote as joint targets, at most head_rate_hz (main thread).
+  void send_head(std::int64_t now_ns);
+  std::int64_t next_head_ns_ = 0;
   StationSummary summarize();
   // A thread's error: the first one is kept (run() rethrows it) and the station stops.
   void fail(std::exception_ptr error);
@@ -136,6 +151,9 @@ class Station::Run {
   std::atomic<bool>& stop_;
   const std::int64_t t_start_ns_ = monotonic_ns();
   const std::int64_t period_ns_;
+  // The display channel each finger drives (the rig's, for the haptic hand's side).
+  const std::array<int, kFingerCount> channel_ =
+      cfg_.display_channel[index_of(cfg_.tracker.use_left_hand ? Side::Left : Side::Right)];
 
   // ---- outputs, opened first so a bad device or path fails before anything connects ----
   std::unique_ptr<HapticDisplay> display_;
@@ -165,6 +183,13 @@ class Station::Run {
   // ---- surface thread -> haptic thread and view ----
   TripleBuffer<std::shared_ptr<const Surface>> surfaces_;
   TripleBuffer<HandState> hand_for_surface_, hand_for_view_;
+  // The operator's head (haptic thread -> main thread's head sender).
+  struct HeadSample {
+    std::int64_t time_ns = 0;
+    glm::dmat3 R_BaseCamera{1.0};
+  };
+  TripleBuffer<HeadSample> head_for_main_;
+  HeadSample head_sample_;  // main thread
   std::atomic<std::uint64_t> surfaces_built_{0};
   std::atomic<double> first_centre_depth_m_{0.0};
   std::atomic<double> build_ms_{0.0};
@@ -407,6 +432,7 @@ void Station::Run::surface_loop(std::stop_token stop) {
       if ((frame->part == AssembledPart::Rest || frame->part == AssembledPart::Repair) &&
           frame->capture_ns == built_capture_ns && cfg_.surface.roi) {
         hand_for_surface_.take(hand);
+        in_frame_camera(*frame, hand);
         const auto windows =
             fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
         bool touches = windows != last_windows;
@@ -424,6 +450,7 @@ void Station::Run::surface_loop(std::stop_token stop) {
       // the start again, and the haptic model ignores snapshots that go backwards.
       frame->frame_id = static_cast<std::uint32_t>(++surface_seq);
       hand_for_surface_.take(hand);
+      in_frame_camera(*frame, hand);
       std::vector<cv::Rect> windows =
           fingertip_windows(hand, frame->depth_mm, frame->intrinsics, cfg_.surface);
       {
@@ -435,7 +462,14 @@ void Station::Run::surface_loop(std::stop_token stop) {
       if (!cfg_.surface.roi) windows.clear();
       SurfaceBuildStats st;
       const std::int64_t built_ns = monotonic_ns();
-      std::shared_ptr<const Surface> s = build_surface(*frame, cfg_.surface, windows, &st, &pool);
+      std::shared_ptr<Surface> built = build_surface(*frame, cfg_.surface, windows, &st, &pool);
+      // With the head's pose at capture, the haptic model works in the head base's frame, where
+      // the room stays put while the head turns (its god-points and its crossfade between two
+      // surfaces then agree).
+      built->R_ModelCamera = cfg_.head_captured_pose && built->head_valid
+                                 ? head_rotation(cfg_.robot_head, built->head_joint_rad)
+                                 : glm::dmat3(1.0);
+      std::shared_ptr<const Surface> s = std::move(built);
       build_ms_.store(st.snapshot_ms + st.filter_ms + st.normals_ms);
       if (surfaces_built_.load() == 0) first_centre_depth_m_.store(centre_depth_m(frame->depth_mm));
       surfaces_.publish(s);
@@ -544,19 +578,37 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     if (tracker_->poll(now, hand)) {
       hand_for_surface_.publish(hand);
       hand_for_view_.publish(hand);
+      if (hand.head_valid) head_for_main_.publish({hand.time_ns, hand.R_BaseCamera});
       if (hand.bodies_fresh && hand.body_count > 0) tracking_.push(hand);
     }
     surfaces_.take(newest);
     const bool fresh = now - hand.time_ns <= tracking_stale_ns;
+    // The model's frame: the head base's when the surface carries the head's pose at capture
+    // (the robot head lags the operator's; each surface is placed by its own pose), else the
+    // camera's. The fingertips go there from the camera of the operator's head; a hand without a
+    // head (scripted) is taken to be in the newest surface's camera.
+    const bool in_base = cfg_.head_captured_pose && hand.head_valid && newest && newest->head_valid;
+    const glm::dmat3 to_model =
+        in_base ? hand.R_BaseCamera : (newest ? newest->R_ModelCamera : glm::dmat3(1.0));
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& tip = hand.tips[static_cast<std::size_t>(i)];
-      in[static_cast<std::size_t>(i)] = {tip.p_CameraFingertip, tip.axis_Camera,
-                                         tip.valid && fresh};
+      in[static_cast<std::size_t>(i)] = {to_model * tip.p_CameraFingertip,
+                                         to_model * tip.axis_Camera, tip.valid && fresh};
     }
     model_.tick(now, newest, in, out);
+    // Logs and the view take the newest surface's camera frame.
+    const glm::dmat3 from_model = newest ? glm::transpose(newest->R_ModelCamera) : glm::dmat3(1.0);
+    if (newest && newest->R_ModelCamera != glm::dmat3(1.0))
+      for (auto& f : out) {
+        f.force_N = from_model * f.force_N;
+        f.tangential_force_N = from_model * f.tangential_force_N;
+        f.proxy_camera = from_model * f.proxy_camera;
+        f.normal_camera = from_model * f.normal_camera;
+      }
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& f = out[static_cast<std::size_t>(i)];
-      shown[static_cast<std::size_t>(i)] = {i, f.normal_force_N, f.shear_along_axis_N, f.contact};
+      shown[static_cast<std::size_t>(i)] = {channel_[static_cast<std::size_t>(i)], f.normal_force_N,
+                                            f.shear_along_axis_N, f.contact};
     }
     display_->write(now, shown);
     sample.t_ns = now;
@@ -569,8 +621,9 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     for (int i = 0; i < kFingerCount; ++i) {
       sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
       sample.p_CameraFingertip[static_cast<std::size_t>(i)] =
-          in[static_cast<std::size_t>(i)].p_CameraFingertip;
-      sample.axis_Camera[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].axis_Camera;
+          from_model * in[static_cast<std::size_t>(i)].p_CameraFingertip;
+      sample.axis_Camera[static_cast<std::size_t>(i)] =
+          from_model * in[static_cast<std::size_t>(i)].axis_Camera;
     }
     samples_.push(sample);
     missed_.store(timer.missed(), std::memory_order_relaxed);
@@ -597,6 +650,7 @@ void Station::Run::main_loop() {
     drain();
     drain_tracking();
     const std::int64_t now = monotonic_ns();
+    send_head(now);
     if (end_ns && now >= end_ns) break;
     if (now >= next_status) {
       next_status += 1'000'000'000;
@@ -620,6 +674,19 @@ bool Station::Run::pump_window() {
   if (!stop_.exchange(true))
     std::fprintf(stderr, "telex-local: the view window was closed: stopping\n");
   return true;
+}
+
+void Station::Run::send_head(std::int64_t now_ns) {
+  if (!cfg_.head_teleop || now_ns < next_head_ns_) return;
+  next_head_ns_ = now_ns + static_cast<std::int64_t>(1e9 / cfg_.head_rate_hz);
+  head_for_main_.take(head_sample_);
+  if (head_sample_.time_ns == 0) return;  // no head tracked yet
+  const auto q = head_joints(cfg_.robot_head, head_sample_.R_BaseCamera);
+  proto::HeadCommand c;
+  c.operator_ns = static_cast<std::uint64_t>(head_sample_.time_ns);
+  for (std::size_t j = 0; j < 3; ++j) c.joint_rad[j] = static_cast<float>(q[j]);
+  client_->send_head(c);
+  ++summary_.head_commands;
 }
 
 // Orderly end: the haptic thread first (it zeroes the display), then what it logged, then the
@@ -845,7 +912,8 @@ void Station::Run::stereo_loop(std::stop_token stop) {
   // (SCHED_FIFO, or its own thread at nice 0).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
   try {
-    StereoView view(640, 480);
+    StereoView view(640, 480, cfg_.body);
+    view.set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
     for (;;) {
       StereoViewInputs in;
       {

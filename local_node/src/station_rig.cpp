@@ -19,6 +19,7 @@ void apply_rig(const Rig& rig, StationConfig& cfg) {
   t.left_hand = rig.body.hands[index_of(Side::Left)];
   t.glove_range = rig.glove;
   cfg.body = rig.body;
+  cfg.robot_head = rig.robot_head;
   cfg.eye_camera = rig.eye;
   if (rig.X_RightEyeLeftEye) cfg.R_RightEyeLeftEye = rig.X_RightEyeLeftEye->rotation;
   if (const auto b = rig.baseline_m()) cfg.stereo_baseline_m = *b;

@@ -172,6 +172,8 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
   s->intrinsics = frame.intrinsics;
   s->capture_ns = frame.capture_ns;
   s->frame_id = frame.frame_id;
+  s->head_valid = frame.head.valid;
+  for (std::size_t j = 0; j < 3; ++j) s->head_joint_rad[j] = frame.head.joint_rad[j];
   local.snapshot_ms = now_ms() - t0;
   // Station-side fill: what the filter reads (the windows plus the bilateral radius) is filled
   // from the depth as it arrived. The scratch image is this thread's, reused frame to frame; in

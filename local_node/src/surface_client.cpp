@@ -479,6 +479,12 @@ void SurfaceClient::send_nack(const proto::TileNack& nack) {
   });
 }
 
+void SurfaceClient::send_head(const proto::HeadCommand& head) {
+  asio::post(impl_->io, [this, head] {
+    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(head);
+  });
+}
+
 void SurfaceClient::request_key_frame() {
   asio::post(impl_->io, [this] {
     if (impl_->session_id != 0 && impl_->tcp_sock.is_open())

@@ -9,6 +9,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <stdexcept>
 
+#include "telex/common/head_kinematics.h"
 #include "telex/local/glove.h"
 #include "telex/local/hand_script.h"
 #include "telex/local/natnet_client.h"
@@ -85,6 +86,8 @@ class NatNetTracker final : public HandTracker {
     };
     HandState cur = previous_;
     const std::size_t h = index_of(haptic_);
+    cur.head_valid = head_valid;
+    if (head_valid) cur.R_BaseCamera = operator_head_in_base(cfg_.hand.R_CameraHead, head->pose);
     for (const Side side : kSides) {
       const std::size_t i = index_of(side);
       const HandModelConfig& hc = hand_cfg_[i];

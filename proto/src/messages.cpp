@@ -75,6 +75,17 @@ void put_payload(Writer& w, const DepthTile& m) {
   w.u32(static_cast<std::uint32_t>(m.payload.size()));
   w.bytes(m.payload);
 }
+constexpr float kPiF = 3.14159265f;
+
+void put_head(Writer& w, bool valid, const std::array<float, 3>& joint_rad) {
+  w.u8(valid ? 1 : 0);
+  for (float a : joint_rad) {
+    require(!valid || (std::isfinite(a) && std::abs(a) <= kPiF),
+            "head joint angle not finite or beyond pi");
+    w.f32(valid ? a : 0.0f);
+  }
+}
+
 void put_payload(Writer& w, const FrameManifest& m) {
   require(m.changed_tiles.size() <= kMaxManifestTiles, "FrameManifest lists more than 4096 tiles");
   w.u32(m.frame_id);
@@ -82,6 +93,7 @@ void put_payload(Writer& w, const FrameManifest& m) {
   w.u8(m.key_frame ? 1 : 0);
   w.u16(static_cast<std::uint16_t>(m.changed_tiles.size()));
   for (std::uint16_t t : m.changed_tiles) w.u16(t);
+  put_head(w, m.head.valid, m.head.joint_rad);
 }
 void put_payload(Writer& w, const VideoFrame& m) {
   w.u8(m.eye);
@@ -109,6 +121,14 @@ void put_payload(Writer& w, const Stats& m) {
     w.u8(static_cast<std::uint8_t>(key.size()));
     w.bytes({reinterpret_cast<const std::uint8_t*>(key.data()), key.size()});
     w.u64(value);
+  }
+}
+
+void put_payload(Writer& w, const HeadCommand& m) {
+  w.u64(m.operator_ns);
+  for (float a : m.joint_rad) {
+    require(std::isfinite(a) && std::abs(a) <= kPiF, "HeadCommand angle not finite or beyond pi");
+    w.f32(a);
   }
 }
 
@@ -289,6 +309,27 @@ PayloadResult get_manifest(Reader& r) {
       return bad("FrameManifest tile list not strictly increasing");
     m.changed_tiles.push_back(t);
   }
+  const std::uint8_t head = r.u8();
+  for (float& a : m.head.joint_rad) a = r.f32();
+  if (!r.ok()) return truncated("FrameManifest head joints");
+  if (head > 1) return bad("FrameManifest head flag not 0/1");
+  m.head.valid = head == 1;
+  for (float a : m.head.joint_rad)
+    if (!std::isfinite(a) || std::abs(a) > kPiF)
+      return bad("FrameManifest head joint not finite or beyond pi");
+  if (!m.head.valid && m.head.joint_rad != std::array<float, 3>{})
+    return bad("FrameManifest head joints set without the valid flag");
+  return m;
+}
+
+PayloadResult get_head_command(Reader& r) {
+  HeadCommand m;
+  m.operator_ns = r.u64();
+  for (float& a : m.joint_rad) a = r.f32();
+  if (!r.ok()) return truncated("HeadCommand fields");
+  for (float a : m.joint_rad)
+    if (!std::isfinite(a) || std::abs(a) > kPiF)
+      return bad("HeadCommand angle not finite or beyond pi");
   return m;
 }
 PayloadResult get_video(Reader& r) {
@@ -390,6 +431,8 @@ PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
       return get_stats(r);
     case MsgType::TileNack:
       return get_nack(r);
+    case MsgType::HeadCommand:
+      return get_head_command(r);
   }
   return Bad{ErrorReason::UnknownType, "message type"};
 }
@@ -405,8 +448,9 @@ Result failure(ErrorReason reason, const char* detail) {
 
 std::string_view msg_type_name(MsgType type) {
   static constexpr std::string_view kNames[kMsgTypeCount] = {
-      "Hello",     "Accept",        "Reject",     "Heartbeat",  "Bye",   "StreamConfig",
-      "DepthTile", "FrameManifest", "VideoFrame", "RoiRequest", "Stats", "TileNack"};
+      "Hello",        "Accept",    "Reject",        "Heartbeat",  "Bye",
+      "StreamConfig", "DepthTile", "FrameManifest", "VideoFrame", "RoiRequest",
+      "Stats",        "TileNack",  "HeadCommand"};
   const auto i = static_cast<std::size_t>(type);
   return i < kMsgTypeCount ? kNames[i] : std::string_view("unknown");
 }

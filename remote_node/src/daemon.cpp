@@ -11,6 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "telex/common/head_kinematics.h"
+
 namespace telex::remote {
 
 using namespace std::chrono_literals;
@@ -76,8 +78,26 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
-    : config_(std::move(config)), pipeline_(config_.pipeline) {
+    : config_(std::move(config)),
+      pipeline_(config_.pipeline),
+      head_control_({config_.head_limits, config_.head_link_timeout_s}) {
   validate(config_);
+  head_driven_ = parse_head_spec(config_.head).kind != HeadSpec::Kind::None;
+  if (head_driven_) {
+    check_head_axes(config_.robot_head);
+    // A synthetic scene stays put in the room while the head turns (a real sensor's view).
+    config_.source_options.head_orientation =
+        [this](std::int64_t capture_ns) -> std::optional<glm::dmat3> {
+      const HeadPose p = head_pose_at(capture_ns);
+      if (!p.valid) return std::nullopt;
+      return head_rotation(config_.robot_head, p.joint_rad);
+    };
+    // The operator's head, from the network thread; the head loop commands it.
+    config_.server.on_head_command = [this](const proto::HeadCommand& c, std::int64_t now_ns) {
+      std::lock_guard lock(head_mu_);
+      head_control_.set_target({c.joint_rad[0], c.joint_rad[1], c.joint_rad[2]}, now_ns);
+    };
+  }
   depth_ = make_depth_source(config_.depth_source, config_.source_options);
   stereo_ = make_eye_source(config_.depth_source, config_.stereo_source, config_.source_options);
   config_.server.video_available = stereo_ != nullptr;
@@ -109,13 +129,15 @@ void RemoteDaemon::start() {
     stereo_thread_ = std::thread([this] { stereo_loop(); });
     video_thread_ = std::thread([this] { video_loop(); });
   }
+  if (head_driven_) head_thread_ = std::thread([this] { head_loop(); });
 }
 
 void RemoteDaemon::stop() {
   if (!running_.exchange(false)) return;
   depth_slot_.close();
   stereo_slot_.close();
-  for (auto* t : {&capture_thread_, &stereo_thread_, &process_thread_, &video_thread_})
+  for (auto* t :
+       {&capture_thread_, &stereo_thread_, &process_thread_, &video_thread_, &head_thread_})
     if (t->joinable()) t->join();
   server_->stop();
   depth_->stop();
@@ -151,8 +173,76 @@ DaemonStats RemoteDaemon::stats() const {
     s.client_timeouts = c.client_timeouts;
     for (std::size_t i = 0; i < kSessionEndCount; ++i) s.sessions_ended[i] = c.sessions_ended[i];
     s.client = server_->state();
+    s.head_commands_in = c.head_commands_in;
   }
+  {
+    std::lock_guard lock(head_mu_);
+    s.head_control = head_control_.stats();
+    s.head_holding = head_control_.holding();
+  }
+  if (head_) s.head = head_->stats();
   return s;
+}
+
+// ---- head loop: read the head, then move it toward the operator's pose (rate-limited, clamped;
+// still when the operator's link is lost). Its readings stamp every depth frame's capture. ----
+void RemoteDaemon::head_loop() {
+  const auto period =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / config_.head_rate_hz));
+  auto next = std::chrono::steady_clock::now();
+  while (running_) {
+    const std::int64_t now = steady_now_ns();
+    const HeadPose measured = head_->measured(now);
+    std::optional<HeadAngles> command;
+    {
+      std::lock_guard lock(head_mu_);
+      if (measured.valid) {
+        head_history_.push_back(measured);
+        if (head_history_.size() > 256) head_history_.pop_front();
+      }
+      command = head_control_.update(measured, now);
+    }
+    if (command) head_->command(*command, now);
+    next += period;
+    const auto wake = std::chrono::steady_clock::now();
+    if (next < wake) next = wake;  // a slow bus: no burst to catch up
+    std::this_thread::sleep_until(next);
+  }
+}
+
+HeadPose RemoteDaemon::head_pose_at(std::int64_t t) const {
+  std::lock_guard lock(head_mu_);
+  HeadPose out;
+  if (head_history_.empty()) return out;
+  out.valid = true;
+  out.time_ns = t;
+  const auto lerp = [&](const HeadPose& a, const HeadPose& b, double u) {
+    for (std::size_t j = 0; j < kHeadJoints; ++j)
+      out.joint_rad[j] = a.joint_rad[j] + (b.joint_rad[j] - a.joint_rad[j]) * u;
+  };
+  const HeadPose& newest = head_history_.back();
+  if (t <= head_history_.front().time_ns) {
+    out.joint_rad = head_history_.front().joint_rad;
+  } else if (t >= newest.time_ns) {
+    // Past the newest reading: on along the last two readings' slope, at most 20 ms.
+    if (head_history_.size() < 2) {
+      out.joint_rad = newest.joint_rad;
+    } else {
+      const HeadPose& prev = head_history_[head_history_.size() - 2];
+      const double span = static_cast<double>(newest.time_ns - prev.time_ns);
+      const double ahead =
+          static_cast<double>(std::min<std::int64_t>(t - newest.time_ns, 20'000'000));
+      lerp(prev, newest, span > 0 ? 1.0 + ahead / span : 1.0);
+    }
+  } else {
+    const auto it =
+        std::upper_bound(head_history_.begin(), head_history_.end(), t,
+                         [](std::int64_t v, const HeadPose& p) { return v < p.time_ns; });
+    const HeadPose& b = *it;
+    const HeadPose& a = *std::prev(it);
+    lerp(a, b, static_cast<double>(t - a.time_ns) / static_cast<double>(b.time_ns - a.time_ns));
+  }
+  return out;
 }
 
 void RemoteDaemon::capture_loop() {
@@ -163,6 +253,13 @@ void RemoteDaemon::capture_loop() {
       {
         std::lock_guard lock(stats_mu_);
         ++stats_.frames_in;
+      }
+      // The head's pose when the frame was captured goes with it to the station.
+      if (head_driven_) {
+        const HeadPose h = head_pose_at(r.frame.capture_ns);
+        r.frame.head.valid = h.valid;
+        for (std::size_t j = 0; h.valid && j < kHeadJoints; ++j)
+          r.frame.head.joint_rad[j] = static_cast<float>(h.joint_rad[j]);
       }
       depth_slot_.put(std::move(r.frame));
     } else if (r.status == ReadStatus::Error) {
@@ -209,6 +306,7 @@ void RemoteDaemon::process_loop() {
     // frame is even filled; others get both parts as one message set.
     ProcessedFrame p = request.frame_parts ? pipeline_.process_roi(*frame, request)
                                            : pipeline_.process(*frame, request);
+    p.manifest.head = frame->head;
     if (observer_) observer_(p);
     server_->publish(p);
     const double first_part_ms = p.times.total_ms;
@@ -216,6 +314,7 @@ void RemoteDaemon::process_loop() {
       // A newer frame waiting cuts this rest short, so its ROI part does not queue behind it.
       ProcessedFrame rest =
           pipeline_.process_rest(*frame, [this] { return depth_slot_.has_value(); });
+      rest.manifest.head = frame->head;
       if (observer_) observer_(rest);
       server_->publish(rest);
       if (rest.rest_cut) {

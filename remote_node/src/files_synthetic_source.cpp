@@ -187,7 +187,8 @@ class SyntheticDepthSource final : public DepthSource {
         animate_(animate),
         fps_(options.synthetic_fps),
         pacer_(options.synthetic_fps),
-        intrinsics_(kinect_v1_intrinsics(options.width, options.height)) {
+        intrinsics_(kinect_v1_intrinsics(options.width, options.height)),
+        head_orientation_(options.head_orientation) {
     sensor_ = noise ? synth::SensorModel{} : synth::SensorModel::ideal();
     sensor_.seed = options.seed;
   }
@@ -208,9 +209,16 @@ class SyntheticDepthSource final : public DepthSource {
     // Scene time follows the frame count, not the wall clock, so a run is reproducible.
     const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
     if (!renderer_) renderer_.emplace(intrinsics_, sensor_);
-    auto rendered = renderer_->render(scene_.at_time(t_s), frames_);
+    const std::int64_t capture_ns = steady_now_ns();
+    synth::Scene scene = scene_.at_time(t_s);
+    // On a driven head the scene stays in the head base's frame: the camera turns (a full render:
+    // every object moved in the camera's frame).
+    if (head_orientation_)
+      if (const auto R_BaseCamera = head_orientation_(capture_ns))
+        scene = scene.seen_from(glm::transpose(*R_BaseCamera));
+    auto rendered = renderer_->render(scene, frames_);
     out.frame.image = std::move(rendered.depth);
-    out.frame.capture_ns = steady_now_ns();
+    out.frame.capture_ns = capture_ns;
     out.frame.frame_id = ++frames_;
     out.frame.scene_time_s = t_s;
     out.status = ReadStatus::Frame;
@@ -234,6 +242,7 @@ class SyntheticDepthSource final : public DepthSource {
   synth::Scene scene_;
   std::optional<synth::Renderer> renderer_;
   std::uint64_t frames_ = 0;
+  std::function<std::optional<glm::dmat3>(std::int64_t)> head_orientation_;
 };
 
 class FilesStereoSource final : public StereoSource {

@@ -243,4 +243,11 @@ std::optional<HeadDatagram> decode_head_datagram(std::span<const std::uint8_t> b
   return r.ok() ? std::optional<HeadDatagram>(d) : std::nullopt;
 }
 
+HeadLimits head_limits_from(const RobotHead& head) {
+  HeadLimits l;
+  for (std::size_t j = 0; j < kHeadJoints; ++j)
+    l.joint[j] = {head.joints[j].min_rad, head.joints[j].max_rad, head.joints[j].max_rate_rad_s};
+  return l;
+}
+
 }  // namespace telex::remote

@@ -74,6 +74,9 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
             }
         } else if constexpr (std::is_same_v<T, proto::TileNack>) {
           on_nack(m);
+        } else if constexpr (std::is_same_v<T, proto::HeadCommand>) {
+          ++counters_.head_commands_in;
+          if (config_.on_head_command) config_.on_head_command(m, steady_now_ns());
         } else if constexpr (std::is_same_v<T, proto::Bye>) {
           end_session(SessionEnd::ClientBye);
         } else {

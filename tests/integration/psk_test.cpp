@@ -368,7 +368,7 @@ TEST(PskAttack, ForgedCorruptedAndReplayedTrafficIsDroppedAndCounted) {
     hello.udp_port = 9;
     const auto replayed_hello = proto::encode_stream_sealed(h, hello, &psk);
     const auto forged_hello = proto::encode_stream_sealed(h, hello, &wrong);
-    proto::FrameManifest fm{1u << 30, 64, true, {}};
+    proto::FrameManifest fm{1u << 30, 64, true, {}, {}};
     proto::Header fh;
     fh.session_id = 1;
     fh.frame_id = 1u << 30;  // would supersede every real frame if it got in

@@ -116,7 +116,7 @@ TEST(FrameAssembler, RejectsStaleAndMisplacedTiles) {
   EXPECT_FALSE(a.apply_tile(h, garbage, 0));
   EXPECT_EQ(a.counters().tiles_rejected, 3u);  // unconfigured, moved, garbage
   // An old manifest produces nothing.
-  proto::FrameManifest m{4, 4, true, {}};
+  proto::FrameManifest m{4, 4, true, {}, {}};
   h.frame_id = 4;
   EXPECT_FALSE(a.finish(h, m, 0));
 }

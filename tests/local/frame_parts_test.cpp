@@ -39,8 +39,8 @@ std::optional<AssembledFrame> manifest(FrameAssembler& a, std::uint32_t id, bool
   h.frame_id = id;
   h.capture_ns = 1000 + id;
   h.flags = roi_part ? proto::kFlagRoiPart : 0;
-  return a.finish(h, proto::FrameManifest{id, 4, key, key ? std::vector<std::uint16_t>{} : listed},
-                  now);
+  return a.finish(
+      h, proto::FrameManifest{id, 4, key, key ? std::vector<std::uint16_t>{} : listed, {}}, now);
 }
 
 double diff(const cv::Mat1w& a, const cv::Mat1w& b) { return cv::norm(a, b, cv::NORM_INF); }

@@ -35,8 +35,8 @@ std::optional<AssembledFrame> close(FrameAssembler& a, std::uint32_t id, bool ke
   proto::Header h;
   h.frame_id = id;
   h.capture_ns = static_cast<std::uint64_t>(id) * kPeriod;
-  return a.finish(h, proto::FrameManifest{id, 4, key, key ? std::vector<std::uint16_t>{} : listed},
-                  now);
+  return a.finish(
+      h, proto::FrameManifest{id, 4, key, key ? std::vector<std::uint16_t>{} : listed, {}}, now);
 }
 
 // Frame 1 is a key frame of 1000 mm; frame 2 changes every tile to 1200 mm and tile 3 is lost.

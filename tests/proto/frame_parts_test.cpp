@@ -16,7 +16,7 @@ TEST(FrameParts, RoiPartFlagIsHeaderBitTwoAndRoundTrips) {
   h.frame_id = 42;
   h.capture_ns = 123456789;
   h.flags = kFlagKeyFrame | kFlagRoiPart;
-  const FrameManifest roi{42, 64, false, {9, 10, 17}};
+  const FrameManifest roi{42, 64, false, {9, 10, 17}, {}};
   const auto bytes = encode(h, roi);
   EXPECT_EQ(bytes[6], 0x05);  // flags, low byte: key frame + ROI part
   EXPECT_EQ(bytes[7], 0x00);
@@ -28,7 +28,7 @@ TEST(FrameParts, RoiPartFlagIsHeaderBitTwoAndRoundTrips) {
 
   // The closing manifest is an ordinary manifest with the same frame id and no flag.
   h.flags = kFlagKeyFrame;
-  const auto closing = encode(h, FrameManifest{42, 64, true, {}});
+  const auto closing = encode(h, FrameManifest{42, 64, true, {}, {}});
   const Result c = decode(closing);
   ASSERT_TRUE(c.ok());
   EXPECT_EQ(c.envelope->header.frame_id, 42u);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <limits>
 
 #include "proto_samples.h"
 #include "telex/proto/crc32c.h"
@@ -29,7 +30,7 @@ TEST(Messages, HeaderLayoutIsLittleEndianFieldByField) {
                                  'L',
                                  'X',
                                  '1',                                      // magic
-                                 2,                                        // version
+                                 3,                                        // version
                                  static_cast<std::uint8_t>(MsgType::Bye),  // type
                                  0x01,
                                  0x00,  // flags
@@ -162,7 +163,7 @@ TEST(Messages, RejectsBadTileGeometry) {
   StreamConfig sc;
   sc.grid_cols = 9;  // 640 / 80 is 8
   EXPECT_EQ(decode_bytes(encode({}, sc)).error, ErrorReason::BadTileGeometry);
-  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {64}})).error,
+  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {64}, {}})).error,
             ErrorReason::BadTileGeometry);
 }
 
@@ -180,7 +181,7 @@ TEST(Messages, RejectsBadPayload) {
   b[kHeaderSize + 4] = 9;  // codec
   reseal(b);
   EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadPayload);
-  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {5, 5}})).error,
+  EXPECT_EQ(decode_bytes(encode({}, FrameManifest{1, 64, false, {5, 5}, {}})).error,
             ErrorReason::BadPayload);
   EXPECT_EQ(decode_bytes(encode({}, Stats{{{"has space", 1}}})).error, ErrorReason::BadPayload);
   // A trailing byte inside payload_len that no field claims.
@@ -237,6 +238,49 @@ TEST(Messages, TileNackRejectsEmptyUnorderedAndShortLists) {
   b[kHeaderSize + 9] = 0x10;  // index 4101 > 4095
   reseal(b);
   EXPECT_EQ(decode(b).error, ErrorReason::BadTileGeometry);
+}
+
+TEST(Messages, HeadCommandAndTheManifestsHeadJointsAreCheckedAngles) {
+  // The layout: u64 operator time, then yaw, pitch, roll as f32.
+  const auto bytes = encode({}, HeadCommand{0x0102030405060708ull, {0.5f, -0.25f, 1.0f}});
+  ASSERT_EQ(bytes.size(), kHeaderSize + 20);
+  EXPECT_EQ(bytes[kHeaderSize], 0x08);
+  EXPECT_EQ(bytes[kHeaderSize + 7], 0x01);
+  float yaw = 0.0f;
+  std::memcpy(&yaw, bytes.data() + kHeaderSize + 8, 4);
+  EXPECT_EQ(yaw, 0.5f);
+  const Result ok = decode(bytes);
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(std::get<HeadCommand>(ok.envelope->message).joint_rad[2], 1.0f);
+  // A NaN or an angle beyond pi on the wire is a bad payload, not a command.
+  for (const float bad : {std::numeric_limits<float>::quiet_NaN(), 3.5f, -4.0f,
+                          std::numeric_limits<float>::infinity()}) {
+    auto b = bytes;
+    std::memcpy(b.data() + kHeaderSize + 12, &bad, 4);
+    reseal(b);
+    const Result r = decode(b);
+    EXPECT_FALSE(r.ok()) << bad;
+    EXPECT_EQ(r.error, ErrorReason::BadPayload) << bad;
+  }
+  EXPECT_THROW(encode({}, HeadCommand{0, {0.0f, 4.0f, 0.0f}}), std::invalid_argument);
+  // The manifest's head: a flag byte and three angles after the tile list; angles without the
+  // flag are refused (a sender bug shows instead of being read as a pose).
+  auto m = encode({}, FrameManifest{7, 64, true, {}, {true, {0.1f, 0.2f, -0.3f}}});
+  ASSERT_EQ(m.size(), kHeaderSize + 9 + 13);
+  EXPECT_EQ(m[kHeaderSize + 9], 1);
+  const Result rm = decode(m);
+  ASSERT_TRUE(rm.ok());
+  EXPECT_EQ(std::get<FrameManifest>(rm.envelope->message).head.joint_rad[2], -0.3f);
+  m[kHeaderSize + 9] = 0;
+  reseal(m);
+  EXPECT_EQ(decode(m).error, ErrorReason::BadPayload);
+  m[kHeaderSize + 9] = 2;
+  reseal(m);
+  EXPECT_EQ(decode(m).error, ErrorReason::BadPayload);
+  m.resize(m.size() - 1);
+  put_u32(m, 28, static_cast<std::uint32_t>(m.size() - kHeaderSize));
+  reseal(m);
+  EXPECT_EQ(decode(m).error, ErrorReason::Truncated);
 }
 
 }  // namespace

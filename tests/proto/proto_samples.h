@@ -21,11 +21,12 @@ inline std::vector<Message> sample_messages() {
   sc.fps = 29.97f;
   m.push_back(sc);
   m.push_back(DepthTile{5, 400, 0, 80, 60, Codec::Zip, {1, 2, 3, 4, 5, 6, 7}});
-  m.push_back(FrameManifest{42, 64, false, {0, 3, 63}});
+  m.push_back(FrameManifest{42, 64, false, {0, 3, 63}, {true, {0.5f, -0.25f, 0.125f}}});
   m.push_back(VideoFrame{1, 640, 480, {0xFF, 0xD8, 0xFF, 0xD9}});
   m.push_back(RoiRequest{{{10, 20, 80, 60, 3}, {0, 0, 640, 480, 0}}});
   m.push_back(Stats{{{"tiles_sent", 123456789}, {"drops.crc", 0}}});
   m.push_back(TileNack{41, {9, 10, 17}});
+  m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}});
   return m;
 }
 

@@ -36,7 +36,7 @@ const cv::Mat1w& frame() {
 std::vector<proto::Message> frame_messages() {
   const proto::TileGrid grid{640, 480, 80, 60};
   std::vector<proto::Message> msgs;
-  proto::FrameManifest fm{1, 64, true, {}};
+  proto::FrameManifest fm{1, 64, true, {}, {}};
   for (const auto& t : proto::encode_tiles(frame(), grid, proto::Codec::Zip)) {
     msgs.push_back(proto::tile_message(t, proto::Codec::Zip));
   }

@@ -204,7 +204,8 @@ Sample run_chain(const Config& c, const Frame& f, ChainState& st, local::Surface
 
   // Local side: the station's surface stage (smoothing and normals over fingertip windows with
   // ROI), its stage times by the thread's CPU clock.
-  local::AssembledFrame frame{filled, f.intr, f.id, 0, 0, true, local::AssembledPart::Whole, {}};
+  local::AssembledFrame frame{filled, f.intr, f.id, 0, 0, true, local::AssembledPart::Whole,
+                              {},     {}};
   const local::SurfaceOptions so = surface_options(c);
   std::shared_ptr<const Surface> surface;
   t0 = thread_cpu_ms();
@@ -368,7 +369,7 @@ RoiTiming measure_roi_timing(bool quick) {
   local::SurfaceOptions full, roi;
   full.clock_ms = roi.clock_ms = thread_cpu_ms;
   roi.roi = true;
-  const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true, local::AssembledPart::Whole, {}};
+  const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true, local::AssembledPart::Whole, {}, {}};
   std::vector<double> full_ms, roi_ms, none_ms, roi_snapshot_ms;
   local::SurfacePool full_pool, near_pool, none_pool;
   std::deque<std::shared_ptr<const Surface>> full_ring, near_ring, none_ring;

@@ -2,7 +2,9 @@
 // Immutable depth surface snapshot read by the 1 kHz haptic loop, and its point queries.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -22,6 +24,14 @@ struct Surface {
   Intrinsics intrinsics;
   std::int64_t capture_ns = 0;
   std::uint64_t frame_id = 0;
+  // The robot head's joints at capture (yaw, pitch, roll; FrameManifest::head): the station places
+  // the fingertips in this surface's camera with them. head_valid false: no head reading.
+  bool head_valid = false;
+  std::array<double, 3> head_joint_rad{0.0, 0.0, 0.0};
+  // This surface's camera in the frame the haptic model works in (p_model = R_ModelCamera
+  // p_camera): identity, or the head base's frame when the head turned between captures, so the
+  // model's god-points and its crossfade between two surfaces stay put in the room.
+  glm::dmat3 R_ModelCamera{1.0};
 };
 
 // Depths beyond this are treated as holes: no depth sensor this project targets reports them and

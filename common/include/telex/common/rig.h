@@ -75,7 +75,8 @@ struct Rig {
   // distortion.
   std::array<std::optional<CameraModel>, 2> eye;
   // p_right = rotation * p_left + translation_m (a calibrated stereo pair: the left eye about one
-  // baseline to the left, translation x ~ +baseline).
+  // baseline to the left: the left eye's centre is at translation_m in the right eye's frame,
+  // x ~ -baseline).
   std::optional<RigidTransform> X_RightEyeLeftEye;
   // p_right = rotation * p_depth + translation_m.
   std::optional<RigidTransform> X_RightEyeDepth;

@@ -53,6 +53,9 @@ class Scene {
   void set_motion(int object_id, const Motion& motion);
 
   Scene at_time(double t_s) const;  // animated objects move; static scenes unchanged
+  // The scene seen from a camera turned about its centre: every object rotated by R_CameraScene
+  // (p_camera = R_CameraScene p_scene). Take at_time first: motions are in the scene's frame.
+  Scene seen_from(const glm::dmat3& R_CameraScene) const;
   bool animated() const;
   double time_s() const { return time_s_; }
   int object_count() const { return next_id_; }

@@ -67,6 +67,7 @@ struct AssembledFrame {
   // Rest and Repair: tiles whose pixels may differ from the frame published before with the same
   // capture (decoded since, repaired, or expired). Empty: nothing changed.
   std::vector<cv::Rect> changed_since_roi_part;
+  proto::HeadJoints head;  // the robot head at capture (from the manifest)
 };
 
 // Not thread-safe: the network thread owns it. Time comes in as arguments.
@@ -135,6 +136,7 @@ class FrameAssembler {
   bool unclosed_pending_ = false;  // a frame went unclosed since the last key frame
   std::int64_t last_key_request_ns_ = 0;
   std::int64_t last_capture_ns_ = 0;  // of the last published frame
+  proto::HeadJoints last_head_;       // of the last published frame
   bool stale(std::size_t i) const;
   bool have_frame_ = false;
   bool roi_part_open_ = false;  // last_frame_id_ was published as an ROI part; its rest may follow

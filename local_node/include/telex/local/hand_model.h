@@ -10,6 +10,7 @@
 #include <span>
 
 #include "telex/common/hand_kinematics.h"
+#include "telex/common/rig.h"
 
 namespace telex::local {
 
@@ -39,6 +40,15 @@ glm::dvec3 world_dir_to_camera(const HandModelConfig& config, const Pose& X_Worl
 // Maps world hand points into `out` (camera frame), marks every tip valid and the skeleton valid.
 void fill_hand_state(const HandModelConfig& config, const Pose& X_WorldHead, const HandPoints& hand,
                      std::int64_t time_ns, HandState& out);
+
+// The rotation that takes a point in the camera of the operator's head (hand.R_BaseCamera) into
+// the camera of a frame captured with the robot head at `joint_rad`: R(joints)^T R_BaseCamera (the
+// camera turns about its centre; a 3-DOF head does not follow the operator's head translation).
+// Identity when the hand has no head or the frame no head reading.
+glm::dmat3 capture_correction(const RobotHead& head, const HandState& hand, bool frame_head_valid,
+                              const std::array<double, 3>& joint_rad);
+// Applies capture_correction to the fingertips (positions, velocities, axes) and joints.
+void to_capture_camera(const glm::dmat3& correction, HandState& hand);
 
 // Fingertip velocities by finite differences against the previous state (same finger valid in
 // both and a positive time step); zero otherwise.

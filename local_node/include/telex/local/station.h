@@ -58,6 +58,15 @@ struct StationConfig {
   glm::dmat3 R_RightEyeLeftEye{1.0};
   // The operator's body for the view (the rig's operator.body).
   BodyDims body;
+  // Head teleoperation (docs/RIG.md robot_head): with a tracked head the station sends it as the
+  // robot head's joint targets at head_rate_hz, and places the fingertips into each surface's
+  // camera with the joints the head measured at its capture (when the remote reports them).
+  RobotHead robot_head;
+  bool head_teleop = true;
+  // false: the fingertips are placed with the operator's current head even when the remote
+  // reports its head's pose at capture (the naive transform, for comparison).
+  bool head_captured_pose = true;
+  double head_rate_hz = 200.0;
   // The haptic display channel each finger drives (thumb first), by the haptic hand's Side.
   std::array<std::array<int, kFingerCount>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
   double print_forces_hz = 0.0;  // live force lines on stdout (0 = off)
@@ -109,6 +118,7 @@ struct StationSummary {
   std::uint64_t nacks = 0, tiles_nacked = 0, watched_tiles_nacked = 0, tiles_repaired = 0,
                 repairs_useless = 0;
   std::uint64_t key_frame_requests = 0;
+  std::uint64_t head_commands = 0;  // head poses sent to the remote (head teleoperation)
   std::uint64_t tile_age_samples = 0, tile_age_watched_samples = 0;
   double tile_age_watched_median = 0, tile_age_watched_p99 = 0, tile_age_watched_max = 0;
   double tile_age_all_median = 0, tile_age_all_p99 = 0, tile_age_all_max = 0;

@@ -90,6 +90,8 @@ class SurfaceClient {
   // Thread-safe: asks the remote to resend tiles (PROTOCOL.md 2.5), or for a key frame (a Stats
   // message with key_frame_request = 1). Dropped when no session is up.
   void send_nack(const proto::TileNack& nack);
+  // The operator's head as joint targets (PROTOCOL.md 2.6); dropped while not connected.
+  void send_head(const proto::HeadCommand& head);
   void request_key_frame();
 
   const ClientStats& stats() const { return stats_; }

@@ -61,6 +61,12 @@ struct HandState {
   // Both arms by Side (telex/common/body.h: 0 left, 1 right), NatNet only; the haptic hand's arm
   // repeats wrist_camera and shoulder_camera with the wrist's orientation and an elbow marker.
   std::array<ArmTrack, 2> arms{};
+  // The operator's head as the robot camera's orientation in the head base's frame
+  // (operator_head_in_base; NatNet with a head body): the fingertips above are in this camera.
+  // The station sends it to the remote as head joints and, given a surface captured with the
+  // robot head elsewhere, turns the fingertips into that surface's camera.
+  bool head_valid = false;
+  glm::dmat3 R_BaseCamera{1.0};
   // Raw rigid bodies behind this state (NatNet only; body_count 0 for scripts and gloves), logged
   // by --log-tracking.
   std::array<TrackedBody, kMaxTrackedBodies> bodies{};

@@ -19,7 +19,7 @@ namespace telex::proto {
 
 // "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
-inline constexpr std::uint8_t kProtocolVersion = 2;
+inline constexpr std::uint8_t kProtocolVersion = 3;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
@@ -38,8 +38,9 @@ enum class MsgType : std::uint8_t {
   RoiRequest = 9,
   Stats = 10,
   TileNack = 11,
+  HeadCommand = 12,
 };
-inline constexpr int kMsgTypeCount = 12;
+inline constexpr int kMsgTypeCount = 13;
 std::string_view msg_type_name(MsgType type);
 
 // Header flag bits.
@@ -179,11 +180,19 @@ inline DepthTile tile_message(const EncodedTile& t, Codec codec) {
                    t.bytes};
 }
 
+// The robot head's joints (yaw, pitch, roll in radians; docs/RIG.md robot_head) as measured.
+struct HeadJoints {
+  bool valid = false;  // false: no head, or no reading (the station then uses its own head pose)
+  std::array<float, 3> joint_rad{0.0f, 0.0f, 0.0f};
+  bool operator==(const HeadJoints&) const = default;
+};
+
 struct FrameManifest {
   std::uint32_t frame_id = 0;
   std::uint16_t tile_count = 0;              // tiles in the grid
   bool key_frame = false;                    // all tiles sent; otherwise only `changed_tiles`
   std::vector<std::uint16_t> changed_tiles;  // strictly increasing, each < tile_count
+  HeadJoints head;                           // the robot head at the frame's capture time
   bool operator==(const FrameManifest&) const = default;
 };
 
@@ -218,9 +227,17 @@ struct TileNack {
   bool operator==(const TileNack&) const = default;
 };
 
+// The operator's head as robot head joint targets (station -> remote, at 100 Hz or more): the
+// remote clamps them to its limits, rate-limits them and drives the head (PROTOCOL.md 2.6).
+struct HeadCommand {
+  std::uint64_t operator_ns = 0;  // when the operator's head was at this pose (client clock)
+  std::array<float, 3> joint_rad{0.0f, 0.0f, 0.0f};  // yaw, pitch, roll; finite, |angle| <= pi
+  bool operator==(const HeadCommand&) const = default;
+};
+
 // Alternative index == MsgType wire value.
 using Message = std::variant<Hello, Accept, Reject, Heartbeat, Bye, StreamConfig, DepthTile,
-                             FrameManifest, VideoFrame, RoiRequest, Stats, TileNack>;
+                             FrameManifest, VideoFrame, RoiRequest, Stats, TileNack, HeadCommand>;
 
 MsgType type_of(const Message& message);
 

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <atomic>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -11,6 +12,7 @@
 #include <thread>
 
 #include "telex/base/latest_slot.h"
+#include "telex/common/rig.h"
 #include "telex/remote/head.h"
 #include "telex/remote/pipeline.h"
 #include "telex/remote/server.h"
@@ -31,6 +33,11 @@ struct DaemonConfig {
   bool stats_line = true;     // one line a second on stderr
   std::string head = "none";  // the robot head's driver: see make_head_driver
   HeadLimits head_limits = kDefaultHeadLimits;
+  // The head's joint axes (the rig's robot_head): a synthetic depth scene is seen from the head's
+  // measured pose with them.
+  RobotHead robot_head;
+  double head_rate_hz = 100.0;       // the head loop: measure, then command
+  double head_link_timeout_s = 0.2;  // no operator head pose this long: the head holds still
 };
 
 // Throws std::invalid_argument naming the first bad value.
@@ -53,6 +60,12 @@ struct DaemonStats {
   // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
   // tiles asked for that the cache no longer held.
   std::uint64_t key_frame_requests = 0, nacks_in = 0, repair_tiles_sent = 0, repair_unavailable = 0;
+  // Head teleoperation: operator poses received, the controller's counts, whether the head holds
+  // still (no operator pose for head_link_timeout_s), the driver's counts.
+  std::uint64_t head_commands_in = 0;
+  HeadControlStats head_control;
+  bool head_holding = true;
+  HeadStats head;
   std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
   std::array<std::uint64_t, kSessionEndCount> sessions_ended{};  // by SessionEnd
   StageTimes stage_ms_sum;                                       // summed over frames_processed
@@ -91,6 +104,10 @@ class RemoteDaemon {
   void stereo_loop();
   void process_loop();
   void video_loop();
+  void head_loop();
+  // The head's measured pose at time t (the remote's steady clock): interpolated between the head
+  // loop's readings, extrapolated at most 20 ms past the newest; invalid without readings.
+  HeadPose head_pose_at(std::int64_t t_ns) const;
 
   DaemonConfig config_;
   std::unique_ptr<DepthSource> depth_;
@@ -102,7 +119,13 @@ class RemoteDaemon {
   LatestSlot<StereoFrame> stereo_slot_;
   std::atomic<bool> running_{false};
   std::atomic<bool> source_ended_{false};
-  std::thread capture_thread_, stereo_thread_, process_thread_, video_thread_;
+  std::thread capture_thread_, stereo_thread_, process_thread_, video_thread_, head_thread_;
+  // Head teleoperation: the operator's targets (network thread) and the measured poses (head
+  // loop) read by the capture thread.
+  bool head_driven_ = false;  // --head is not none
+  mutable std::mutex head_mu_;
+  HeadController head_control_;
+  std::deque<HeadPose> head_history_;  // the last readings, oldest first
   std::function<void(const ProcessedFrame&)> observer_;
   mutable std::mutex stats_mu_;
   DaemonStats stats_;

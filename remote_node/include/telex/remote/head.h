@@ -15,6 +15,8 @@
 #include <string_view>
 #include <vector>
 
+#include "telex/common/rig.h"
+
 namespace telex::remote {
 
 inline constexpr std::size_t kHeadJoints = 3;
@@ -34,14 +36,10 @@ struct HeadLimits {
   void validate() const;
 };
 
-// The defaults, in this one place: yaw +-90 deg, pitch +-45 deg, roll +-30 deg, each at most
-// 180 deg/s (a rig file overrides them).
-inline constexpr double kHeadDeg = std::numbers::pi / 180.0;
-inline constexpr HeadLimits kDefaultHeadLimits{{{
-    {-90.0 * kHeadDeg, 90.0 * kHeadDeg, 180.0 * kHeadDeg},
-    {-45.0 * kHeadDeg, 45.0 * kHeadDeg, 180.0 * kHeadDeg},
-    {-30.0 * kHeadDeg, 30.0 * kHeadDeg, 180.0 * kHeadDeg},
-}}};
+// The head's limits from the rig's robot_head.joints (telex/common/rig.h): the defaults live
+// there, in one place (yaw +-90 deg, pitch +-45 deg, roll +-30 deg, each at most 180 deg/s).
+HeadLimits head_limits_from(const RobotHead& head);
+inline const HeadLimits kDefaultHeadLimits = head_limits_from(RobotHead{});
 
 // The head's joint angles at time_ns (the remote's steady clock, steady_now_ns()). valid = false
 // when the driver has none (no head, nothing read yet, a failed read).

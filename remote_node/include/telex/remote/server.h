@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -32,6 +33,9 @@ struct ServerConfig {
   // --psk: every message in both directions carries a tag under this key (per session: a key
   // derived from it, docs/PROTOCOL.md section 7); nothing unauthenticated is acted on.
   std::optional<proto::AuthKey> psk;
+  // The operator's head as joint targets (PROTOCOL.md 2.6), with the time it was received (steady
+  // clock): called on the network thread, so it must not block. Unset: counted and dropped.
+  std::function<void(const proto::HeadCommand&, std::int64_t received_ns)> on_head_command;
 };
 
 // Why an operator's session ended; each is logged and counted (ServerCounters::sessions_ended).
@@ -66,6 +70,7 @@ struct ServerCounters {
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> udp_ignored{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
+  std::atomic<std::uint64_t> head_commands_in{0};  // HeadCommands from the station
   // Repair (PROTOCOL.md 2.5): TileNacks in, tiles resent from the cache, requested tiles the cache
   // no longer held (each of those makes the next frame a key frame).
   std::atomic<std::uint64_t> nacks_in{0};

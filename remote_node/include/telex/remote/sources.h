@@ -5,14 +5,18 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <glm/mat3x3.hpp>
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "telex/common/depth_image.h"
+#include "telex/proto/messages.h"
 
 namespace telex::remote {
 
@@ -25,6 +29,9 @@ struct DepthFrame {
   // Time of the scene this frame shows (synthetic and playback sources); equals capture time for
   // live devices. Kept apart so animated synthetic scenes stay deterministic under load.
   double scene_time_s = 0.0;
+  // The robot head's measured joints at capture (set by the daemon from its head driver; sent in
+  // the frame's manifests).
+  proto::HeadJoints head;
 };
 
 // A rectified colour pair from the operator-facing cameras (BGR, 8 bit).
@@ -91,6 +98,10 @@ struct SourceOptions {
   std::uint64_t seed = 1;
   int width = 640;  // synthetic and stereo render size
   int height = 480;
+  // The robot head's camera orientation at a capture time (R_BaseCamera), when a head is driven:
+  // the synthetic depth scene is then fixed in the head base's frame and seen from the turned
+  // camera, as a real sensor on the head would see the room. Unset or nullopt: not turned.
+  std::function<std::optional<glm::dmat3>(std::int64_t capture_ns)> head_orientation;
 };
 
 // Valid depth specs: openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] |
