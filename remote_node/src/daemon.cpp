@@ -55,7 +55,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} | client {} (accepted {} "
       "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
-      "key-requests {} nacks {} repaired {} unavailable {} | frames-sent {}",
+      "key-requests {} nacks {} repaired {} unavailable {} | frames-sent {} | head-in {} "
+      "clamped {} rate-limited {} link-lost {}{} head-errors {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -74,7 +75,11 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
       now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
       now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
-      now.repair_unavailable, now.frames_sent);
+      now.repair_unavailable, now.frames_sent, now.head_commands_in, now.head_control.clamped,
+      now.head_control.rate_limited, now.head_control.link_losses,
+      now.head_holding ? " holding" : "",
+      now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
+          now.head.hardware_errors + now.head.io_errors);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
