@@ -273,6 +273,10 @@ void read_operator(Node& n, Rig& rig) {
     }
     g.done();
   }
+  if (n.has("skin_rgb")) {
+    const auto c = n.at("skin_rgb").numbers(3, 3, 0, 255);
+    for (std::size_t i = 0; i < 3; ++i) rig.skin_rgb[i] = static_cast<int>(std::lround(c[i]));
+  }
   if (n.has("display_channels")) {
     Node d = n.at("display_channels");
     for (const Side s : kSides) {
@@ -504,6 +508,7 @@ nlohmann::json rig_to_json(const Rig& rig) {
                             {"max", rig.glove[index_of(s)]->max}};
     op["display_channels"][name] = rig.display_channel[index_of(s)];
   }
+  op["skin_rgb"] = rig.skin_rgb;
   if (!rig.gravity_grabber.is_null()) j["gravity_grabber"] = rig.gravity_grabber;
   return j;
 }

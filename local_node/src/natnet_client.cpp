@@ -2,6 +2,8 @@
 // NatNet client on Boost.Asio: connect request, server info, FRAMEOFDATA to rigid-body samples.
 #include "telex/local/natnet_client.h"
 
+#include <charconv>
+
 // clang-format off
 // Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
 #include <utility>
@@ -226,6 +228,48 @@ NatNetClientStats NatNetClient::stats() const {
   s.pings_sent = impl_->pings_sent;
   s.io_errors = impl_->io_errors;
   return s;
+}
+
+NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& what,
+                                     NatNetClientConfig c) {
+  const auto port = [&](std::string_view p) {
+    int v = 0;
+    const auto r = std::from_chars(p.data(), p.data() + p.size(), v);
+    if (r.ec != std::errc{} || r.ptr != p.data() + p.size() || v < 1 || v > 65535)
+      throw std::invalid_argument(what + ": '" + std::string(p) + "' is not a port (1-65535)");
+    return v;
+  };
+  std::string_view rest = text;
+  bool first = true;
+  while (!rest.empty() || first) {
+    const auto comma = rest.find(',');
+    const std::string_view item = rest.substr(0, comma);
+    rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
+    if (first) {
+      if (item.empty())
+        throw std::invalid_argument(what +
+                                    ": give the Motive server's IP first, e.g. 192.168.1.10");
+      c.server_ip = std::string(item);
+      first = false;
+    } else if (item == "multicast") {
+      c.multicast = true;
+    } else if (item == "unicast") {
+      c.multicast = false;
+    } else if (item.rfind("local=", 0) == 0) {
+      c.local_address = std::string(item.substr(6));
+    } else if (item.rfind("cmd=", 0) == 0) {
+      c.command_port = port(item.substr(4));
+    } else if (item.rfind("data=", 0) == 0) {
+      c.data_port = port(item.substr(5));
+    } else if (item.rfind("version=", 0) == 0) {
+      c.version = natnet::parse_version(item.substr(8));
+    } else {
+      throw std::invalid_argument(
+          what + ": unknown option '" + std::string(item) +
+          "' (valid: multicast, unicast, local=IP, cmd=PORT, data=PORT, version=X.Y)");
+    }
+  }
+  return c;
 }
 
 }  // namespace telex::local

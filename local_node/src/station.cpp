@@ -935,6 +935,7 @@ void Station::Run::stereo_loop(std::stop_token stop) {
       in.surface = vs.get();
       in.k = vs->intrinsics;
       in.baseline_m = cfg_.stereo_baseline_m;
+      in.skin_bgr = cfg_.skin_bgr;
       // Each eye's frame captured nearest to the depth drawn over it; the larger gap is shown.
       std::int64_t gap_left = 0, gap_right = 0;
       in.eye_bgr = {eye_image(0, vs->capture_ns, &gap_left),

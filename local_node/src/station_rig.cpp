@@ -19,6 +19,9 @@ void apply_rig(const Rig& rig, StationConfig& cfg) {
   t.left_hand = rig.body.hands[index_of(Side::Left)];
   t.glove_range = rig.glove;
   cfg.body = rig.body;
+  cfg.skin_bgr = {static_cast<unsigned char>(rig.skin_rgb[2]),
+                  static_cast<unsigned char>(rig.skin_rgb[1]),
+                  static_cast<unsigned char>(rig.skin_rgb[0])};
   cfg.robot_head = rig.robot_head;
   cfg.eye_camera = rig.eye;
   if (rig.X_RightEyeLeftEye) cfg.R_RightEyeLeftEye = rig.X_RightEyeLeftEye->rotation;

@@ -100,7 +100,8 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
     for (std::size_t f = 0; f < kFingerCount; ++f)
       for (std::size_t j = 0; j < 4; ++j) arm.hand.joints[f][j] = (*joints[index_of(side)])[f][j];
   }
-  std::vector<Capsule> out = body_capsules(state, [](const glm::dvec3& p) { return p; });
+  std::vector<Capsule> out = body_capsules(
+      state, [](const glm::dvec3& p) { return p; }, in.skin_bgr);
   // Fingertips in contact: a marker at the god-point on the remote surface (the finger itself
   // is inside the surface then, hidden by it), coloured by pressure, and the force as an arrow (a
   // thin capsule with a round head) from it.

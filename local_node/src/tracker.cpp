@@ -18,15 +18,6 @@ namespace telex::local {
 
 namespace {
 
-int to_port(std::string_view text, const std::string& spec) {
-  int v = 0;
-  const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (r.ec != std::errc{} || r.ptr != text.data() + text.size() || v < 0 || v > 65535)
-    throw std::invalid_argument("tracker spec '" + spec + "': '" + std::string(text) +
-                                "' is not a port number");
-  return v;
-}
-
 // NatNet rigid bodies + hand model; finger bends from a glove when one is attached. The haptic
 // hand gives the fingertips; both hands, shoulders and elbows that have body ids are tracked for
 // the view's body (HandState::arms).
@@ -227,36 +218,7 @@ std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerC
   c.data_port = cfg.natnet_data_port;
   c.multicast_group = cfg.natnet_multicast_group;
   c.local_address = cfg.natnet_local_address;
-  std::string_view rest = std::string_view(spec).substr(7);
-  bool first = true;
-  while (!rest.empty() || first) {
-    const auto comma = rest.find(',');
-    const std::string_view item = rest.substr(0, comma);
-    rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
-    if (first) {
-      if (item.empty())
-        throw std::invalid_argument("tracker spec '" + spec +
-                                    "': give the Motive server's IP, e.g. natnet:192.168.1.10");
-      c.server_ip = std::string(item);
-      first = false;
-    } else if (item == "multicast") {
-      c.multicast = true;
-    } else if (item == "unicast") {
-      c.multicast = false;
-    } else if (item.rfind("local=", 0) == 0) {
-      c.local_address = std::string(item.substr(6));
-    } else if (item.rfind("cmd=", 0) == 0) {
-      c.command_port = to_port(item.substr(4), spec);
-    } else if (item.rfind("data=", 0) == 0) {
-      c.data_port = to_port(item.substr(5), spec);
-    } else if (item.rfind("version=", 0) == 0) {
-      c.version = natnet::parse_version(item.substr(8));
-    } else {
-      throw std::invalid_argument(
-          "tracker spec '" + spec + "': unknown option '" + std::string(item) +
-          "' (valid: multicast, unicast, local=IP, cmd=PORT, data=PORT, version=X.Y)");
-    }
-  }
+  c = parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", c);
   std::unique_ptr<GloveDevice> glove, other_glove;
   const std::size_t haptic = index_of(cfg.use_left_hand ? Side::Left : Side::Right);
   if (!cfg.glove_spec.empty())

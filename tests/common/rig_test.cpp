@@ -48,6 +48,7 @@ TEST(Rig, WhatItWritesItReadsBack) {
   rig.body.hands[1].fingers[1].segment_m = {0.05, 0.03, 0.02};
   rig.glove[1] = GloveRange{{0.1, 0.1, 0.1, 0.1, 0.1}, {0.9, 0.8, 0.9, 0.9, 0.7}};
   rig.display_channel[1] = {4, 3, 2, 1, 0};
+  rig.skin_rgb = {90, 60, 40};
   rig.gravity_grabber = {{"max_pressure_N", 2.5}};
   rig.robot_head.joints[0].min_rad = -1.2;
 
@@ -67,6 +68,7 @@ TEST(Rig, WhatItWritesItReadsBack) {
   EXPECT_EQ(back.glove[1]->max, rig.glove[1]->max);
   EXPECT_FALSE(back.glove[0]);
   EXPECT_EQ(back.display_channel[1], rig.display_channel[1]);
+  EXPECT_EQ(back.skin_rgb, rig.skin_rgb);
   EXPECT_EQ(back.gravity_grabber, rig.gravity_grabber);
   EXPECT_NEAR(back.robot_head.joints[0].min_rad, -1.2, 1e-12);
   EXPECT_EQ(back.R_CameraHead, rig.R_CameraHead);

@@ -18,6 +18,7 @@ TEST(StationRig, TheExampleRigSetsBodiesHandsGlovesEyesAndChannels) {
   Rig rig = load_rig(std::filesystem::path(TELEX_SOURCE_DIR) / "docs" / "rig-example.json");
   rig.bodies.right_elbow = 6;
   rig.display_channel[1] = {4, 3, 2, 1, 0};
+  rig.skin_rgb = {200, 150, 100};
   rig.body.hands[0].fingers[2].segment_m = {0.05, 0.03, 0.02};
   rig.X_RightEyeLeftEye->translation_m = {0.07, 0.0, 0.0};
   StationConfig cfg;
@@ -38,6 +39,7 @@ TEST(StationRig, TheExampleRigSetsBodiesHandsGlovesEyesAndChannels) {
   EXPECT_EQ(cfg.eye_camera[0]->distortion, rig.eye[0]->distortion);
   EXPECT_EQ(cfg.display_channel[1], (std::array<int, 5>{4, 3, 2, 1, 0}));
   EXPECT_EQ(cfg.body.upper_arm_m, rig.body.upper_arm_m);
+  EXPECT_EQ(cfg.skin_bgr, cv::Vec3b(100, 150, 200));
   EXPECT_EQ(cfg.display.gravity_grabber, rig.gravity_grabber);
 }
 

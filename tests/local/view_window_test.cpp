@@ -7,6 +7,7 @@
 #include "telex/local/view_window.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -224,7 +225,10 @@ class OnXvfb : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (test::xvfb_binary().empty()) return;
-    dir_ = new std::filesystem::path(test::scratch_dir("view_window_xvfb"));
+    // One folder per process: ctest runs each test as its own process, in parallel, and a shared
+    // folder let one test read another's display number (and lose it when that one ended).
+    dir_ = new std::filesystem::path(
+        test::scratch_dir("view_window_xvfb_" + std::to_string(::getpid())));
     xvfb_ = new test::Xvfb(*dir_);
     display_ = new ScopedEnv("DISPLAY", xvfb_->display().c_str());
   }

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "calibrate_cli.h"
 #include "command.h"
 #include "telex/calib/board.h"
 #include "telex/calib/calibrate.h"
@@ -40,12 +41,6 @@ using calib::CalibrationError;
 using calib::ViewCorners;
 
 constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
-// A bad flag value (exit 2); everything else that stops a calibration exits 1.
-class FlagError : public std::invalid_argument {
- public:
-  using std::invalid_argument::invalid_argument;
-};
 
 BoardSpec board_from_flags(const std::string& cxr, double square_mm) {
   try {
@@ -70,18 +65,6 @@ std::vector<std::string> expand(const std::string& pattern, const char* flag) {
     throw FlagError(fmt::format("{} '{}': cannot read the directories it names", flag, pattern));
   if (files.empty()) throw FlagError(fmt::format("{} '{}' matches no file", flag, pattern));
   return files;
-}
-
-// An existing --out must be a rig already (checked before the slow part, so a typo in the file
-// name of another JSON file costs no calibration run).
-void check_out(const std::string& out) {
-  std::error_code ec;
-  if (!fs::exists(out, ec)) return;
-  try {
-    load_rig(out);
-  } catch (const RigError& e) {
-    throw FlagError(std::string(e.what()) + " (--out updates a rig file in place)");
-  }
 }
 
 void same_count(const std::vector<std::string>& a, const char* flag_a,
@@ -483,19 +466,6 @@ int run_render(const RenderOptions& o) {
   std::printf("wrote %zu views (left_NN, right_NN, ir_NN, depth_NN .png) and truth.json into %s\n",
               views.size(), o.out.c_str());
   return 0;
-}
-
-template <typename F>
-int guarded(const char* name, F&& f) {
-  try {
-    return f();
-  } catch (const FlagError& e) {
-    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
-    return 1;
-  }
 }
 
 void board_flags(CLI::App& app, std::string& board, double& square_mm, bool required) {

@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "calibrate_cli.h"
 #include "command.h"
 #include "telex/calib/operator.h"
 #include "telex/common/rig.h"
@@ -33,80 +34,15 @@ using calib::ArmBodies;
 using calib::ArmCalibration;
 using calib::TrackingFrame;
 
-// A bad flag value (exit 2); everything else that stops a calibration exits 1.
-class FlagError : public std::invalid_argument {
- public:
-  using std::invalid_argument::invalid_argument;
-};
-
-void check_out(const std::string& out) {
-  std::error_code ec;
-  if (!fs::exists(out, ec)) return;
-  try {
-    load_rig(out);
-  } catch (const RigError& e) {
-    throw FlagError(std::string(e.what()) + " (--out updates a rig file in place)");
-  }
-}
-
-template <typename F>
-int guarded(const char* name, F&& f) {
-  try {
-    return f();
-  } catch (const FlagError& e) {
-    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "telex calibrate %s: error: %s\n", name, e.what());
-    return 1;
-  }
-}
-
-int to_port(std::string_view s, const std::string& spec) {
-  int port = 0;
-  for (const char c : s) {
-    if (c < '0' || c > '9' || port > 65535) {
-      port = -1;
-      break;
-    }
-    port = port * 10 + (c - '0');
-  }
-  if (s.empty() || port < 1 || port > 65535)
-    throw FlagError("--natnet '" + spec + "': '" + std::string(s) + "' is not a port (1-65535)");
-  return port;
-}
-
 // SERVER[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT]: the station's natnet: spec.
 local::NatNetClientConfig natnet_config(const std::string& spec) {
   local::NatNetClientConfig c;
   c.app_name = "telex calibrate";
-  std::string_view rest = spec;
-  bool first = true;
-  while (!rest.empty() || first) {
-    const auto comma = rest.find(',');
-    const std::string_view item = rest.substr(0, comma);
-    rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
-    if (first) {
-      if (item.empty())
-        throw FlagError("--natnet '" + spec + "': give the Motive server's IP first");
-      c.server_ip = std::string(item);
-      first = false;
-    } else if (item == "multicast") {
-      c.multicast = true;
-    } else if (item == "unicast") {
-      c.multicast = false;
-    } else if (item.rfind("local=", 0) == 0) {
-      c.local_address = std::string(item.substr(6));
-    } else if (item.rfind("cmd=", 0) == 0) {
-      c.command_port = to_port(item.substr(4), spec);
-    } else if (item.rfind("data=", 0) == 0) {
-      c.data_port = to_port(item.substr(5), spec);
-    } else {
-      throw FlagError("--natnet '" + spec + "': unknown option '" + std::string(item) +
-                      "' (valid: multicast, unicast, local=IP, cmd=PORT, data=PORT)");
-    }
+  try {
+    return local::parse_natnet_spec(spec, "--natnet '" + spec + "'", c);
+  } catch (const std::invalid_argument& e) {
+    throw FlagError(e.what());
   }
-  return c;
 }
 
 // ---- body --------------------------------------------------------------------------------------

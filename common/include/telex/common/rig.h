@@ -92,6 +92,8 @@ struct Rig {
   std::array<std::optional<GloveRange>, 2> glove;  // by Side
   // Haptic display channel each finger drives (thumb first), per hand.
   std::array<std::array<int, 5>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
+  // The virtual body's colour in the view (R, G, B).
+  std::array<int, 3> skin_rgb{225, 175, 150};
   // The Gravity Grabber's settings object (docs/HARDWARE.md); null = none given. Checked by the
   // station's display, which owns its keys.
   nlohmann::json gravity_grabber;

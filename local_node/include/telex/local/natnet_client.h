@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -30,6 +31,12 @@ struct NatNetClientConfig {
   std::optional<natnet::Version> version;
   std::vector<std::int32_t> body_ids;  // rigid bodies to publish (at most kMaxBodies)
 };
+
+// "SERVER_IP[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT][,version=X.Y]" (the
+// station's natnet: spec after its prefix, `telex calibrate body --natnet`) over `base`. Throws
+// std::invalid_argument starting with `what` and naming the valid options.
+NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& what,
+                                     NatNetClientConfig base = {});
 
 struct NatNetSample {
   static constexpr int kMaxBodies = 8;

@@ -56,8 +56,9 @@ struct StationConfig {
   // (rectified). Absent: the video is drawn as it comes.
   std::array<std::optional<CameraModel>, 2> eye_camera;
   glm::dmat3 R_RightEyeLeftEye{1.0};
-  // The operator's body for the view (the rig's operator.body).
+  // The operator's body for the view (the rig's operator.body) and its colour (operator.skin_rgb).
   BodyDims body;
+  cv::Vec3b skin_bgr{150, 175, 225};
   // Head teleoperation (docs/RIG.md robot_head): with a tracked head the station sends it as the
   // robot head's joint targets at head_rate_hz, and places the fingertips into each surface's
   // camera with the joints the head measured at its capture (when the remote reports them).

@@ -29,7 +29,8 @@ struct StereoViewInputs {
   std::array<FingertipForce, kFingerCount> forces{};
   const Surface* surface = nullptr;  // for the normal-map inset; may be null
   std::string status;
-  double arrow_m_per_N = 0.02;  // force arrow length in the scene per newton
+  double arrow_m_per_N = 0.02;        // force arrow length in the scene per newton
+  cv::Vec3b skin_bgr{150, 175, 225};  // the body's colour (the rig's operator.skin_rgb)
   // Where the operator's shoulders sit in the camera (right eye) frame, by Side, when the tracker
   // has no shoulder body: 30 cm below and 10 cm behind the eyes, the right one 20 cm right of the
   // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
