@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <memory>
 #include <thread>
 
 #include "telex/local/stereo_view.h"
@@ -161,28 +162,54 @@ TEST(NatNetRecording, CsvPlaysBackAndRejectsBadLines) {
   std::filesystem::remove_all(dir);
 }
 
+// A NatNet server on loopback streaming one fixed pose per body (a recording of one instant), so
+// the ground truth does not depend on which frame a poll picks up.
+class PoseServer {
+ public:
+  PoseServer(const std::string& name, const std::string& csv_text)
+      : dir_(std::filesystem::temp_directory_path() /
+             ("telex_" + name + "_" + std::to_string(getpid()))) {
+    std::filesystem::create_directories(dir_);
+    std::ofstream(dir_ / "pose.csv") << "time_s,body_id,x,y,z,qx,qy,qz,qw\n" << csv_text;
+    load_natnet_csv(dir_ / "pose.csv", false)(0.0, truth_);
+    NatNetServerConfig scfg;
+    scfg.command_port = 0;
+    scfg.version = {3, 1};
+    server_ = std::make_unique<NatNetServer>(scfg, load_natnet_csv(dir_ / "pose.csv", false));
+    thread_ = std::thread([this] { server_->run_for(20.0); });
+  }
+  ~PoseServer() {
+    server_->stop();
+    thread_.join();
+    std::filesystem::remove_all(dir_);
+  }
+  std::string spec() const {
+    return "natnet:127.0.0.1,unicast,cmd=" + std::to_string(server_->command_port());
+  }
+  Pose pose_of(int id) const {
+    const auto* b = truth_.find_body(id);
+    return Pose{{b->p_m.x, b->p_m.y, b->p_m.z},
+                glm::normalize(glm::dquat(b->qw, b->qx, b->qy, b->qz))};
+  }
+
+ private:
+  std::filesystem::path dir_;
+  natnet::Frame truth_;
+  std::unique_ptr<NatNetServer> server_;
+  std::thread thread_;
+};
+
 TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
-  // A fixed pose, so the ground truth does not depend on which frame the poll picks up.
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_nntrk_" + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
-  const auto csv = dir / "pose.csv";
-  std::ofstream(csv) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
-                        "0,1,0.1,1.6,0.2,0,0.258819,0,0.965926\n"      // head yawed 30 deg
-                        "0,2,-0.05,1.45,-0.2,0,0.707107,0,0.707107\n"  // hand, fingers forward
-                        "0,3,0.2,1.45,0.25,0,0,0,1\n";
-  NatNetServerConfig scfg;
-  scfg.command_port = 0;
-  scfg.version = {3, 1};
-  NatNetServer server(scfg, load_natnet_csv(csv, false));
-  std::thread srv([&] { server.run_for(20.0); });
+  PoseServer server("nntrk",
+                    "0,1,0.1,1.6,0.2,0,0.258819,0,0.965926\n"      // head yawed 30 deg
+                    "0,2,-0.05,1.45,-0.2,0,0.707107,0,0.707107\n"  // fingers forward
+                    "0,3,0.2,1.45,0.25,0,0,0,1\n");
 
   TrackerConfig cfg;
   cfg.head_body_id = 1;
   cfg.right_hand_body_id = 2;
   cfg.right_shoulder_body_id = 3;
-  auto tracker =
-      make_tracker("natnet:127.0.0.1,unicast,cmd=" + std::to_string(server.command_port()), cfg);
+  auto tracker = make_tracker(server.spec(), cfg);
   EXPECT_EQ(tracker->name(), "natnet:127.0.0.1");
   HandState st;
   bool got = false;
@@ -192,13 +219,8 @@ TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
   }
   ASSERT_TRUE(got);
 
-  natnet::Frame truth;
-  load_natnet_csv(csv, false)(0.0, truth);
-  auto pose_of = [&](int id) {
-    const auto* b = truth.find_body(id);
-    return Pose{{b->p_m.x, b->p_m.y, b->p_m.z},
-                glm::normalize(glm::dquat(b->qw, b->qx, b->qy, b->qz))};
-  };
+  const auto pose_of = [&](int id) { return server.pose_of(id); };
+
   const HandPoints h = hand_forward(cfg.hand, pose_of(2), cfg.default_bend);
   for (int f = 0; f < kFingerCount; ++f) {
     const glm::dvec3 want = world_to_camera(cfg.hand, pose_of(1), h.joints[f][3]);
@@ -213,32 +235,19 @@ TEST(NatNetTracker, FingertipsInTheCameraFrameMatchTheHandModel) {
   EXPECT_TRUE(st.skeleton_valid);
   EXPECT_GE(tracker->stats().frames_in, 1u);
   EXPECT_EQ(tracker->stats().parse_errors, 0u);
-  tracker.reset();
-  server.stop();
-  srv.join();
-  std::filesystem::remove_all(dir);
 }
 
 TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_nnarms_" + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
-  const auto csv = dir / "pose.csv";
   // Head at 1.6 m looking along -z; both hands forward, shoulders and elbow markers where an
-  // operator's would be (the elbows 2 cm off the joint, as a marker on the skin is).
-  std::ofstream(csv) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
-                        "0,1,0,1.6,0,0,0,0,1\n"
-                        "0,2,0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
-                        "0,3,0.2,1.45,0.05,0,0,0,1\n"
-                        "0,4,-0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
-                        "0,5,-0.2,1.45,0.05,0,0,0,1\n"
-                        "0,6,0.3,1.2,-0.1,0,0,0,1\n"
-                        "0,7,-0.3,1.2,-0.1,0,0,0,1\n";
-  NatNetServerConfig scfg;
-  scfg.command_port = 0;
-  scfg.version = {3, 1};
-  NatNetServer server(scfg, load_natnet_csv(csv, false));
-  std::thread srv([&] { server.run_for(20.0); });
+  // operator's would be.
+  PoseServer server("nnarms",
+                    "0,1,0,1.6,0,0,0,0,1\n"
+                    "0,2,0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
+                    "0,3,0.2,1.45,0.05,0,0,0,1\n"
+                    "0,4,-0.15,1.3,-0.35,0,0.707107,0,0.707107\n"
+                    "0,5,-0.2,1.45,0.05,0,0,0,1\n"
+                    "0,6,0.3,1.2,-0.1,0,0,0,1\n"
+                    "0,7,-0.3,1.2,-0.1,0,0,0,1\n");
 
   TrackerConfig cfg;
   cfg.head_body_id = 1;
@@ -248,8 +257,7 @@ TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
   cfg.left_shoulder_body_id = 5;
   cfg.right_elbow_body_id = 6;
   cfg.left_elbow_body_id = 7;
-  auto tracker =
-      make_tracker("natnet:127.0.0.1,unicast,cmd=" + std::to_string(server.command_port()), cfg);
+  auto tracker = make_tracker(server.spec(), cfg);
   HandState st;
   bool got = false;
   for (int i = 0; i < 2000 && !got; ++i) {
@@ -258,16 +266,7 @@ TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
   }
   ASSERT_TRUE(got);
   tracker.reset();
-  server.stop();
-  srv.join();
-
-  natnet::Frame truth;
-  load_natnet_csv(csv, false)(0.0, truth);
-  auto pose_of = [&](int id) {
-    const auto* b = truth.find_body(id);
-    return Pose{{b->p_m.x, b->p_m.y, b->p_m.z},
-                glm::normalize(glm::dquat(b->qw, b->qx, b->qy, b->qz))};
-  };
+  const auto pose_of = [&](int id) { return server.pose_of(id); };
   const Pose head = pose_of(1);
   const auto near = [](const glm::dvec3& a, const glm::dvec3& b) {
     return glm::length(a - b) < 1e-5;
@@ -312,7 +311,6 @@ TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
   }
   // Two arms of 2 segments + 5 fingers x 4 capsules each.
   EXPECT_EQ(capsules.size(), 2u * (2 + 5 * 4));
-  std::filesystem::remove_all(dir);
 }
 
 TEST(NatNetTracker, SpecErrors) {
