@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "calibrate_run.h"
 #include "process.h"
 #include "telex/calib/calibrate.h"
 #include "telex/calib/render.h"
@@ -28,21 +29,6 @@ namespace fs = std::filesystem;
 using namespace telex::calib;
 
 constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
-struct CommandRun {
-  int rc = -1;
-  std::string out, err;
-};
-
-CommandRun telex_calibrate(const fs::path& dir, const std::string& name,
-                           std::vector<std::string> args) {
-  std::vector<std::string> argv{built_binary("telex").string(), "calibrate"};
-  argv.insert(argv.end(), args.begin(), args.end());
-  Process p(argv, dir / (name + ".out"), dir / (name + ".err"));
-  const auto rc = p.wait(120s);
-  EXPECT_TRUE(rc.has_value()) << "telex calibrate " << name << " did not finish";
-  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
-}
 
 // Writes views as left_NN.png, right_NN.png, ir_NN.png, depth_NN.png.
 void write_views(const fs::path& dir, const std::vector<RenderedView>& views) {

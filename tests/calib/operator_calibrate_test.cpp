@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "calibrate_run.h"
 #include "process.h"
 #include "telex/calib/operator.h"
 #include "telex/common/rig.h"
@@ -28,21 +29,6 @@ namespace fs = std::filesystem;
 using namespace telex::calib;
 
 constexpr double kPi = 3.14159265358979323846;
-
-struct CommandRun {
-  int rc = -1;
-  std::string out, err;
-};
-
-CommandRun telex_calibrate(const fs::path& dir, const std::string& name,
-                           std::vector<std::string> args) {
-  std::vector<std::string> argv{built_binary("telex").string(), "calibrate"};
-  argv.insert(argv.end(), args.begin(), args.end());
-  Process p(argv, dir / (name + ".out"), dir / (name + ".err"));
-  const auto rc = p.wait(60s);
-  EXPECT_TRUE(rc.has_value()) << "telex calibrate " << name << " did not finish";
-  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
-}
 
 // The rig's default body ids: right hand 2, right shoulder 3; these add the left side and elbows.
 constexpr int kRightShoulder = 3, kRightWrist = 2, kRightElbow = 6;
