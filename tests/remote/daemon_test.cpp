@@ -251,12 +251,7 @@ TEST(RemoteDaemon, VideoIsSentOnlyWhenAsked) {
   d.stop();
 }
 
-int run_remote(const std::string& args) {
-  const auto bin = telex::test::built_binary("telex-remote");
-  const std::string cmd = bin.string() + " " + args + " >/dev/null 2>&1";
-  const int rc = std::system(cmd.c_str());
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
+int run_remote(const std::string& args) { return telex::test::exit_code_of("telex-remote", args); }
 
 TEST(TelexRemoteCli, BadFlagsAndValuesExitTwo) {
   ASSERT_TRUE(std::filesystem::exists(telex::test::built_binary("telex-remote")));

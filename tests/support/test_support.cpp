@@ -2,6 +2,8 @@
 // Test helpers: where the shared real frames are, and where built binaries live.
 #include "test_support.h"
 
+#include <sys/wait.h>
+
 #include <cstdlib>
 
 namespace telex::test {
@@ -21,6 +23,12 @@ bool skips_forbidden() {
 std::filesystem::path built_binary(const std::string& name) {
   std::filesystem::path p = std::filesystem::path(TELEX_BINARY_DIR) / "tools" / name;
   return p;
+}
+
+int exit_code_of(const std::string& name, const std::string& args) {
+  const std::string cmd = built_binary(name).string() + " " + args + " >/dev/null 2>&1";
+  const int rc = std::system(cmd.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }
 
 std::string missing_binaries(std::initializer_list<const char*> names) {

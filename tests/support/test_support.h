@@ -14,6 +14,10 @@ std::filesystem::path real_data_dir();
 // Path of a binary built by this project (telex, telex-remote, telex-local, ...).
 std::filesystem::path built_binary(const std::string& name);
 
+// Runs built binary `name` with `args` (shell words; output discarded) and returns its exit code
+// (-1 when it did not exit normally): the exit codes of bad flags and missing devices.
+int exit_code_of(const std::string& name, const std::string& args);
+
 // The names among `names` that this tree has not built, comma-separated ("" when all are).
 std::string missing_binaries(std::initializer_list<const char*> names);
 
