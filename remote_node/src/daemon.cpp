@@ -184,8 +184,8 @@ DaemonStats RemoteDaemon::stats() const {
     std::lock_guard lock(head_mu_);
     s.head_control = head_control_.stats();
     s.head_holding = head_control_.holding();
+    s.head = head_stats_;  // the head loop's copy: drivers are used from that thread only
   }
-  if (head_) s.head = head_->stats();
   return s;
 }
 
@@ -208,6 +208,10 @@ void RemoteDaemon::head_loop() {
       command = head_control_.update(measured, now);
     }
     if (command) head_->command(*command, now);
+    {
+      std::lock_guard lock(head_mu_);
+      head_stats_ = head_->stats();
+    }
     next += period;
     const auto wake = std::chrono::steady_clock::now();
     if (next < wake) next = wake;  // a slow bus: no burst to catch up

@@ -90,7 +90,8 @@ class RemoteDaemon {
   std::uint16_t port() const;
   DaemonStats stats() const;
   const DepthSource& depth_source() const { return *depth_; }
-  // The robot head's driver, made by start() (nullptr before).
+  // The robot head's driver, made by start() (nullptr before). With a head, the daemon's head loop
+  // uses it from start() to stop(): a driver is not thread-safe, so read it through stats().
   HeadDriver* head() { return head_.get(); }
   // Called on the processing thread with every processed frame, before it is published.
   void set_frame_observer(std::function<void(const ProcessedFrame&)> observer);
@@ -126,6 +127,7 @@ class RemoteDaemon {
   mutable std::mutex head_mu_;
   HeadController head_control_;
   std::deque<HeadPose> head_history_;  // the last readings, oldest first
+  HeadStats head_stats_;               // the driver's counts, copied by the head loop
   std::function<void(const ProcessedFrame&)> observer_;
   mutable std::mutex stats_mu_;
   DaemonStats stats_;
