@@ -198,36 +198,37 @@ void GloveCalibration::save(const std::filesystem::path& path) const {
   out << j.dump(2) << "\n";
 }
 
+namespace {
+
+// One sensor's reading scaled into [0, 1] by its flat and fist values (0 for a dead range).
+double normalised(const GloveRaw& raw, const GloveCalibration& cal, int i) {
+  const double range = cal.max[i] - cal.min[i];
+  if (!(range > 0.0)) return 0.0;
+  return std::clamp((raw.sensors[i] - cal.min[i]) / range, 0.0, 1.0);
+}
+
+// The 14-sensor glove's knuckle (near) sensor per finger; the next one is the middle joint's.
+constexpr int kNearSensor[5] = {0, 3, 6, 9, 12};
+
+}  // namespace
+
 std::array<double, 5> finger_bends(const GloveRaw& raw, const GloveCalibration& cal) {
-  auto norm = [&](int i) {
-    const double range = cal.max[i] - cal.min[i];
-    if (!(range > 0.0)) return 0.0;
-    return std::clamp((raw.sensors[i] - cal.min[i]) / range, 0.0, 1.0);
-  };
+  const JointBends joints = joint_bends(raw, cal);
   std::array<double, 5> bend{};
-  if (raw.sensor_count == 14) {
-    static constexpr int kNear[5] = {0, 3, 6, 9, 12};
-    for (int f = 0; f < 5; ++f) bend[f] = 0.5 * (norm(kNear[f]) + norm(kNear[f] + 1));
-  } else {
-    for (int f = 0; f < 5; ++f) bend[f] = norm(f);
-  }
+  // A 14-sensor glove's finger bend is the mean of its two joints; a 5-sensor glove's is its one.
+  for (std::size_t f = 0; f < 5; ++f) bend[f] = 0.5 * (joints[f][0] + joints[f][1]);
   return bend;
 }
 
 JointBends joint_bends(const GloveRaw& raw, const GloveCalibration& cal) {
-  auto norm = [&](int i) {
-    const double range = cal.max[i] - cal.min[i];
-    if (!(range > 0.0)) return 0.0;
-    return std::clamp((raw.sensors[i] - cal.min[i]) / range, 0.0, 1.0);
-  };
   JointBends out{};
   for (int f = 0; f < 5; ++f) {
     if (raw.sensor_count == 14) {
-      static constexpr int kNear[5] = {0, 3, 6, 9, 12};
-      const double near = norm(kNear[f]), far = norm(kNear[f] + 1);
+      const double near = normalised(raw, cal, kNearSensor[f]);
+      const double far = normalised(raw, cal, kNearSensor[f] + 1);
       out[static_cast<std::size_t>(f)] = {near, far, far};
     } else {
-      const double b = norm(f);
+      const double b = normalised(raw, cal, f);
       out[static_cast<std::size_t>(f)] = {b, b, b};
     }
   }
