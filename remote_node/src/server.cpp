@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "server_impl.h"
+#include "telex/base/periodic.h"
 
 namespace telex::remote {
 
@@ -67,6 +68,8 @@ void RemoteServer::Impl::start() {
   arm_timer();
   udp_receive();
   thread_ = std::thread([this] { io_.run(); });
+  name_thread(thread_.native_handle(), "telex-net");
+  scheduling_ = try_realtime(thread_.native_handle(), config_.realtime_priority);
 }
 
 void RemoteServer::Impl::stop() {
@@ -153,7 +156,10 @@ void RemoteServer::Impl::end_session(SessionEnd why) {
 void RemoteServer::Impl::arm_timer() {
   timer_.expires_after(std::chrono::milliseconds(100));
   timer_.async_wait([this](boost::system::error_code ec) {
-    if (ec) return;
+    // An expiry already queued when stop() ran cannot be cancelled: it arrives with no error
+    // after stop()'s handler, which closed the acceptor. Re-arming then would keep io_.run()
+    // (and stop()'s join) waiting forever; a CI-like run of the daemons hung there once.
+    if (ec || !acceptor_.is_open()) return;
     if (active_ && std::chrono::steady_clock::now() - active_->last_rx > config_.client_timeout) {
       ++counters_.client_timeouts;
       end_session(SessionEnd::ClientSilent);
@@ -171,6 +177,7 @@ std::uint16_t RemoteServer::port() const { return impl_->port(); }
 ClientState RemoteServer::state() const { return impl_->state(); }
 bool RemoteServer::video_wanted() const { return impl_->video_wanted(); }
 const ServerCounters& RemoteServer::counters() const { return impl_->counters_; }
+const std::string& RemoteServer::scheduling() const { return impl_->scheduling_; }
 FrameRequest RemoteServer::take_request() { return impl_->take_request(); }
 void RemoteServer::publish(const ProcessedFrame& frame) { impl_->publish(frame); }
 void RemoteServer::publish_tiles(const ProcessedFrame& part, std::size_t from) {
