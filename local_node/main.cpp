@@ -143,7 +143,9 @@ int main(int argc, char** argv) {
   app.add_option("--rate", cfg.rate_hz, "haptic loop rate, Hz")
       ->check(CLI::Range(10.0, 10000.0))
       ->capture_default_str();
-  app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO for the haptic thread");
+  app.add_flag("--no-realtime", no_realtime,
+               "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
+               "depth network, tracking)");
   bool full_frame = false, roi_flag = false;
   app.add_flag("--full-frame", full_frame,
                "filter and build normals over the whole frame (default: only near the "
@@ -310,6 +312,8 @@ int main(int argc, char** argv) {
                    static_cast<unsigned long long>(s.record_dropped_bodies),
                    s.record_error.empty() ? "" : "; RECORDING FAILED: ", s.record_error.c_str());
     if (json_summary) {
+      nlohmann::json thread_scheduling = nlohmann::json::object();
+      for (const auto& [name, how] : s.thread_scheduling) thread_scheduling[name] = how;
       nlohmann::json j{
           {"ticks", s.ticks},
           {"haptic_rate_hz", s.haptic_rate_hz},
@@ -334,6 +338,7 @@ int main(int argc, char** argv) {
           {"peak_pressure_N", s.peak_pressure_N},
           {"peak_shear_N", s.peak_shear_N},
           {"scheduling", s.scheduling},
+          {"thread_scheduling", thread_scheduling},
           {"auth_failed", s.auth_failed},
           {"unexpected_tag", s.unexpected_tag},
           {"replayed", s.replayed},

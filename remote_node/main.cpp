@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
               size = "640x480", video_size = "0x0";
   int client_timeout_ms = 3000;
   std::string psk_file;
-  bool no_fill = false, no_temporal = false, no_stats = false;
+  bool no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
   app.add_option("--rig", rig_file,
                  "Rig FILE (docs/RIG.md): the depth and eye cameras' calibration and the "
                  "depth-to-right-eye extrinsics (registration becomes full), the robot head's "
@@ -182,6 +182,9 @@ int main(int argc, char** argv) {
   app.add_option("--duration", cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-stats", no_stats, "No stats line every second");
+  app.add_flag("--no-realtime", no_realtime,
+               "Do not try SCHED_FIFO for the threads from capture to the network and the head "
+               "loop (the default keeps other programs on this machine from delaying depth)");
   app.add_option("--head", cfg.head,
                  "Robot head driver: none | sim[,tau_ms=80] (first-order servos) | "
                  "dynamixel:DEV[,ids=1,2,3][,baud=57600] (Protocol 2.0 servos yaw, pitch, roll) | "
@@ -243,6 +246,7 @@ int main(int argc, char** argv) {
       throw std::invalid_argument(
           fmt::format("--fill-window {} must be odd", cfg.pipeline.hole_fill.window_px));
     cfg.stats_line = !no_stats;
+    cfg.realtime = !no_realtime;
     if (!psk_file.empty()) {
       telex::proto::check_key_file_permissions(psk_file);
       cfg.server.psk = telex::proto::load_key_file(psk_file);
@@ -270,6 +274,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   spdlog::info("telex-remote: head {}", daemon->head()->name());
+  std::string path;
+  for (const auto& [name, how] : daemon->scheduling())
+    path += (path.empty() ? "" : ", ") + name + " " + how;
+  spdlog::info("telex-remote: depth path: {}", path);
   spdlog::info(
       "telex-remote: {} -> listening on {}:{} ({}{})", daemon->depth_source().describe(),
       cfg.server.host, daemon->port(), cfg.server.force_tcp ? "tcp" : "udp if the client offers it",

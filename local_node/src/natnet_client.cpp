@@ -13,6 +13,8 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "telex/base/periodic.h"
+
 namespace telex::local {
 
 namespace asio = boost::asio;
@@ -202,6 +204,8 @@ NatNetClient::NatNetClient(NatNetClientConfig config)
   impl_->open();
   impl_->start();
   thread_ = std::thread([this] { impl_->io.run(); });
+  name_thread(thread_.native_handle(), "telex-natnet");
+  scheduling_ = try_realtime(thread_.native_handle(), impl_->cfg.realtime_priority);
 }
 
 NatNetClient::~NatNetClient() {

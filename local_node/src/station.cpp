@@ -30,6 +30,7 @@
 #include "telex/base/spsc_ring.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/common/head_kinematics.h"
+#include "telex/common/opencv_workers.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
 #include "telex/local/stereo_view.h"
@@ -353,15 +354,24 @@ StationSummary Station::Run::execute() {
   events.on_warning = [](const std::string& what) {
     std::fprintf(stderr, "telex-local: %s\n", what.c_str());
   };
+  start_opencv_workers();  // from this thread, so they never inherit the depth path's priority
   ClientConfig client_cfg = cfg_.client;
   client_cfg.want_video = client_cfg.want_video || view_.stereo();
+  // The path from a depth capture to the force runs above everything else on this machine
+  // (periodic.h has the priorities and what they bought).
+  const int path_priority = cfg_.realtime ? kStationPathPriority : 0;
+  client_cfg.realtime_priority = path_priority;
   client_ = std::make_unique<SurfaceClient>(client_cfg, std::move(events));
   if (view_.stereo())
     stereo_thread_ = std::jthread([this](std::stop_token st) { stereo_loop(st); });
   // The surface thread warms its buffers before the first frame can arrive.
   surface_thread_ = std::jthread([this](std::stop_token st) { surface_loop(st); });
+  name_thread(surface_thread_.native_handle(), "telex-surface");
+  summary_.thread_scheduling.emplace_back(
+      "surface", try_realtime(surface_thread_.native_handle(), path_priority));
   surface_ready_.wait();
   client_->start();
+  summary_.thread_scheduling.emplace_back("network", client_->scheduling());
 
   if (wait_first_surface()) {
     start_haptics();
@@ -538,20 +548,29 @@ bool Station::Run::wait_first_surface() {
 
 void Station::Run::start_haptics() {
   TrackerConfig tracker_cfg = cfg_.tracker;
+  tracker_cfg.realtime_priority = cfg_.realtime ? kStationPathPriority : 0;
   if (first_centre_depth_m_.load() > 0) tracker_cfg.surface_depth_m = first_centre_depth_m_.load();
   tracker_ = make_tracker(cfg_.hand_spec, tracker_cfg);
   std::fprintf(stderr, "telex-local: surface at %.3f m ahead; hand %s; haptics %s\n",
                tracker_cfg.surface_depth_m, tracker_->name().c_str(), display_->name().c_str());
   haptic_thread_ = std::jthread([this](std::stop_token st) { haptic_loop(st); });
+  name_thread(haptic_thread_.native_handle(), "telex-haptic");
   while (!scheduling_ready_.load()) std::this_thread::sleep_for(milliseconds(1));
   summary_.scheduling = scheduling_;
+  summary_.thread_scheduling.emplace_back("haptic", scheduling_);
+  if (const std::string t = tracker_->scheduling(); !t.empty())
+    summary_.thread_scheduling.emplace_back("tracking", t);
+  std::string path;
+  for (const auto& [name, how] : summary_.thread_scheduling)
+    if (name != "haptic") path += (path.empty() ? "" : ", ") + name + " " + how;
+  std::fprintf(stderr, "telex-local: depth-to-force path: %s\n", path.c_str());
   std::fprintf(stderr, "telex-local: haptic loop at %.0f Hz, %s\n", cfg_.rate_hz,
                scheduling_.c_str());
 }
 
 // ---- haptic thread: no lock, allocation or log call per tick ----
 void Station::Run::haptic_loop(std::stop_token stop) {
-  scheduling_ = cfg_.realtime ? try_realtime(80) : std::string("default scheduling");
+  scheduling_ = try_realtime(cfg_.realtime ? kHapticPriority : 0);
   scheduling_ready_.store(true);
   try {
     haptic_ticks(stop);

@@ -442,6 +442,8 @@ void SurfaceClient::start() {
   if (impl_->thread.joinable()) return;
   asio::post(impl_->io, [this] { impl_->connect(); });
   impl_->thread = std::thread([this] { impl_->io.run(); });
+  name_thread(impl_->thread.native_handle(), "telex-net");
+  scheduling_ = try_realtime(impl_->thread.native_handle(), impl_->cfg.realtime_priority);
 }
 
 void SurfaceClient::stop() {

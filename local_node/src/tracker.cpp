@@ -129,6 +129,7 @@ class NatNetTracker final : public HandTracker {
   }
 
   std::string name() const override { return name_; }
+  std::string scheduling() const override { return client_->scheduling(); }
   TrackerStats stats() const override {
     TrackerStats s = stats_;
     const auto c = client_->stats();
@@ -218,6 +219,7 @@ std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerC
   c.data_port = cfg.natnet_data_port;
   c.multicast_group = cfg.natnet_multicast_group;
   c.local_address = cfg.natnet_local_address;
+  c.realtime_priority = cfg.realtime_priority;
   c = parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", c);
   std::unique_ptr<GloveDevice> glove, other_glove;
   const std::size_t haptic = index_of(cfg.use_left_hand ? Side::Left : Side::Right);

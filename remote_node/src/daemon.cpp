@@ -5,13 +5,16 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <boost/asio.hpp>
 #include <iostream>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
+#include "telex/common/opencv_workers.h"
 
 namespace telex::remote {
 
@@ -56,7 +59,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
       "key-requests {} nacks {} repaired {} unavailable {} | frames-sent {} | head-in {} "
-      "clamped {} rate-limited {} link-lost {}{} head-errors {}",
+      "clamped {} rate-limited {} link-lost {}{} head-errors {} | realtime {}/{}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -79,7 +82,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.head_control.rate_limited, now.head_control.link_losses,
       now.head_holding ? " holding" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
-          now.head.hardware_errors + now.head.io_errors);
+          now.head.hardware_errors + now.head.io_errors,
+      now.realtime_threads, now.path_threads);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -119,9 +123,12 @@ void RemoteDaemon::start() {
   if (running_) return;
   // First, so a missing or silent head fails the start before anything else opens.
   if (!head_) head_ = make_head_driver(config_.head, config_.head_limits);
+  start_opencv_workers();  // from this thread, so they never inherit the depth path's priority
   depth_->start();
   if (stereo_) stereo_->start();
   config_.server.fps = static_cast<float>(depth_->nominal_fps());
+  const int path_priority = config_.realtime ? kRemotePathPriority : 0;
+  config_.server.realtime_priority = path_priority;
   server_ = std::make_unique<RemoteServer>(config_.server);
   server_->start();
   // Tiles go to the network as they are encoded, so the station decodes while the rest encodes.
@@ -135,6 +142,21 @@ void RemoteDaemon::start() {
     video_thread_ = std::thread([this] { video_loop(); });
   }
   if (head_driven_) head_thread_ = std::thread([this] { head_loop(); });
+  // From capture to the network, above video, logs and whatever else runs here (periodic.h).
+  name_thread(capture_thread_.native_handle(), "telex-capture");
+  name_thread(process_thread_.native_handle(), "telex-process");
+  if (stereo_) {
+    name_thread(stereo_thread_.native_handle(), "telex-stereo");
+    name_thread(video_thread_.native_handle(), "telex-video");
+  }
+  if (head_driven_) name_thread(head_thread_.native_handle(), "telex-head");
+  scheduling_.clear();
+  scheduling_.emplace_back("capture", try_realtime(capture_thread_.native_handle(), path_priority));
+  scheduling_.emplace_back("process", try_realtime(process_thread_.native_handle(), path_priority));
+  scheduling_.emplace_back("network", server_->scheduling());
+  if (head_driven_)
+    scheduling_.emplace_back("head", try_realtime(head_thread_.native_handle(),
+                                                  config_.realtime ? kHeadLoopPriority : 0));
 }
 
 void RemoteDaemon::stop() {
@@ -158,6 +180,11 @@ DaemonStats RemoteDaemon::stats() const {
     s = stats_;
   }
   s.frames_slot_dropped = depth_slot_.dropped();
+  s.path_threads = static_cast<int>(scheduling_.size());
+  s.realtime_threads =
+      static_cast<int>(std::count_if(scheduling_.begin(), scheduling_.end(), [](const auto& t) {
+        return t.second.rfind("SCHED_FIFO", 0) == 0;
+      }));
   s.source_ended = source_ended_;
   if (server_) {
     const auto& c = server_->counters();

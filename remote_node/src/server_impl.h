@@ -92,6 +92,7 @@ class RemoteServer::Impl {
   ClientState state() const { return connected_ ? ClientState::Connected : ClientState::Waiting; }
   bool video_wanted() const { return video_wanted_; }
   ServerCounters counters_;
+  std::string scheduling_;  // the io thread's, set by start()
 
  private:
   // What the processing thread needs to address the current session.

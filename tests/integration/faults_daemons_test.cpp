@@ -16,6 +16,7 @@
 #include <sstream>
 #include <thread>
 
+#include "daemons.h"
 #include "process.h"
 #include "telex/base/periodic.h"
 #include "telex/proto/fragment.h"
@@ -99,6 +100,7 @@ TEST_P(LossThroughProxy, SurfaceRateFollowsTheLossAndTheStationCountsWhatTheProx
   ASSERT_TRUE(proxy.wait(10s).has_value());
   const auto s = last_json_line(local.stdout_text());
   ASSERT_TRUE(s.is_object()) << local.stdout_text();
+  EXPECT_EQ(path_scheduling_problem(s, /*realtime=*/false), "");  // --no-realtime
   const auto j = last_json_line(proxy.stdout_text());
   ASSERT_TRUE(j.is_object()) << proxy.stdout_text();
   const auto& up = j["client_to_server"];

@@ -104,6 +104,7 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   const auto j = summary_of(local);
   ASSERT_TRUE(j.is_object()) << local.stdout_text();
   EXPECT_EQ(haptic_rate_problem(j, 7.5), "");
+  EXPECT_EQ(path_scheduling_problem(j, /*realtime=*/true), "");
   // 30 Hz for the ~6.5 s after the first surface, less what a loaded machine skips.
   EXPECT_GT(j["surfaces"].get<int>(), 100 / kSanitizerSlowdown);
   // The press touched the plane, so the surfaces of its contact were first rendered in contact:

@@ -3,13 +3,19 @@
 #include "telex/remote/daemon.h"
 
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
+#include "telex/base/periodic.h"
 #include "test_client.h"
 #include "test_support.h"
 
@@ -43,6 +49,101 @@ DaemonConfig base_config(const std::string& source) {
   c.server.port = 0;
   c.stats_line = false;
   return c;
+}
+
+struct ThreadPolicy {
+  std::string name;
+  int policy = 0, priority = 0;
+};
+
+// What the kernel holds for each thread of this process: name, policy and rt_priority
+// (/proc/self/task/*/stat fields 2, 41 and 40).
+std::vector<ThreadPolicy> thread_policies() {
+  std::vector<ThreadPolicy> out;
+  for (const auto& e : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream in(e.path() / "stat");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto open = text.find('('), close = text.rfind(')');  // the name may hold spaces
+    if (open == std::string::npos || close == std::string::npos) continue;
+    std::istringstream fields(text.substr(close + 2));
+    std::vector<std::string> f{std::istream_iterator<std::string>(fields), {}};
+    if (f.size() < 39) continue;
+    // f[0] is field 3.
+    out.push_back(
+        {text.substr(open + 1, close - open - 1), std::stoi(f[41 - 3]), std::stoi(f[40 - 3])});
+  }
+  return out;
+}
+
+// Whether this machine grants SCHED_FIFO (CAP_SYS_NICE or an RLIMIT_RTPRIO).
+bool fifo_granted() {
+  bool granted = false;
+  std::thread t([&] { granted = try_realtime(1).rfind("SCHED_FIFO", 0) == 0; });
+  t.join();
+  return granted;
+}
+
+// The threads from capture to the network run SCHED_FIFO 50 and the head loop 60, so other
+// programs on the robot's computer cannot delay depth (docs/BENCHMARKS.md); --no-realtime leaves
+// them all as started. What the kernel holds is read back from /proc by thread name.
+TEST(RemoteDaemon, ThreadsFromCaptureToTheNetworkRunRealtimeUnlessTurnedOff) {
+  const bool granted = fifo_granted();
+  // First without video: the synthetic scene's render on the capture thread is then this
+  // process's first parallel OpenCV call (run alone, as ctest runs it).
+  for (const auto& [realtime, video] : {std::pair{true, false}, {true, true}, {false, true}}) {
+    SCOPED_TRACE(std::string(realtime ? "realtime" : "--no-realtime") +
+                 (video ? ", video" : ", no video"));
+    DaemonConfig cfg = base_config("synthetic:plane");
+    cfg.head = "sim";
+    if (video) cfg.stereo_source = "synthetic:sphere";
+    cfg.realtime = realtime;
+    RemoteDaemon d(cfg);
+    d.start();
+    std::vector<std::string> names;
+    for (const auto& [name, how] : d.scheduling()) {
+      names.push_back(name);
+      if (!realtime)
+        EXPECT_EQ(how, "default scheduling") << name;
+      else if (granted)
+        EXPECT_EQ(how, name == "head" ? "SCHED_FIFO priority 60" : "SCHED_FIFO priority 50")
+            << name;
+      else
+        EXPECT_NE(how.find("refused"), std::string::npos) << name << ": " << how;
+    }
+    EXPECT_EQ(names, (std::vector<std::string>{"capture", "process", "network", "head"}));
+    const bool fifo = realtime && granted;
+    const std::map<std::string, int> want{{"telex-capture", kRemotePathPriority},
+                                          {"telex-process", kRemotePathPriority},
+                                          {"telex-net", kRemotePathPriority},
+                                          {"telex-head", kHeadLoopPriority},
+                                          {"telex-stereo", 0},
+                                          {"telex-video", 0}};
+    std::map<std::string, int> seen;
+    for (const auto& t : thread_policies()) {
+      if (!want.contains(t.name)) {
+        // Nothing else: OpenCV's workers (the synthetic scene's render) stay below the path.
+        EXPECT_NE(t.policy, SCHED_FIFO) << t.name << " at " << t.priority;
+        continue;
+      }
+      seen[t.name] = t.policy == SCHED_FIFO ? t.priority : 0;
+      if (t.policy != SCHED_FIFO) {
+        EXPECT_EQ(t.policy, SCHED_OTHER) << t.name;
+      }
+    }
+    std::map<std::string, int> expected = want;
+    if (!video) expected.erase("telex-stereo"), expected.erase("telex-video");
+    if (!fifo) {
+      for (auto& [name, prio] : expected) prio = 0;
+    }
+    EXPECT_EQ(seen, expected);  // video and the stereo capture stay below the depth path
+    const DaemonStats s = d.stats();
+    EXPECT_EQ(s.path_threads, 4);
+    EXPECT_EQ(s.realtime_threads, fifo ? 4 : 0);
+    EXPECT_NE(format_stats_line(s, DaemonStats{}, 1.0).find(fifo ? "realtime 4/4" : "realtime 0/4"),
+              std::string::npos);
+    d.stop();
+  }
+  // Where the machine refuses SCHED_FIFO, what was checked is that each thread says so.
 }
 
 TEST(RemoteDaemon, DummyDeviceFramesReachTheClientIntactOverUdp) {

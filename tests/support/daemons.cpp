@@ -89,4 +89,27 @@ std::string haptic_rate_problem(const nlohmann::json& j, double duration_s) {
   return {};
 }
 
+std::string path_scheduling_problem(const nlohmann::json& j, bool realtime) {
+  if (!j.is_object() || !j.contains("thread_scheduling")) return "no thread_scheduling in summary";
+  const nlohmann::json& t = j["thread_scheduling"];
+  for (const char* name : {"haptic", "surface", "network"})
+    if (!t.contains(name)) return std::string("no ") + name + " thread in " + t.dump();
+  if (!realtime) {
+    for (const auto& [name, how] : t.items())
+      if (how != "default scheduling") return name + " thread: " + how.dump();
+    return {};
+  }
+  // Where the machine refuses SCHED_FIFO (no CAP_SYS_NICE), every thread says so.
+  if (t["haptic"].get<std::string>().rfind("default scheduling (SCHED_FIFO refused", 0) == 0) {
+    for (const auto& [name, how] : t.items())
+      if (how.get<std::string>().find("refused") == std::string::npos)
+        return name + " thread: " + how.dump() + " while the haptic thread was refused";
+    return {};
+  }
+  if (t["haptic"] != "SCHED_FIFO priority 80") return "haptic thread: " + t["haptic"].dump();
+  for (const auto& [name, how] : t.items())
+    if (name != "haptic" && how != "SCHED_FIFO priority 70") return name + " thread: " + how.dump();
+  return {};
+}
+
 }  // namespace telex::test

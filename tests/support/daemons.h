@@ -41,4 +41,9 @@ nlohmann::json summary_of(const Process& p);
 // empty when all hold.
 std::string haptic_rate_problem(const nlohmann::json& j, double duration_s);
 
+// Checks telex-local's summary `j` for the scheduling of its depth-to-force threads: with
+// `realtime`, where the haptic thread got SCHED_FIFO 80, the surface and network threads got 70;
+// without, every thread says "default scheduling". Empty when that holds.
+std::string path_scheduling_problem(const nlohmann::json& j, bool realtime);
+
 }  // namespace telex::test

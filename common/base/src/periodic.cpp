@@ -63,10 +63,17 @@ std::int64_t PeriodicTimer::wait_next() {
   return clock_.now_ns();
 }
 
-std::string try_realtime(int priority) {
+void name_thread(pthread_t thread, const std::string& name) {
+  pthread_setname_np(thread, name.substr(0, 15).c_str());
+}
+
+std::string try_realtime(int priority) { return try_realtime(pthread_self(), priority); }
+
+std::string try_realtime(pthread_t thread, int priority) {
+  if (priority <= 0) return "default scheduling";
   sched_param sp{};
   sp.sched_priority = priority;
-  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  const int rc = pthread_setschedparam(thread, SCHED_FIFO, &sp);
   if (rc == 0) return "SCHED_FIFO priority " + std::to_string(priority);
   return std::string("default scheduling (SCHED_FIFO refused: ") + std::strerror(rc) + ")";
 }

@@ -30,6 +30,9 @@ struct NatNetClientConfig {
   // Layout to parse before (or instead of) the server's answer; unset = wait for PINGRESPONSE.
   std::optional<natnet::Version> version;
   std::vector<std::int32_t> body_ids;  // rigid bodies to publish (at most kMaxBodies)
+  // SCHED_FIFO priority of the receive thread (0: the scheduling it was started with): the
+  // station asks for kStationPathPriority, as the hand's pose is on the path to the force.
+  int realtime_priority = 0;
 };
 
 // "SERVER_IP[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT][,version=X.Y]" (the
@@ -77,12 +80,14 @@ class NatNetClient {
   NatNetClientStats stats() const;
   std::uint64_t overwritten() const { return samples_.overwritten(); }
   std::string last_error() const;  // reason of the newest rejected packet (for logs)
+  const std::string& scheduling() const { return scheduling_; }  // the receive thread's
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
   TripleBuffer<NatNetSample> samples_;
   std::thread thread_;
+  std::string scheduling_;
 };
 
 }  // namespace telex::local

@@ -33,7 +33,7 @@ struct StationConfig {
   HapticParams haptic;
   SurfaceOptions surface;
   double rate_hz = 1000.0;
-  bool realtime = true;         // try SCHED_FIFO for the haptic thread
+  bool realtime = true;         // try SCHED_FIFO for the threads on the depth-to-force path
   double max_tile_age_s = 0.5;  // a missing tile keeps its last value this long
   // Repair (docs/PROTOCOL.md 2.5; client.repair announces it): a tile asked for is asked again
   // after max(nack_retry_min_s, the stream's transit + 2 RTT); key frames at most this often.
@@ -106,7 +106,9 @@ struct StationSummary {
   double arrive_median_ms = 0, arrive_p99_ms = 0, build_wait_median_ms = 0, build_wait_p99_ms = 0;
   double peak_pressure_N = 0;
   double peak_shear_N = 0;
-  std::string scheduling;
+  std::string scheduling;  // the haptic thread's
+  // Per thread on the depth-to-force path (surface, network, haptic, tracking): what it got.
+  std::vector<std::pair<std::string, std::string>> thread_scheduling;
   // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
   // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.

@@ -34,6 +34,9 @@ struct ClientConfig {
   // --psk: tag every message under this key (per session, a key derived from it) and accept only
   // messages whose tag verifies (docs/PROTOCOL.md section 7).
   std::optional<proto::AuthKey> psk;
+  // SCHED_FIFO priority of the network thread (0: the scheduling it was started with). The
+  // station asks for kStationPathPriority: tiles are decoded there, on the path to the force.
+  int realtime_priority = 0;
 };
 
 enum class ClientState : std::uint8_t { Connecting, Handshaking, Streaming, Backoff, Stopped };
@@ -95,11 +98,14 @@ class SurfaceClient {
   void request_key_frame();
 
   const ClientStats& stats() const { return stats_; }
+  // What the network thread got (try_realtime's description); empty before start().
+  const std::string& scheduling() const { return scheduling_; }
   ClientState state() const { return static_cast<ClientState>(stats_.state.load()); }
 
  private:
   struct Impl;
   ClientStats stats_;
+  std::string scheduling_;
   std::unique_ptr<Impl> impl_;
 };
 

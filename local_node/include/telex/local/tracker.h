@@ -103,6 +103,7 @@ struct TrackerConfig {
   int natnet_data_port = 1511;
   std::string natnet_multicast_group = "239.255.42.99";
   std::string natnet_local_address = "0.0.0.0";  // interface to join the group on
+  int realtime_priority = 0;  // the NatNet receive thread's SCHED_FIFO priority (0: none)
 
   HandModelConfig hand;  // the right hand's geometry and the head-to-camera offset
   HandGeometry left_hand = BodyDims::left_hand();  // the left hand's geometry
@@ -127,6 +128,8 @@ class HandTracker {
   virtual bool poll(std::int64_t now_ns, HandState& out) = 0;
   virtual std::string name() const = 0;
   virtual TrackerStats stats() const = 0;
+  // Its receive thread's scheduling (try_realtime's description); empty without a thread.
+  virtual std::string scheduling() const { return {}; }
 };
 
 // Spec grammar (docs/HARDWARE.md):

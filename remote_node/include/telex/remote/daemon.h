@@ -10,6 +10,8 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "telex/base/latest_slot.h"
 #include "telex/common/rig.h"
@@ -38,6 +40,9 @@ struct DaemonConfig {
   RobotHead robot_head;
   double head_rate_hz = 100.0;       // the head loop: measure, then command
   double head_link_timeout_s = 0.2;  // no operator head pose this long: the head holds still
+  // SCHED_FIFO for the threads from capture to the network (kRemotePathPriority) and the head loop
+  // (kHeadLoopPriority); --no-realtime turns it off. Video and the stats line stay below them.
+  bool realtime = true;
 };
 
 // Throws std::invalid_argument naming the first bad value.
@@ -72,6 +77,8 @@ struct DaemonStats {
   double first_part_ms_sum = 0;  // processing time until the first part (ROI part) was published
   ClientState client = ClientState::Waiting;
   bool source_ended = false;
+  // Threads on the depth path (capture, process, network, head) and how many got SCHED_FIFO.
+  int path_threads = 0, realtime_threads = 0;
 };
 
 // "frames in/out", mean ms per stage, bytes/s, tiles skipped and client state between two
@@ -90,6 +97,8 @@ class RemoteDaemon {
   std::uint16_t port() const;
   DaemonStats stats() const;
   const DepthSource& depth_source() const { return *depth_; }
+  // Per thread on the depth path (capture, process, network, head): what start() got for it.
+  const std::vector<std::pair<std::string, std::string>>& scheduling() const { return scheduling_; }
   // The robot head's driver, made by start() (nullptr before). With a head, the daemon's head loop
   // uses it from start() to stop(): a driver is not thread-safe, so read it through stats().
   HeadDriver* head() { return head_.get(); }
@@ -111,6 +120,7 @@ class RemoteDaemon {
   HeadPose head_pose_at(std::int64_t t_ns) const;
 
   DaemonConfig config_;
+  std::vector<std::pair<std::string, std::string>> scheduling_;  // set by start()
   std::unique_ptr<DepthSource> depth_;
   std::unique_ptr<StereoSource> stereo_;
   std::unique_ptr<HeadDriver> head_;

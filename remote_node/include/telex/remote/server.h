@@ -36,6 +36,9 @@ struct ServerConfig {
   // The operator's head as joint targets (PROTOCOL.md 2.6), with the time it was received (steady
   // clock): called on the network thread, so it must not block. Unset: counted and dropped.
   std::function<void(const proto::HeadCommand&, std::int64_t received_ns)> on_head_command;
+  // SCHED_FIFO priority of the network thread, which packs and sends every depth tile (0: the
+  // scheduling it was started with). The daemon asks for kRemotePathPriority.
+  int realtime_priority = 0;
 };
 
 // Why an operator's session ended; each is logged and counted (ServerCounters::sessions_ended).
@@ -105,6 +108,8 @@ class RemoteServer {
   ClientState state() const;
   bool video_wanted() const;  // the connected client asked for video
   const ServerCounters& counters() const;
+  // What the network thread got (try_realtime's description); empty before start().
+  const std::string& scheduling() const;
 
   // The receiver's wishes for the next frame; clears a pending key-frame request.
   FrameRequest take_request();

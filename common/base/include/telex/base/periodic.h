@@ -3,6 +3,8 @@
 // thread and anything else that runs at a rate.
 #pragma once
 
+#include <pthread.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -43,6 +45,22 @@ class PeriodicTimer {
 
 // Tries SCHED_FIFO at `priority` for the calling thread; returns a description of what was applied.
 std::string try_realtime(int priority);
+// The same for `thread` (std::thread::native_handle()), set by the thread that started it. A
+// priority of 0 leaves the thread as it is and says "default scheduling".
+std::string try_realtime(pthread_t thread, int priority);
+
+// Names `thread` for top -H, gdb and /proc/PID/task/*/comm (at most 15 characters are kept).
+void name_thread(pthread_t thread, const std::string& name);
+
+// SCHED_FIFO priorities of the threads between a depth capture and the force it produces
+// (docs/ARCHITECTURE.md, "Threads"). On one machine (loopback) the haptic loop preempts the
+// station's surface path, which preempts the remote's; everything else (video, view, logs, other
+// programs) runs below all of them. Measured in docs/BENCHMARKS.md: with two busy processes on
+// the two cores, contact latency p99 stayed at 2.5-2.7 ms with these, against 8-14 ms without.
+inline constexpr int kHapticPriority = 80;
+inline constexpr int kStationPathPriority = 70;  // depth network thread, surface thread, tracking
+inline constexpr int kHeadLoopPriority = 60;     // the remote's servo loop
+inline constexpr int kRemotePathPriority = 50;   // capture, process, network
 
 struct PeriodSummary {
   std::size_t count = 0;
