@@ -38,13 +38,12 @@ int fifo_threads() {
   return n;
 }
 
-// The child, run only by the test below (disabled otherwise), as this binary run again so
-// OpenCV's pool is not made yet: with TELEX_OPENCV_WORKERS_CHILD=start it starts the workers on
-// its main thread first; then parallel work runs from a SCHED_FIFO thread, which prints how many
-// SCHED_FIFO threads the process has.
-TEST(OpenCvWorkersChild, DISABLED_CountsRealtimeThreadsAfterParallelWorkFromARealtimeThread) {
-  const char* mode = std::getenv("TELEX_OPENCV_WORKERS_CHILD");
-  if (mode != nullptr && std::string(mode) == "start") start_opencv_workers();
+// The child: this test run again in a fresh process (OpenCV's pool not made yet) with
+// TELEX_OPENCV_WORKERS_CHILD set. With "start" it starts the workers on its main thread first;
+// then parallel work runs from a SCHED_FIFO thread, which prints how many SCHED_FIFO threads the
+// process has.
+void run_as_child(const std::string& mode) {
+  if (mode == "start") start_opencv_workers();
   std::string result;
   std::thread rt([&] {
     if (try_realtime(10).rfind("SCHED_FIFO", 0) != 0) {
@@ -66,10 +65,9 @@ TEST(OpenCvWorkersChild, DISABLED_CountsRealtimeThreadsAfterParallelWorkFromARea
 
 // Runs the child; returns its count, -2 when SCHED_FIFO was refused, -1 when it printed none.
 int child_fifo_threads(bool start_first) {
-  const std::string cmd =
-      std::string("TELEX_OPENCV_WORKERS_CHILD=") + (start_first ? "start" : "none") + " /proc/" +
-      std::to_string(::getpid()) +
-      "/exe --gtest_also_run_disabled_tests --gtest_filter=OpenCvWorkersChild.* 2>&1";
+  const std::string cmd = std::string("TELEX_OPENCV_WORKERS_CHILD=") +
+                          (start_first ? "start" : "none") + " /proc/" +
+                          std::to_string(::getpid()) + "/exe --gtest_filter=OpenCvWorkers.* 2>&1";
   FILE* p = ::popen(cmd.c_str(), "r");
   if (p == nullptr) return -1;
   std::string out;
@@ -83,6 +81,7 @@ int child_fifo_threads(bool start_first) {
 }
 
 TEST(OpenCvWorkers, StartedFromAnOrdinaryThreadTheyStayOrdinaryUnderARealtimeCaller) {
+  if (const char* mode = std::getenv("TELEX_OPENCV_WORKERS_CHILD")) return run_as_child(mode);
   if (cv::getNumThreads() < 2) GTEST_SKIP() << "OpenCV runs serially here: no workers to check";
   const int without = child_fifo_threads(false);
   if (without == -2) GTEST_SKIP() << "this machine refuses SCHED_FIFO";
