@@ -158,7 +158,7 @@ void RemoteServer::Impl::arm_timer() {
   timer_.async_wait([this](boost::system::error_code ec) {
     // An expiry already queued when stop() ran cannot be cancelled: it arrives with no error
     // after stop()'s handler, which closed the acceptor. Re-arming then would keep io_.run()
-    // (and stop()'s join) waiting forever; a CI-like run of the daemons hung there once.
+    // (and stop()'s join) waiting forever; a latency run of the daemons hung there once.
     if (ec || !acceptor_.is_open()) return;
     if (active_ && std::chrono::steady_clock::now() - active_->last_rx > config_.client_timeout) {
       ++counters_.client_timeouts;
