@@ -69,7 +69,8 @@ struct SurfaceClient::Impl {
   std::array<std::uint8_t, 64 * 1024> tcp_buf{};
   std::array<std::uint8_t, 2048> udp_buf{};
   udp::endpoint udp_from;
-  std::deque<std::vector<std::uint8_t>> out_queue;
+  static constexpr std::size_t kMaxQueued = 64;
+  std::deque<std::vector<std::uint8_t>> out_queue;  // front: being written while `writing`
   bool writing = false;
 
   // Authentication: the pre-shared key until Accept, then the session key (null without --psk).
@@ -103,7 +104,13 @@ struct SurfaceClient::Impl {
     // With a key, Hello's capture_ns is the client nonce of the session key (it has no capture).
     if (cfg.psk && std::holds_alternative<proto::Hello>(m)) h.capture_ns = hello_nonce;
     out_queue.push_back(proto::encode_stream_sealed(h, m, tx_key()));
-    if (out_queue.size() > 64) out_queue.pop_front();  // a stuck link must not grow memory
+    // A stuck link must not grow memory: past kMaxQueued drop the oldest message still waiting.
+    // Never the front while a write is in flight: async_write reads that buffer until its handler
+    // runs, and the handler pops it.
+    if (out_queue.size() > kMaxQueued) {
+      out_queue.erase(out_queue.begin() + (writing ? 1 : 0));
+      stats.upstream_dropped.fetch_add(1);
+    }
     if (!writing) write_next();
   }
 

@@ -56,7 +56,9 @@ struct ClientStats {
   // Depth-stream messages seen, by fragment count (ReassemblerCounters::messages_by_fragments).
   std::array<std::atomic<std::uint64_t>, 8> udp_messages_by_fragments{};
   std::atomic<std::uint64_t> dropped_malformed{0};  // parser + reassembler rejections
-  std::atomic<std::uint64_t> dropped_foreign{0};    // wrong session or source
+  // Messages to the remote dropped unsent because 64 were already queued behind a stalled write.
+  std::atomic<std::uint64_t> upstream_dropped{0};
+  std::atomic<std::uint64_t> dropped_foreign{0};  // wrong session or source
   // Authentication drops (TCP messages and UDP datagrams): missing or wrong tag, a tag when no key
   // is configured, an authentic message replayed.
   std::atomic<std::uint64_t> auth_failed{0};
