@@ -58,7 +58,9 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} | client {} (accepted {} "
       "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
-      "key-requests {} nacks {} repaired {} unavailable {} | frames-sent {} | head-in {} "
+      "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} over-queue "
+      "{} "
+      "control-dropped {} | frames-sent {} | head-in {} "
       "clamped {} rate-limited {} link-lost {}{} head-errors {} | realtime {}/{}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
@@ -78,7 +80,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
       now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
       now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
-      now.repair_unavailable, now.frames_sent, now.head_commands_in, now.head_control.clamped,
+      now.repair_unavailable, now.repair_duplicates, now.repair_over_budget, now.repair_over_queue,
+      now.control_dropped, now.frames_sent, now.head_commands_in, now.head_control.clamped,
       now.head_control.rate_limited, now.head_control.link_losses,
       now.head_holding ? " holding" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
@@ -200,6 +203,10 @@ DaemonStats RemoteDaemon::stats() const {
     s.nacks_in = c.nacks_in;
     s.repair_tiles_sent = c.repair_tiles_sent;
     s.repair_unavailable = c.repair_unavailable;
+    s.repair_duplicates = c.repair_duplicates;
+    s.repair_over_budget = c.repair_over_budget;
+    s.repair_over_queue = c.repair_over_queue;
+    s.control_dropped = c.control_dropped;
     s.clients_accepted = c.clients_accepted;
     s.clients_rejected = c.clients_rejected;
     s.client_timeouts = c.client_timeouts;

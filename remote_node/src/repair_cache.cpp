@@ -53,4 +53,26 @@ NackAnswer RepairCache::answer(const proto::TileNack& nack) const {
   return out;
 }
 
+RepairLimiter::Verdict RepairLimiter::admit(std::uint16_t tile, std::uint32_t frame_id,
+                                            std::size_t bytes, std::int64_t now_ns) {
+  if (!started_) {
+    started_ = true;
+    last_ns_ = now_ns;
+  }
+  if (now_ns > last_ns_) {
+    tokens_ = std::min(cfg_.burst_bytes,
+                       tokens_ + cfg_.bytes_per_s * static_cast<double>(now_ns - last_ns_) * 1e-9);
+    last_ns_ = now_ns;
+  }
+  if (tile >= sent_.size()) sent_.resize(static_cast<std::size_t>(tile) + 1);
+  Sent& s = sent_[tile];
+  if (s.valid && s.frame_id == frame_id && now_ns - s.at_ns < cfg_.dedup_ns)
+    return Verdict::Duplicate;
+  const double cost = static_cast<double>(bytes);
+  if (cost > tokens_) return Verdict::OverBudget;
+  tokens_ -= cost;
+  s = Sent{frame_id, now_ns, true};
+  return Verdict::Send;
+}
+
 }  // namespace telex::remote

@@ -126,7 +126,7 @@ void RemoteServer::Impl::reject(tcp::socket socket, proto::RejectReason reason, 
 }
 
 void RemoteServer::Impl::start_session(tcp::socket socket) {
-  active_ = std::make_shared<Session>(std::move(socket));
+  active_ = std::make_shared<Session>(std::move(socket), config_.repair_limits);
   ++active_generation_;
   boost::system::error_code ec;
   const auto remote = active_->socket.remote_endpoint(ec);

@@ -47,7 +47,7 @@ struct OutFrame {
 // The connected operator (Asio's chat_session): its socket, parser and queues. Lives on the io
 // thread; the server holds the one current session and drops it when the session ends.
 struct Session {
-  explicit Session(tcp::socket s) : socket(std::move(s)) {}
+  Session(tcp::socket s, RepairLimiter::Config limits) : socket(std::move(s)), repair(limits) {}
   tcp::socket socket;
   proto::StreamParser parser;
   KeyPtr session_key;  // after Hello with --psk
@@ -56,7 +56,8 @@ struct Session {
   std::chrono::steady_clock::time_point last_rx;
   udp::endpoint udp_peer;
   bool over_udp = false;
-  std::deque<Buffer> control;  // control messages go before frame data
+  std::deque<Buffer> control;  // control messages go before frame data (at most kMaxControlQueue)
+  RepairLimiter repair;        // this session's NACK answers: dedup and byte budget
   std::deque<OutFrame> frames;
   bool tcp_writing = false;  // one async_write in flight
   bool udp_sending = false;  // one async_send_to in flight
@@ -75,6 +76,11 @@ struct Session {
     return b;
   }
 };
+
+// Bounds on what a station that does not read can make the remote hold (issue 27).
+inline constexpr std::size_t kMaxControlQueue = 64;     // control messages waiting
+inline constexpr std::size_t kMaxHeartbeatBacklog = 4;  // a probe is answered only below this
+inline constexpr std::size_t kMaxQueuedRepairBytes = 512 * 1024;  // resends waiting to go out
 
 class RemoteServer::Impl {
  public:
@@ -122,6 +128,7 @@ class RemoteServer::Impl {
   void request_key_frame();
   void on_nack(const proto::TileNack& nack);
   void send_control(Buffer buf);
+  std::size_t queued_repair_bytes(const Session& s) const;
   void kick_tcp(const std::shared_ptr<Session>& s);
 
   // ---- transport (server_transport.cpp) ----

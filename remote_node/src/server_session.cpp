@@ -58,6 +58,12 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
         if constexpr (std::is_same_v<T, proto::Heartbeat>) {
           // Only probes (t2 = 0) are answered: an answer to an answer would ping-pong forever.
           if (m.t2_ns != 0) return;
+          // A station that probes but does not read would grow the control queue by one answer
+          // per probe: answer only while few are waiting (an unanswered probe is a lost one).
+          if (a->control.size() >= kMaxHeartbeatBacklog) {
+            ++counters_.control_dropped;
+            return;
+          }
           proto::Heartbeat reply = m;
           reply.t2_ns = static_cast<std::uint64_t>(steady_now_ns());
           reply.t3_ns = static_cast<std::uint64_t>(steady_now_ns());
@@ -209,20 +215,56 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   counters_.repair_unavailable += answer.unavailable.size();
   if (!answer.unavailable.empty()) request_key_frame();
   if (answer.resend.empty()) return;
+  // Bounded (issue 27): each tile once per dedup interval, within the byte budget, and never
+  // more than kMaxQueuedRepairBytes of resends waiting for a station that does not read.
+  std::size_t queued = active_ ? queued_repair_bytes(*active_) : 0;
+  const std::int64_t now = steady_now_ns();
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
   msgs.reserve(answer.resend.size());
-  for (const auto& c : answer.resend)
+  for (const auto& c : answer.resend) {
+    const std::size_t bytes = c.tile->bytes.size();
+    if (queued + bytes > kMaxQueuedRepairBytes) {
+      ++counters_.repair_over_queue;
+      continue;
+    }
+    switch (active_->repair.admit(c.tile->index, c.frame_id, bytes, now)) {
+      case RepairLimiter::Verdict::Duplicate:
+        ++counters_.repair_duplicates;
+        continue;
+      case RepairLimiter::Verdict::OverBudget:
+        ++counters_.repair_over_budget;
+        continue;
+      case RepairLimiter::Verdict::Send:
+        break;
+    }
+    queued += bytes;
     msgs.emplace_back(header(l->session_id, c.frame_id, c.capture_ns, false, proto::kFlagRepair),
                       proto::tile_message(*c.tile, c.codec));
-  counters_.repair_tiles_sent += answer.resend.size();
+  }
+  if (msgs.empty()) return;
+  counters_.repair_tiles_sent += msgs.size();
   OutFrame f = pack(*l, newest_queued_frame_id_, msgs);
   f.counts_as_frame = false;
   f.trimmable = false;
   enqueue_frame(std::move(f));
 }
 
+// Resends (untrimmable frames) still waiting in `s`'s queue, in bytes.
+std::size_t RemoteServer::Impl::queued_repair_bytes(const Session& s) const {
+  std::size_t bytes = 0;
+  for (const auto& f : s.frames) {
+    if (f.trimmable) continue;
+    for (std::size_t i = f.next; i < f.items.size(); ++i) bytes += f.items[i]->size();
+  }
+  return bytes;
+}
+
 void RemoteServer::Impl::send_control(Buffer buf) {
   if (!active_) return;
+  if (active_->control.size() >= kMaxControlQueue) {
+    ++counters_.control_dropped;
+    return;
+  }
   active_->control.push_back(std::move(buf));
   kick_tcp(active_);
 }

@@ -44,5 +44,35 @@ TEST(RepairCache, AnswersWithTheNewestCopyFromTheAskedFrameOnAndCountsWhatIsGone
   EXPECT_EQ(c.resend[0].frame_id, 0u);
 }
 
+TEST(RepairLimiter, ATileIsResentOncePerDedupIntervalAndFrame) {
+  RepairLimiter lim({.dedup_ns = 10'000'000, .bytes_per_s = 1e9, .burst_bytes = 1e9});
+  using V = RepairLimiter::Verdict;
+  EXPECT_EQ(lim.admit(5, 100, 1000, 0), V::Send);
+  EXPECT_EQ(lim.admit(5, 100, 1000, 9'999'999), V::Duplicate);  // a storm of the same NACK
+  EXPECT_EQ(lim.admit(6, 100, 1000, 9'999'999), V::Send);       // another tile
+  EXPECT_EQ(lim.admit(5, 101, 1000, 9'999'999), V::Send);       // a newer copy of the tile
+  EXPECT_EQ(lim.admit(5, 101, 1000, 25'000'000), V::Send);      // the station's retry, 25 ms on
+  EXPECT_EQ(lim.admit(4095, 7, 10, 0), V::Send);                // the largest tile index
+}
+
+TEST(RepairLimiter, ResentBytesStayWithinBurstPlusRateTimesTime) {
+  const RepairLimiter::Config cfg{.dedup_ns = 0, .bytes_per_s = 1e6, .burst_bytes = 100'000};
+  RepairLimiter lim(cfg);
+  // A NACK storm: 2000 tiles of 1 kB asked every millisecond for one second (2 GB/s asked).
+  std::uint64_t sent = 0, over = 0;
+  for (std::int64_t ms = 0; ms <= 1000; ++ms)
+    for (std::uint16_t t = 0; t < 2000; ++t) {
+      if (lim.admit(t, static_cast<std::uint32_t>(ms), 1000, ms * 1'000'000) ==
+          RepairLimiter::Verdict::Send)
+        ++sent;
+      else
+        ++over;
+    }
+  const double bound = cfg.burst_bytes + cfg.bytes_per_s * 1.0;
+  EXPECT_LE(static_cast<double>(sent) * 1000.0, bound);
+  EXPECT_GE(static_cast<double>(sent) * 1000.0, 0.99 * bound - 1000.0);  // the budget is used
+  EXPECT_GT(over, 0u);
+}
+
 }  // namespace
 }  // namespace telex::remote

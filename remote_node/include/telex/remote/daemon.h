@@ -65,6 +65,8 @@ struct DaemonStats {
   // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
   // tiles asked for that the cache no longer held.
   std::uint64_t key_frame_requests = 0, nacks_in = 0, repair_tiles_sent = 0, repair_unavailable = 0;
+  std::uint64_t repair_duplicates = 0, repair_over_budget = 0, repair_over_queue = 0;
+  std::uint64_t control_dropped = 0;
   // Head teleoperation: operator poses received, the controller's counts, whether the head holds
   // still (no operator pose for head_link_timeout_s), the driver's counts.
   std::uint64_t head_commands_in = 0;

@@ -55,4 +55,37 @@ class RepairCache {
   std::deque<Frame> frames_;  // oldest first
 };
 
+// Bounds what TileNacks can make the remote send (issue 27): a NACK of ~150 bytes could otherwise
+// queue a key frame of resends. A tile already resent from the same cached frame within
+// `dedup_ns` is not sent again (the station asks again only after its retry interval, at least
+// 25 ms: a repeat sooner is a duplicate or a storm), and resends draw on a token bucket of bytes
+// that refills at `bytes_per_s` up to `burst_bytes`. Pure: time comes in as an argument; one per
+// session, on the network thread.
+class RepairLimiter {
+ public:
+  struct Config {
+    std::int64_t dedup_ns = 10'000'000;
+    double bytes_per_s = 1.25e6;  // 10 Mbit/s: the whole stream's goal, so repair never outgrows it
+    double burst_bytes = 256.0 * 1024.0;
+  };
+  enum class Verdict { Send, Duplicate, OverBudget };
+
+  explicit RepairLimiter(Config config) : cfg_(config), tokens_(config.burst_bytes) {}
+  RepairLimiter() : RepairLimiter(Config{}) {}
+  Verdict admit(std::uint16_t tile, std::uint32_t frame_id, std::size_t bytes, std::int64_t now_ns);
+  const Config& config() const { return cfg_; }
+
+ private:
+  struct Sent {
+    std::uint32_t frame_id = 0;
+    std::int64_t at_ns = 0;
+    bool valid = false;
+  };
+  Config cfg_;
+  double tokens_;
+  std::int64_t last_ns_ = 0;
+  bool started_ = false;
+  std::vector<Sent> sent_;  // by tile index, grown on demand (at most kMaxManifestTiles)
+};
+
 }  // namespace telex::remote

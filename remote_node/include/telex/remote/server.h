@@ -17,6 +17,7 @@
 #include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
 #include "telex/remote/pipeline.h"
+#include "telex/remote/repair_cache.h"
 
 namespace telex::remote {
 
@@ -27,6 +28,7 @@ struct ServerConfig {
   std::chrono::milliseconds client_timeout{3000};  // a silent operator is dropped after this
   std::size_t repair_cache_frames = 8;     // frames whose tiles a TileNack can still get (0 = none)
   std::size_t max_queued_frames = 3;       // frames waiting to go out; older ones are dropped
+  RepairLimiter::Config repair_limits;     // what TileNacks may make the remote resend
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
   float fps = 30.0f;
@@ -79,6 +81,15 @@ struct ServerCounters {
   std::atomic<std::uint64_t> nacks_in{0};
   std::atomic<std::uint64_t> repair_tiles_sent{0};
   std::atomic<std::uint64_t> repair_unavailable{0};
+  // What bounds NACK answers (RepairLimiter): tiles asked again within the dedup interval, tiles
+  // beyond the byte budget, tiles refused because the send queue already held kMaxQueuedRepairBytes
+  // of resends (a station that does not read).
+  std::atomic<std::uint64_t> repair_duplicates{0};
+  std::atomic<std::uint64_t> repair_over_budget{0};
+  std::atomic<std::uint64_t> repair_over_queue{0};
+  // Control messages not queued because the station does not read them: heartbeat answers beyond
+  // kMaxHeartbeatBacklog, anything beyond kMaxControlQueue.
+  std::atomic<std::uint64_t> control_dropped{0};
   std::array<std::atomic<std::uint64_t>, kSessionEndCount> sessions_ended{};  // by SessionEnd
   std::uint64_t ended(SessionEnd reason) const {
     return sessions_ended[static_cast<std::size_t>(reason)].load();
