@@ -9,7 +9,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${TELEX_BUILD_DIR:-$root/build}"
 cd "$build"
 set +e
-ctest --output-on-failure -j "${TELEX_JOBS:-$(nproc)}" --timeout 600 2>&1 | tee ctest.out
+ctest --output-on-failure --schedule-random -j "${TELEX_JOBS:-$(nproc)}" --timeout 600 2>&1 | tee ctest.out
 rc=${PIPESTATUS[0]}
 set -e
 skipped="$(sed -nE 's/^[[:space:]]+[0-9]+ - (.*) \(Skipped\)$/\1/p' ctest.out)"

@@ -11,17 +11,13 @@
 #include <fstream>
 #include <iterator>
 
+#include "process.h"
 #include "telex/bag/bag.h"
 
 namespace telex::bag {
 namespace {
 
-std::filesystem::path temp(const std::string& name) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_bagcheck_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return dir / name;
-}
+std::filesystem::path temp(const std::string& name) { return ::telex::test::scratch_file(name); }
 
 std::vector<char> read_all(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
+#include "process.h"
 #include "telex/common/synthetic.h"
 #include "test_support.h"
 
@@ -21,9 +22,7 @@ namespace fs = std::filesystem;
 class DepthIo : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("telex_depth_io_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = ::telex::test::scratch_dir("depth_io");
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }

@@ -1,5 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `telex process` end to end: files written, JSON fields, same result as the library, exit codes.
+#include "process.h"
+
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -48,9 +50,7 @@ ToolRun run_telex(const std::string& args, const std::filesystem::path& err_file
 class ProcessCommand : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("telex_process_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = ::telex::test::scratch_dir("process");
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }

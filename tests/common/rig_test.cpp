@@ -8,6 +8,8 @@
 #include <fstream>
 #include <string>
 
+#include "process.h"
+
 namespace telex {
 namespace {
 
@@ -135,7 +137,7 @@ TEST(Rig, AMissingFileNamesItsPath) {
 }
 
 TEST(Rig, UpdatesMergeIntoTheFileAndNeverWriteABadRig) {
-  const auto dir = std::filesystem::temp_directory_path() / "telex_rig_test";
+  const auto dir = ::telex::test::scratch_dir("rig");
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const auto path = dir / "rig.json";

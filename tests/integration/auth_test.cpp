@@ -11,6 +11,7 @@
 #include <random>
 #include <set>
 
+#include "process.h"
 #include "telex/proto/messages.h"
 
 namespace telex::proto {
@@ -124,8 +125,7 @@ TEST(Auth, KeyLengthBounds) {
 class KeyFile : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ =
-        std::filesystem::temp_directory_path() / ("telex_auth_test_" + std::to_string(::getpid()));
+    dir_ = ::telex::test::scratch_dir("auth");
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }

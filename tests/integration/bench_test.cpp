@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "process.h"
 #include "telex/local/recorder.h"
 #include "test_support.h"
 
@@ -69,7 +70,7 @@ const std::vector<std::string> kMetrics = {
     "encode_ms",          "decode_ms",     "surface_ms",      "total_ms"};
 
 fs::path run_quick(const std::string& name, const std::string& extra) {
-  const fs::path out = fs::temp_directory_path() / ("telex_bench_test_" + name);
+  const fs::path out = ::telex::test::scratch_dir("bench_" + name);
   fs::remove_all(out);
   const std::string cmd = telex::test::built_binary("telex").string() + " bench --quick --out " +
                           out.string() + " " + extra + " > " + (out.string() + ".log") + " 2>&1";
@@ -127,7 +128,7 @@ TEST(BenchTool, QuickRunWritesFiniteCsvMarkdownAndPlots) {
 TEST(BenchTool, QuickRunOnRealDeskFramesAndARecordedSessionReportsFillRate) {
   TELEX_REQUIRE_REAL_DATA();
   const fs::path desk = telex::test::real_data_dir() / "desk";
-  const fs::path session = fs::temp_directory_path() / "telex_bench_desk_session.bag";
+  const fs::path session = ::telex::test::scratch_dir("bench_desk") / "session.bag";
   {
     telex::local::RecorderConfig rc;
     rc.path = session.string();

@@ -74,8 +74,7 @@ TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastComma
   remote::RemoteDaemon remote(rc);
   remote.start();
 
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("telex_station_fault_" + loop_name(faulty) + "_" + std::to_string(::getpid()));
+  const auto dir = ::telex::test::scratch_dir("station_fault_" + loop_name(faulty));
   std::filesystem::create_directories(dir);
   const auto csv = dir / "display.csv";
 

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <thread>
 
+#include "process.h"
 #include "telex/local/gravity_grabber.h"
 #include "telex/local/haptic_display.h"
 #include "telex/local/udp_sink.h"
@@ -16,8 +17,7 @@ namespace telex::local {
 namespace {
 
 std::filesystem::path temp_path(const std::string& name) {
-  return std::filesystem::temp_directory_path() /
-         ("telex_disp_" + std::to_string(getpid()) + "_" + name);
+  return ::telex::test::scratch_file(name);
 }
 
 TEST(DisplayGravityGrabber, OppositeMotorsForPressureSameForShear) {

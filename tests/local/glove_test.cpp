@@ -8,6 +8,7 @@
 #include <fstream>
 #include <vector>
 
+#include "process.h"
 #include "telex/local/tracker.h"
 
 namespace telex::local {
@@ -217,8 +218,7 @@ TEST(Glove, CalibrationMapsToBends) {
 }
 
 TEST(Glove, CalibrationFileRoundTripAndErrors) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_glove_" + std::to_string(getpid()));
+  const auto dir = ::telex::test::scratch_dir("glove");
   std::filesystem::create_directories(dir);
   GloveCalibration c = GloveCalibration::full_range(5);
   c.min[1] = 0.1;

@@ -10,6 +10,7 @@
 #include <memory>
 #include <thread>
 
+#include "process.h"
 #include "telex/local/stereo_view.h"
 #include "telex/local/tracker.h"
 #include "telex/sim/natnet_server.h"
@@ -131,8 +132,7 @@ TEST(NatNetClientErrors, BadAddressesNameTheProblem) {
 }
 
 TEST(NatNetRecording, CsvPlaysBackAndRejectsBadLines) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_natnet_" + std::to_string(getpid()));
+  const auto dir = ::telex::test::scratch_dir("natnet");
   std::filesystem::create_directories(dir);
   const auto good = dir / "good.csv";
   std::ofstream(good) << "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
@@ -167,8 +167,7 @@ TEST(NatNetRecording, CsvPlaysBackAndRejectsBadLines) {
 class PoseServer {
  public:
   PoseServer(const std::string& name, const std::string& csv_text)
-      : dir_(std::filesystem::temp_directory_path() /
-             ("telex_" + name + "_" + std::to_string(getpid()))) {
+      : dir_(::telex::test::scratch_dir(name)) {
     std::filesystem::create_directories(dir_);
     std::ofstream(dir_ / "pose.csv") << "time_s,body_id,x,y,z,qx,qy,qz,qw\n" << csv_text;
     load_natnet_csv(dir_ / "pose.csv", false)(0.0, truth_);

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <glm/geometric.hpp>
 
+#include "process.h"
 #include "telex/bag/bag.h"
 #include "telex/common/synthetic.h"
 
@@ -18,10 +19,7 @@ namespace telex::local {
 namespace {
 
 std::filesystem::path temp_bag(const std::string& name) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_rec_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return dir / name;
+  return ::telex::test::scratch_file(name);
 }
 
 struct Session {

@@ -5,6 +5,7 @@
 
 #include <fstream>
 
+#include "process.h"
 #include "telex/local/hand_script.h"
 
 namespace telex::local {
@@ -167,8 +168,7 @@ TEST(Script, MakeTrackerResolvesNamesAndFiles) {
   ASSERT_TRUE(t->poll(0, st));
   EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.6, 1e-12);
 
-  const auto path = std::filesystem::temp_directory_path() /
-                    ("telex_script_" + std::to_string(getpid()) + ".txt");
+  const auto path = ::telex::test::scratch_dir("script") / "script.txt";
   std::ofstream(path) << "time_s finger x_m y_m z_m\n0 2 0.01 0.02 0.4\n";
   auto f = make_tracker("script:" + path.string(), cfg);
   ASSERT_TRUE(f->poll(0, st));

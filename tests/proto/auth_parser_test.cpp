@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "process.h"
 #include "proto_samples.h"
 #include "telex/proto/auth.h"
 #include "telex/proto/fragment.h"
@@ -295,8 +296,7 @@ TEST(AuthDatagrams, TaggedFragmentsReassembleAndForgedOnesNeverReachTheReassembl
 }
 
 TEST(AuthKeyFile, PermissionsOpenToOthersAreRefusedWithTheFix) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_psk_perm_" + std::to_string(::getpid()));
+  const auto dir = ::telex::test::scratch_dir("psk_perm");
   std::filesystem::create_directories(dir);
   const auto path = dir / "key";
   { std::ofstream(path, std::ios::binary) << std::string(32, 'k'); }

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "process.h"
 #include "telex/bag/bag.h"
 #include "telex/remote/sources.h"
 #include "test_support.h"
@@ -23,10 +24,7 @@ constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;  // a 2023 wall-clock st
 constexpr std::int64_t kPeriod = 33'333'333;
 
 std::filesystem::path temp_bag(const std::string& name) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_bag_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return dir / name;
+  return ::telex::test::scratch_file(name);
 }
 
 bag::CameraIntrinsics k_of(int w, int h) {

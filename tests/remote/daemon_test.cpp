@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "process.h"
 #include "telex/base/periodic.h"
 #include "test_client.h"
 #include "test_support.h"
@@ -368,8 +369,7 @@ TEST(TelexRemoteCli, BadFlagsAndValuesExitTwo) {
 }
 
 TEST(TelexRemoteCli, RunsForADurationFromAJsonConfigAndMissingDeviceExitsOne) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_cli_" + std::to_string(::getpid()));
+  const auto dir = ::telex::test::scratch_dir("cli");
   std::filesystem::create_directories(dir);
   const auto json = dir / "remote.json";
   std::ofstream(json)

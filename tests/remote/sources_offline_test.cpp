@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "process.h"
 #include "telex/common/depth_io.h"
 #include "telex/common/synthetic.h"
 #include "telex/remote/sources.h"
@@ -37,8 +38,7 @@ TEST(FilesSource, DeliversTheRealDeskFramesInOrderThenEnds) {
 }
 
 TEST(FilesSource, LoopsAndNamesBadPatternsAndUnits) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_files_" + std::to_string(::getpid()));
+  const auto dir = ::telex::test::scratch_dir("files");
   std::filesystem::create_directories(dir);
   cv::Mat1w a(4, 6, std::uint16_t(1000)), b(4, 6, std::uint16_t(2000));
   save_depth_png(dir / "f0.png", a);

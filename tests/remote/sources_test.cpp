@@ -15,6 +15,7 @@
 #include <optional>
 
 #include "driver_child.h"
+#include "process.h"
 #include "telex/remote/openni_record.h"
 
 namespace telex::remote {
@@ -121,8 +122,7 @@ TEST(OpenNiSource, MissingDeviceNamesItAndWhatToTry) {
 
 // A fresh temp directory per process, removed at the end of the test body.
 struct TempDir {
-  std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("telex_oni_" + std::to_string(::getpid()));
+  std::filesystem::path path = ::telex::test::scratch_dir("oni");
   TempDir() { std::filesystem::create_directories(path); }
   ~TempDir() { std::filesystem::remove_all(path); }
 };
@@ -328,8 +328,7 @@ TEST(OniPlayback, RecorderOutputWithoutCroppingIsRepairedAndPlays) {
 }
 
 TEST(OniRepair, RejectsFilesThatAreNotRecordingsByName) {
-  const auto path = std::filesystem::temp_directory_path() /
-                    ("telex_not_oni_" + std::to_string(::getpid()) + ".oni");
+  const auto path = ::telex::test::scratch_dir("not_oni") / "not.oni";
   {
     std::ofstream f(path, std::ios::binary);
     f << "NI10 this is not a recording at all, just some bytes";

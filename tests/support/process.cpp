@@ -4,6 +4,7 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
@@ -11,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -76,8 +78,47 @@ std::optional<int> Process::wait(std::chrono::milliseconds timeout) {
 std::string Process::stdout_text() const { return read_text(out_); }
 std::string Process::stderr_text() const { return read_text(err_); }
 
+namespace {
+// This process's scratch root: ctest runs every test as its own process, several at once, so a
+// folder shared by name between two tests (or two runs of one) would let one delete or read the
+// other's files.
+const std::filesystem::path& process_scratch_root() {
+  static const std::filesystem::path root = std::filesystem::path(TELEX_BINARY_DIR) /
+                                            "test-scratch" / ("pid-" + std::to_string(getpid()));
+  return root;
+}
+
+// Removes this process's scratch root when every test in it passed (a failure keeps its files).
+class ScratchCleanup : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    if (!::testing::UnitTest::GetInstance()->Passed()) return;
+    std::error_code ec;
+    std::filesystem::remove_all(process_scratch_root(), ec);
+  }
+};
+[[maybe_unused]] const auto* const kScratchCleanup =
+    ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
+
+// Per process and per test: <build>/test-scratch/pid-N/<Suite.Test>.
+std::filesystem::path test_scratch_root() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string test = info != nullptr
+                         ? std::string(info->test_suite_name()) + "." + std::string(info->name())
+                         : std::string("outside-a-test");
+  std::replace(test.begin(), test.end(), '/', '_');  // parameterised tests: Suite/Test/0
+  return process_scratch_root() / test;
+}
+}  // namespace
+
+std::filesystem::path scratch_file(const std::string& name) {
+  const auto p = test_scratch_root() / "files" / name;
+  std::filesystem::create_directories(p.parent_path());
+  return p;
+}
+
 std::filesystem::path scratch_dir(const std::string& name) {
-  const auto p = std::filesystem::path(TELEX_BINARY_DIR) / "test-scratch" / name;
+  const auto p = test_scratch_root() / name;
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;

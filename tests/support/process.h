@@ -38,8 +38,12 @@ class Process {
   std::filesystem::path out_, err_;
 };
 
-// A fresh empty directory under the build tree for one test's files.
+// A fresh empty directory under the build tree for one test's files, private to this process and
+// this test (<build>/test-scratch/pid-N/<Suite.Test>/<name>); removed at exit when all passed.
 std::filesystem::path scratch_dir(const std::string& name);
+// A file's path in this test's own folder (the same folder for every call in one test, never
+// emptied by this call): for helpers that make several files in one test and read them back.
+std::filesystem::path scratch_file(const std::string& name);
 // A port nobody listens on right now (bound once with port 0, then released).
 std::uint16_t free_port();
 std::string read_text(const std::filesystem::path& p);
