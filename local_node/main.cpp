@@ -205,6 +205,11 @@ int main(int argc, char** argv) {
         }
       })
       ->capture_default_str();
+  app.add_option("--view-at", cfg.view_at_s,
+                 "with --view png:DIR, write the view once, this many seconds after the hand "
+                 "starts (a scripted hand's time), instead of once a second and at the end: the "
+                 "pictures show that moment of the run")
+      ->check(CLI::Range(0.0, 1e6));
   app.add_option("--stereo-baseline", cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")
       ->check(CLI::Range(0.0, 1.0));
@@ -343,6 +348,7 @@ int main(int argc, char** argv) {
           {"unexpected_tag", s.unexpected_tag},
           {"replayed", s.replayed},
           {"dropped_malformed", s.dropped_malformed},
+          {"upstream_dropped", s.upstream_dropped},
           {"udp_datagrams", s.udp_datagrams},
           {"udp_lost", s.udp_lost},
           {"bytes_in", s.bytes_in},

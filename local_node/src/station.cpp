@@ -3,6 +3,7 @@
 // the main thread for logging, status lines and the operator view's window.
 #include "telex/local/station.h"
 
+#include <fmt/format.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -128,7 +129,7 @@ class Station::Run {
   // newest), decoded; *offset_ns is its capture time minus the one wanted.
   cv::Mat3b eye_image(int eye, std::int64_t want_capture_ns = 0, std::int64_t* offset_ns = nullptr);
   void request_stereo_view();
-  void write_view_files();
+  void write_view_files(bool at_moment = false);
   void stereo_loop(std::stop_token stop);
   // The fingertips of `hand` moved into the camera `frame` was captured with (head teleoperation).
   void in_frame_camera(const AssembledFrame& frame, HandState& hand) const {
@@ -210,6 +211,7 @@ class Station::Run {
   std::string scheduling_;
   std::atomic<bool> scheduling_ready_{false};
   std::atomic<std::uint64_t> missed_{0};
+  std::atomic<std::int64_t> haptic_t0_ns_{0};  // the first tick: a hand script's time zero
 
   std::mutex error_mu_;
   std::exception_ptr error_;
@@ -520,8 +522,11 @@ void Station::Run::surface_loop(std::stop_token stop) {
 // Waits for the first surface (scripted hands aim at it). False when the station was stopped
 // first; throws when none arrives in time.
 bool Station::Run::wait_first_surface() {
+  // --duration bounds the whole run, connected or not.
+  const bool duration_first = cfg_.duration_s > 0 && cfg_.duration_s < cfg_.first_surface_timeout_s;
+  const double wait_s = duration_first ? cfg_.duration_s : cfg_.first_surface_timeout_s;
   const std::int64_t deadline =
-      monotonic_ns() + static_cast<std::int64_t>(cfg_.first_surface_timeout_s * 1e9);
+      (duration_first ? t_start_ns_ : monotonic_ns()) + static_cast<std::int64_t>(wait_s * 1e9);
   while (surfaces_built_.load() == 0 && !stop_.load()) {
     if (window_ && pump_window()) break;
     if (monotonic_ns() > deadline) {
@@ -537,9 +542,9 @@ bool Station::Run::wait_first_surface() {
             "with the same --psk FILE, or neither");
       throw std::runtime_error(
           "no depth surface from the remote at " + cfg_.client.host + ":" +
-          std::to_string(cfg_.client.port) + " within " +
-          std::to_string(static_cast<int>(cfg_.first_surface_timeout_s)) +
-          " s: is telex-remote running and listening there (telex-remote --listen HOST:PORT)?");
+          std::to_string(cfg_.client.port) + " within " + fmt::format("{:g}", wait_s) + " s" +
+          (duration_first ? " (--duration)" : "") +
+          ": is telex-remote running and listening there (telex-remote --listen HOST:PORT)?");
     }
     std::this_thread::sleep_for(milliseconds(10));
   }
@@ -594,6 +599,7 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
   while (!stop.stop_requested()) {
     const std::int64_t now = timer.wait_next();
     check(StationLoop::Haptic);
+    if (prev == 0) haptic_t0_ns_.store(now, std::memory_order_release);
     if (tracker_->poll(now, hand)) {
       hand_for_surface_.publish(hand);
       hand_for_view_.publish(hand);
@@ -656,6 +662,7 @@ void Station::Run::main_loop() {
   std::int64_t next_status = monotonic_ns() + 1'000'000'000;
   std::int64_t next_view = 0;
   next_print_ns_ = monotonic_ns();
+  bool view_at_written = false;
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
     check(StationLoop::Main);
@@ -670,6 +677,13 @@ void Station::Run::main_loop() {
     drain_tracking();
     const std::int64_t now = monotonic_ns();
     send_head(now);
+    if (cfg_.view_at_s >= 0.0 && !view_at_written) {
+      const std::int64_t t0 = haptic_t0_ns_.load(std::memory_order_acquire);
+      if (t0 != 0 && now >= t0 + static_cast<std::int64_t>(cfg_.view_at_s * 1e9)) {
+        view_at_written = true;
+        write_view_files(true);
+      }
+    }
     if (end_ns && now >= end_ns) break;
     if (now >= next_status) {
       next_status += 1'000'000'000;
@@ -679,6 +693,11 @@ void Station::Run::main_loop() {
   // The last picture shows how the run ended, not how it stood at the last whole second.
   drain();
   write_view_files();
+  if (cfg_.view_at_s >= 0.0 && !view_at_written)
+    std::fprintf(stderr,
+                 "telex-local: warning: --view-at %g s: the run ended before that moment; no "
+                 "view written\n",
+                 cfg_.view_at_s);
 }
 
 // The window's turn on the main thread: the newest stereo pair when one came, else the window's
@@ -849,8 +868,10 @@ void Station::Run::print_status() {
   window_latency_.clear();
 }
 
-// --view png:DIR: the 2D view now, the stereo pair on the view thread.
-void Station::Run::write_view_files() {
+// --view png:DIR: the 2D view now, the stereo pair on the view thread. With --view-at only the
+// moment it names is written (`at_moment`), so the pictures show that moment of a scripted run.
+void Station::Run::write_view_files(bool at_moment) {
+  if (cfg_.view_at_s >= 0.0 && !at_moment) return;
   if (view_.kind == ViewSpec::Kind::Png) {
     const cv::Mat3b img = render_view();
     const auto path = view_.dir / "view.png";
@@ -1028,6 +1049,7 @@ StationSummary Station::Run::summarize() {
   s.unexpected_tag = client_->stats().unexpected_tag.load();
   s.replayed = client_->stats().replayed.load();
   s.dropped_malformed = client_->stats().dropped_malformed.load();
+  s.upstream_dropped = client_->stats().upstream_dropped.load();
   s.udp_datagrams = client_->stats().datagrams.load();
   s.udp_lost = client_->stats().udp_lost.load();
   s.bytes_in = client_->stats().bytes_in.load();

@@ -215,5 +215,20 @@ TEST(TelexLocal, BadConfigurationExitsTwoNamingTheProblem) {
                 "local_bad_config");
 }
 
+// --duration bounds the run even when no remote ever answers: the station gives up at the end of
+// its duration (its message says so), not after the longer first-surface timeout.
+TEST(TelexLocal, DurationBoundsARunWithNoRemote) {
+  const auto dir = scratch_dir("local_duration_unconnected");
+  Process local({built_binary("telex-local").string(), "--connect",
+                 "127.0.0.1:" + std::to_string(free_port()), "--duration", "1.5",
+                 "--first-surface-timeout", "600", "--no-realtime"},
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(std::chrono::seconds(120));
+  ASSERT_TRUE(rc.has_value()) << "still running long after --duration 1.5 and no remote";
+  EXPECT_EQ(*rc, 1) << local.stderr_text();
+  EXPECT_NE(local.stderr_text().find("within 1.5 s (--duration)"), std::string::npos)
+      << local.stderr_text();
+}
+
 }  // namespace
 }  // namespace telex::test

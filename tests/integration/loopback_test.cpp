@@ -184,12 +184,14 @@ TEST(Loopback, ViewPngShowsHandAndForceArrow) {
   const auto dir = scratch_dir("loopback_view");
   RemoteProcess remote(dir, {"--source", "synthetic:plane"});
   Process local(local_args(remote.port, dir,
-                           {"--hand", "script:press", "--stiffness", "500", "--duration", "4.6",
-                            "--view", "png:" + (dir / "view").string()}),
+                           {"--hand", "script:press", "--stiffness", "500", "--duration", "7",
+                            "--view", "png:" + (dir / "view").string(), "--view-at", "3.6"}),
                 dir / "local.out", dir / "local.err");
   ASSERT_EQ(local.wait(30s).value_or(-1), 0) << local.stderr_text();
+  // --view-at 3.6: half way through the press's 1 s hold, whenever the run's seconds fall (the
+  // script approaches the plane 0.3 m away at 0.1 m/s, so it is 10 mm in from 3.1 s to 4.1 s).
   const cv::Mat img = cv::imread((dir / "view" / "view.png").string(), cv::IMREAD_COLOR);
-  ASSERT_FALSE(img.empty());
+  ASSERT_FALSE(img.empty()) << local.stderr_text();
   // The fingertip is drawn in the contact colour at the image centre and the force arrow in its own
   // colour (operator_view.cpp); neither colour occurs in the background.
   const cv::Vec3b contact(40, 40, 255), arrow(0, 200, 255);

@@ -48,6 +48,9 @@ struct StationConfig {
   std::filesystem::path record_bag;
   double record_rate_hz = 100.0;
   std::string view_spec = "none";  // none | png:DIR | window
+  // --view-at: png views are written once, this many seconds after the first haptic tick (a hand
+  // script's time zero), instead of once a second and at the end (< 0: off).
+  double view_at_s = -1.0;
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;
@@ -111,6 +114,7 @@ struct StationSummary {
   std::vector<std::pair<std::string, std::string>> thread_scheduling;
   // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
   std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
+  std::uint64_t upstream_dropped = 0;  // messages to the remote dropped behind a stalled write
   // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
   std::uint64_t udp_datagrams = 0, udp_lost = 0;
   std::uint64_t bytes_in = 0;  // everything the remote sent (TCP and UDP, headers and tags)
