@@ -220,7 +220,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
           ". Check that it exists (ls -l /dev/hidraw*; the device's hidraw node appears when "
           "it is plugged in), that your user may write it (udev rule in docs/HARDWARE.md), or "
           "run without hardware with --display sim or udp:HOST:PORT.");
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   }
   ~GravityGrabberDisplay() override {
     // Release the belts before closing: a stuck pressure command would keep squeezing.
@@ -239,6 +239,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
     pending_.publish(Report{gravity_grabber_report(forces, cfg_, ++seq_)});
   }
   std::string name() const override { return "gravity-grabber:" + path_; }
+  std::optional<ThreadFaultReport> thread_fault() const override { return fault_.report(); }
   DisplayStats stats() const override {
     DisplayStats s;
     s.writes = writes_;
@@ -276,6 +277,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> writes_{0}, sent_{0}, errors_{0};
   std::atomic<double> max_p_{0.0}, max_s_{0.0};
+  ThreadFault fault_{"display writer (gravity-grabber)"};
   std::thread thread_;
 };
 
