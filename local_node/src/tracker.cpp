@@ -151,7 +151,7 @@ class NatNetTracker final : public HandTracker {
     return std::nullopt;
   }
   TrackerStats stats() const override {
-    TrackerStats s = stats_;
+    TrackerStats s = stats_.snapshot();
     const auto c = client_->stats();
     s.frames_in = c.frames;
     s.frames_dropped = client_->overwritten();
@@ -186,7 +186,7 @@ class NatNetTracker final : public HandTracker {
   std::array<JointBends, 2> bend_{};  // each joint's bend by Side: the glove's, or the default
   HandState previous_;
   std::string name_;
-  TrackerStats stats_;
+  TrackerCounters stats_;
 };
 
 // A glove without a mocap system: the wrist is held at a fixed pose in front of the camera with the
@@ -223,7 +223,7 @@ class GloveTracker final : public HandTracker {
   }
   std::string name() const override { return glove_->name(); }
   TrackerStats stats() const override {
-    TrackerStats s = stats_;
+    TrackerStats s = stats_.snapshot();
     s.frames_in = glove_->reports();
     s.frames_dropped = glove_->overwritten();
     s.parse_errors = glove_->bad_reports();
@@ -239,7 +239,7 @@ class GloveTracker final : public HandTracker {
   Pose wrist_;
   HandState previous_;
   bool have_previous_ = false;
-  TrackerStats stats_;
+  TrackerCounters stats_;
 };
 
 std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerConfig& cfg) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <glm/glm.hpp>
@@ -92,6 +93,20 @@ struct TrackerStats {
   std::uint64_t rejected_nonfinite = 0, rejected_quaternion = 0, rejected_too_fast = 0;
   std::uint64_t frames_rejected = 0;
   std::uint64_t thread_faults = 0;  // exceptions that stopped a receive thread
+};
+
+// The counters a tracker updates on the polling (haptic) thread, read from any other (the
+// station's status line) without a lock.
+struct TrackerCounters {
+  std::atomic<std::uint64_t> polls{0}, updates{0}, frames_in{0}, frames_rejected{0};
+  TrackerStats snapshot() const {
+    TrackerStats s;
+    s.polls = polls;
+    s.updates = updates;
+    s.frames_in = frames_in;
+    s.frames_rejected = frames_rejected;
+    return s;
+  }
 };
 
 // Everything a tracker spec may need beyond its own string.
