@@ -74,7 +74,7 @@ TEST(NatNetInputs, SpoofedSenderAndBadPosesAreDroppedAndCountedWhileTheStationRu
                            {"--hand",
                             "natnet:127.0.0.1,multicast,local=127.0.0.1,cmd=" +
                                 std::to_string(cmd_port) + ",data=" + std::to_string(data_port),
-                            "--duration", "8"}),
+                            "--log-tracking", (dir / "tracking.csv").string(), "--duration", "8"}),
                 dir / "local.out", dir / "local.err");
   // The tracker exists once the haptic loop runs: then the spoofer sends to its data port.
   ASSERT_TRUE(eventually(30s, [&] {
@@ -115,6 +115,25 @@ TEST(NatNetInputs, SpoofedSenderAndBadPosesAreDroppedAndCountedWhileTheStationRu
       non_finite += std::isfinite(std::stod(row[c])) ? 0 : 1;
   }
   EXPECT_EQ(non_finite, 0u);
+  // Every body the tracker used (--log-tracking logs the frames it took) is the recording's good
+  // pose: finite, of unit quaternion, the hand never where the 3 m jump put it.
+  const CsvFile tracking = read_csv_file(dir / "tracking.csv");
+  std::size_t hand_rows = 0, bad_rows = 0;
+  for (const auto& row : tracking.rows) {
+    ASSERT_EQ(row.size(), 10u);
+    if (row[9] != "1") continue;
+    double q2 = 0.0;
+    for (const std::size_t c : {5u, 6u, 7u, 8u}) q2 += std::stod(row[c]) * std::stod(row[c]);
+    const bool finite = std::isfinite(std::stod(row[2])) && std::isfinite(std::stod(row[3])) &&
+                        std::isfinite(std::stod(row[4]));
+    const bool hand_jumped = row[1] == "2" && std::abs(std::stod(row[2]) - 0.03) > 0.01;
+    bad_rows += (!finite || std::abs(q2 - 1.0) > 1e-5 || hand_jumped) ? 1 : 0;
+    hand_rows += row[1] == "2" ? 1 : 0;
+  }
+  std::printf("NatNetInputs: %zu tracked hand rows logged, %zu with a bad pose\n", hand_rows,
+              bad_rows);
+  EXPECT_GT(hand_rows, 300u);
+  EXPECT_EQ(bad_rows, 0u);
 }
 
 }  // namespace
