@@ -239,7 +239,6 @@ class GravityGrabberDisplay final : public HapticDisplay {
     pending_.publish(Report{gravity_grabber_report(forces, cfg_, ++seq_)});
   }
   std::string name() const override { return "gravity-grabber:" + path_; }
-  std::optional<ThreadFaultReport> thread_fault() const override { return fault_.report(); }
   DisplayStats stats() const override {
     DisplayStats s;
     s.writes = writes_;
@@ -250,6 +249,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
     s.max_shear_N = max_s_;
     return s;
   }
+  std::optional<ThreadFaultReport> thread_fault() const override { return fault_.report(); }
 
  private:
   static void update_max(std::atomic<double>& m, double v) {

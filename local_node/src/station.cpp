@@ -743,16 +743,16 @@ void Station::Run::send_head(std::int64_t now_ns) {
   head_for_main_.take(head_sample_);
   if (head_sample_.time_ns == 0) return;  // no head tracked yet
   const auto q = head_joints(cfg_.robot_head, head_sample_.R_BaseCamera);
+  // Never a non-finite target (the tracker's poses are checked; this is the last line): the
+  // command is not built, and the remote holds the head as it does for a silent station.
+  if (!std::all_of(q.begin(), q.end(),
+                   [](double v) { return std::isfinite(static_cast<float>(v)); })) {
+    ++summary_.head_commands_invalid;
+    return;
+  }
   proto::HeadCommand c;
   c.operator_ns = static_cast<std::uint64_t>(head_sample_.time_ns);
   for (std::size_t j = 0; j < 3; ++j) c.joint_rad[j] = static_cast<float>(q[j]);
-  // Never a non-finite target (the tracker's poses are checked; this is the last line): the
-  // command is not built, and the remote holds the head as it does for a silent station.
-  for (const float v : c.joint_rad)
-    if (!std::isfinite(v)) {
-      ++summary_.head_commands_invalid;
-      return;
-    }
   client_->send_head(c);
   ++summary_.head_commands;
 }
@@ -890,17 +890,7 @@ void Station::Run::print_status() {
                     last_.forces[static_cast<std::size_t>(i)].shear_along_axis_N);
       forces += b;
     }
-    std::string tracking;
-    if (tracker_) {
-      // What the tracker's checks dropped, when they dropped anything (docs/HARDWARE.md).
-      const TrackerStats t = tracker_->stats();
-      const std::uint64_t rejected =
-          t.rejected_nonfinite + t.rejected_quaternion + t.rejected_too_fast;
-      if (t.foreign_datagrams + rejected > 0)
-        tracking = " | tracking dropped " + std::to_string(t.foreign_datagrams) +
-                   " foreign datagrams, " + std::to_string(rejected) + " bad poses";
-    }
-    std::fprintf(stderr, "telex-local: %s%s |%s\n", text.c_str(), tracking.c_str(), forces.c_str());
+    std::fprintf(stderr, "telex-local: %s |%s\n", text.c_str(), forces.c_str());
   }
   last_status_ = text;
   write_view_files();
@@ -927,7 +917,17 @@ std::string Station::Run::status_text(double fps) {
                 "build %.1f ms | %s",
                 fps, percentile(window_latency_, 0.5), ps.mean_rate_hz, ps.p99_jitter_us,
                 build_ms_.load(), std::string(to_string(client_->state())).c_str());
-  return std::string(b);
+  std::string text(b);
+  if (tracker_) {
+    // What the tracker's checks dropped, when they dropped anything (docs/HARDWARE.md).
+    const TrackerStats t = tracker_->stats();
+    const std::uint64_t rejected =
+        t.rejected_nonfinite + t.rejected_quaternion + t.rejected_too_fast;
+    if (t.foreign_datagrams + rejected > 0)
+      text += " | tracking dropped " + std::to_string(t.foreign_datagrams) +
+              " foreign datagrams, " + std::to_string(rejected) + " bad poses";
+  }
+  return text;
 }
 
 cv::Mat3b Station::Run::render_view() {

@@ -138,10 +138,6 @@ struct StationSummary {
                 repairs_useless = 0;
   std::uint64_t key_frame_requests = 0;
   std::uint64_t head_commands = 0;  // head poses sent to the remote (head teleoperation)
-  // Head poses not sent because a joint target was not finite (never reached with checked poses).
-  std::uint64_t head_commands_invalid = 0;
-  // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
-  TrackerStats tracker;
   std::uint64_t tile_age_samples = 0, tile_age_watched_samples = 0;
   double tile_age_watched_median = 0, tile_age_watched_p99 = 0, tile_age_watched_max = 0;
   double tile_age_all_median = 0, tile_age_all_p99 = 0, tile_age_all_max = 0;
@@ -149,6 +145,10 @@ struct StationSummary {
   std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
   std::uint64_t record_dropped_ticks = 0, record_dropped_surfaces = 0, record_dropped_bodies = 0;
   std::string record_error;
+  // Head poses not sent because a joint target was not finite (never reached with checked poses).
+  std::uint64_t head_commands_invalid = 0;
+  // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
+  TrackerStats tracker;
 };
 
 class Station {
