@@ -282,7 +282,13 @@ struct NatNetClient::Impl {
       const natnet::RigidBody* rb = frame.find_body(b.id);
       if (rb == nullptr) continue;
       b.present = true;
-      if (!rb->tracking_valid) continue;  // untracked: its pose is not used, so not checked
+      if (!rb->tracking_valid) {
+        // Untracked: not used, so neither counted nor a speed reference; its pose is kept for the
+        // tracking log when it is finite and unit, as Motive sent it.
+        Pose raw;
+        if (check_pose(*rb, limits, nullptr, 0.0, raw) == PoseVerdict::Ok) b.pose = raw;
+        continue;
+      }
       Accepted& last = accepted[i];
       // The time since the last accepted pose: the server's stamps, or the arrival times when
       // those say longer (a restarted server's stamps go back to zero).
