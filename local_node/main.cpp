@@ -377,6 +377,18 @@ int main(int argc, char** argv) {
           {"tile_age_all_median_frames", s.tile_age_all_median},
           {"tile_age_all_p99_frames", s.tile_age_all_p99},
           {"tile_age_all_max_frames", s.tile_age_all_max}};
+      j["head_commands_invalid"] = s.head_commands_invalid;
+      // The tracker's frames and what its checks dropped (docs/HARDWARE.md, NatNet).
+      j["tracker"] = {{"frames_in", s.tracker.frames_in},
+                      {"frames_dropped", s.tracker.frames_dropped},
+                      {"parse_errors", s.tracker.parse_errors},
+                      {"io_errors", s.tracker.io_errors},
+                      {"foreign_datagrams", s.tracker.foreign_datagrams},
+                      {"rejected_nonfinite", s.tracker.rejected_nonfinite},
+                      {"rejected_quaternion", s.tracker.rejected_quaternion},
+                      {"rejected_too_fast", s.tracker.rejected_too_fast},
+                      {"frames_rejected", s.tracker.frames_rejected},
+                      {"thread_faults", s.tracker.thread_faults}};
       if (!cfg.record_bag.empty())
         j["record"] = {{"file", cfg.record_bag.string()},
                        {"ticks", s.record_ticks},

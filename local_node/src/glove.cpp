@@ -237,6 +237,12 @@ JointBends joint_bends(const GloveRaw& raw, const GloveCalibration& cal) {
 
 GloveDevice::~GloveDevice() = default;
 
+std::optional<ThreadFaultReport> GloveDevice::thread_fault() const {
+  auto r = fault_.report();
+  if (r) r->thread = "glove (" + name() + ")";
+  return r;
+}
+
 void GloveDevice::publish(const GloveRaw& raw) {
   GloveSample s;
   s.bend = finger_bends(raw, calibration_);
@@ -296,7 +302,7 @@ class Usb5dtGlove final : public GloveDevice {
                                " but cannot open it (permissions? see the udev rule in "
                                "docs/HARDWARE.md)");
     calibration_ = calibration_for(calibration_path, range, sensor_count(model_));
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   }
   ~Usb5dtGlove() override {
     stop_ = true;
@@ -362,7 +368,7 @@ class Serial5dtGlove final : public GloveDevice {
       throw;
     }
     calibration_ = calibration_for(calibration_path, range, 5);
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   }
   ~Serial5dtGlove() override {
     stop_ = true;

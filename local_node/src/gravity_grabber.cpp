@@ -220,7 +220,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
           ". Check that it exists (ls -l /dev/hidraw*; the device's hidraw node appears when "
           "it is plugged in), that your user may write it (udev rule in docs/HARDWARE.md), or "
           "run without hardware with --display sim or udp:HOST:PORT.");
-    thread_ = std::thread([this] { run(); });
+    thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   }
   ~GravityGrabberDisplay() override {
     // Release the belts before closing: a stuck pressure command would keep squeezing.
@@ -249,6 +249,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
     s.max_shear_N = max_s_;
     return s;
   }
+  std::optional<ThreadFaultReport> thread_fault() const override { return fault_.report(); }
 
  private:
   static void update_max(std::atomic<double>& m, double v) {
@@ -276,6 +277,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> writes_{0}, sent_{0}, errors_{0};
   std::atomic<double> max_p_{0.0}, max_s_{0.0};
+  ThreadFault fault_{"display writer (gravity-grabber)"};
   std::thread thread_;
 };
 

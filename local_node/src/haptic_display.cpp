@@ -57,7 +57,7 @@ class SimDisplay final : public HapticDisplay {
       for (const char* f : {"thumb", "index", "middle", "ring", "little"})
         std::fprintf(file_, ",%s_pressure_N,%s_shear_N,%s_contact", f, f, f);
       std::fputc('\n', file_);
-      thread_ = std::thread([this] { drain_loop(); });
+      thread_ = std::thread([this] { fault_.run([this] { drain_loop(); }); });
     }
   }
   ~SimDisplay() override {
@@ -103,6 +103,7 @@ class SimDisplay final : public HapticDisplay {
 
   std::string name() const override { return path_.empty() ? "sim" : "sim:" + path_; }
   DisplayStats stats() const override { return counters_.snapshot(); }
+  std::optional<ThreadFaultReport> thread_fault() const override { return fault_.report(); }
 
  private:
   void drain_loop() {
@@ -131,6 +132,7 @@ class SimDisplay final : public HapticDisplay {
   std::atomic<std::size_t> head_{0}, tail_{0};
   std::FILE* file_ = nullptr;
   std::atomic<bool> stop_{false};
+  ThreadFault fault_{"display writer (sim)"};
   std::thread thread_;
   DisplayCounters counters_;
 };

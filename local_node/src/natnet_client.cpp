@@ -3,6 +3,7 @@
 #include "telex/local/natnet_client.h"
 
 #include <charconv>
+#include <cmath>
 
 // clang-format off
 // Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
@@ -26,6 +27,41 @@ const NatNetSample::Body* NatNetSample::find(std::int32_t id) const {
   return nullptr;
 }
 
+std::string_view to_string(PoseVerdict v) {
+  switch (v) {
+    case PoseVerdict::Ok:
+      return "ok";
+    case PoseVerdict::NonFinite:
+      return "non-finite or out-of-range position";
+    case PoseVerdict::BadQuaternion:
+      return "quaternion not of unit length";
+    case PoseVerdict::TooFast:
+      return "moved faster than a human";
+  }
+  return "?";
+}
+
+PoseVerdict check_pose(const natnet::RigidBody& body, const PoseLimits& limits,
+                       const Pose* previous, double dt_s, Pose& out) {
+  const glm::dvec3 p{body.p_m.x, body.p_m.y, body.p_m.z};
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(p[i]) || std::abs(p[i]) > limits.max_abs_coordinate_m)
+      return PoseVerdict::NonFinite;
+  const glm::dquat q(body.qw, body.qx, body.qy, body.qz);
+  // A NaN component makes the norm NaN, which fails this comparison too.
+  const double norm = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+  if (!(std::abs(norm - 1.0) <= limits.quaternion_norm_tolerance))
+    return PoseVerdict::BadQuaternion;
+  if (previous != nullptr) {
+    const double moved_m = glm::length(p - previous->p_m);
+    if (moved_m > limits.max_speed_m_per_s * std::max(dt_s, 0.0) + limits.jump_slack_m)
+      return PoseVerdict::TooFast;
+  }
+  out.p_m = p;
+  out.q = q / norm;
+  return PoseVerdict::Ok;
+}
+
 struct NatNetClient::Impl {
   explicit Impl(NatNetClientConfig c, TripleBuffer<NatNetSample>& out)
       : cfg(std::move(c)), samples(out), command(io), ping_timer(io) {}
@@ -41,7 +77,21 @@ struct NatNetClient::Impl {
   std::array<std::uint8_t, natnet::kMaxPacketBytes> cmd_buf{};
   std::array<std::uint8_t, natnet::kMaxPacketBytes> data_buf{};
   udp::endpoint cmd_from, data_from;
-  natnet::Frame frame;  // reused, so the top-level arrays stop reallocating
+  asio::ip::address server_addr;  // the only sender read (unicast and multicast alike)
+  bool warned_foreign = false;
+  int command_port = 0;  // bound, read by any thread
+  natnet::Frame frame;   // reused, so the top-level arrays stop reallocating
+  // Per published body (cfg.body_ids order): its last accepted pose and when (server seconds,
+  // arrival ns), the reference of the speed check.
+  struct Accepted {
+    bool have = false;
+    Pose pose;
+    double timestamp_s = 0;
+    std::int64_t received_ns = 0;
+  };
+  std::array<Accepted, NatNetSample::kMaxBodies> accepted{};
+  const PoseLimits limits{};
+  ThreadFault fault{"tracking (telex-natnet)"};
 
   std::atomic<int> version_major{0}, version_minor{0};
   mutable std::mutex info_mu;  // server info and last error; never touched by the haptic thread
@@ -49,7 +99,8 @@ struct NatNetClient::Impl {
   std::string last_error;
 
   std::atomic<std::uint64_t> datagrams{0}, frames{0}, parse_errors{0}, before_version{0},
-      pings_sent{0}, io_errors{0};
+      pings_sent{0}, io_errors{0}, foreign{0}, rejected_nonfinite{0}, rejected_quaternion{0},
+      rejected_too_fast{0};
 
   void open() {
     boost::system::error_code ec;
@@ -58,9 +109,11 @@ struct NatNetClient::Impl {
       throw std::runtime_error("NatNet server address '" + cfg.server_ip +
                                "' is not an IPv4/IPv6 address (give the Motive PC's IP)");
     server = udp::endpoint(server_addr, static_cast<unsigned short>(cfg.command_port));
+    this->server_addr = server_addr;
     command.open(udp::v4());
     command.bind(udp::endpoint(udp::v4(), 0), ec);
     if (ec) throw std::runtime_error("NatNet command socket: cannot bind: " + ec.message());
+    command_port = command.local_endpoint().port();
     // Motive bursts large frames; a bigger receive buffer rides them out (capped by rmem_max).
     command.set_option(asio::socket_base::receive_buffer_size(1 << 20), ec);
     if (cfg.multicast) {
@@ -130,7 +183,7 @@ struct NatNetClient::Impl {
                                  if (ec)
                                    ++io_errors;
                                  else
-                                   handle(std::span(cmd_buf.data(), n));
+                                   handle(cmd_from, std::span(cmd_buf.data(), n));
                                  receive_command();
                                });
   }
@@ -142,9 +195,25 @@ struct NatNetClient::Impl {
                                if (ec)
                                  ++io_errors;
                                else
-                                 handle(std::span(data_buf.data(), n));
+                                 handle(data_from, std::span(data_buf.data(), n));
                                receive_data();
                              });
+  }
+
+  void count(PoseVerdict verdict) {
+    switch (verdict) {
+      case PoseVerdict::NonFinite:
+        ++rejected_nonfinite;
+        break;
+      case PoseVerdict::BadQuaternion:
+        ++rejected_quaternion;
+        break;
+      case PoseVerdict::TooFast:
+        ++rejected_too_fast;
+        break;
+      case PoseVerdict::Ok:
+        break;
+    }
   }
 
   void reject(const char* why) {
@@ -153,8 +222,26 @@ struct NatNetClient::Impl {
     last_error = why;
   }
 
-  void handle(std::span<const std::uint8_t> datagram) {
+  // A datagram from anyone but the server is dropped before it is parsed: neither its server info
+  // (which sets the layout every later frame is parsed in) nor its poses are believed.
+  bool from_server(const udp::endpoint& from) {
+    if (from.address() == server_addr) return true;
+    ++foreign;
+    std::lock_guard lock(info_mu);
+    last_error = "datagram from " + from.address().to_string() + ":" + std::to_string(from.port()) +
+                 ", not the server " + server_addr.to_string() + ": dropped";
+    if (!warned_foreign) {
+      warned_foreign = true;
+      // Once: a Motive PC multicasting from a second interface shows up here too.
+      last_error += " (if Motive sends from that address, give it as the server's)";
+    }
+    return false;
+  }
+
+  void handle(const udp::endpoint& from, std::span<const std::uint8_t> datagram) {
     ++datagrams;
+    if (!from_server(from)) return;
+    if (cfg.receive_hook) cfg.receive_hook();
     natnet::PacketView pkt;
     if (auto st = natnet::parse_packet(datagram, pkt); !st.ok()) return reject(st.reason);
     if (pkt.message_id == natnet::kPingResponse) {
@@ -184,16 +271,39 @@ struct NatNetClient::Impl {
     // Servers before NatNet 2.6 send no frame timestamp: their frames are stamped on arrival.
     s.timestamp_s =
         v.at_least(2, 6) ? frame.timestamp_s : static_cast<double>(s.received_ns) * 1e-9;
+    if (!std::isfinite(s.timestamp_s)) {  // velocities are taken over these stamps
+      ++rejected_nonfinite;
+      return;
+    }
     const std::size_t n = std::min<std::size_t>(cfg.body_ids.size(), NatNetSample::kMaxBodies);
     for (std::size_t i = 0; i < n; ++i) {
       auto& b = s.bodies[i];
       b.id = cfg.body_ids[i];
-      if (const natnet::RigidBody* rb = frame.find_body(b.id)) {
-        b.present = true;
-        b.valid = rb->tracking_valid;
-        b.pose.p_m = {rb->p_m.x, rb->p_m.y, rb->p_m.z};
-        b.pose.q = glm::normalize(glm::dquat(rb->qw, rb->qx, rb->qy, rb->qz));
+      const natnet::RigidBody* rb = frame.find_body(b.id);
+      if (rb == nullptr) continue;
+      b.present = true;
+      if (!rb->tracking_valid) {
+        // Untracked: not used, so neither counted nor a speed reference; its pose is kept for the
+        // tracking log when it is finite and unit, as Motive sent it.
+        Pose raw;
+        if (check_pose(*rb, limits, nullptr, 0.0, raw) == PoseVerdict::Ok) b.pose = raw;
+        continue;
       }
+      Accepted& last = accepted[i];
+      // The time since the last accepted pose: the server's stamps, or the arrival times when
+      // those say longer (a restarted server's stamps go back to zero).
+      const double dt_s = std::max(s.timestamp_s - last.timestamp_s,
+                                   static_cast<double>(s.received_ns - last.received_ns) * 1e-9);
+      const PoseVerdict verdict =
+          check_pose(*rb, limits, last.have ? &last.pose : nullptr, dt_s, b.pose);
+      if (verdict != PoseVerdict::Ok) {
+        b.rejected = true;
+        b.pose = Pose{};
+        count(verdict);
+        continue;
+      }
+      b.valid = true;
+      last = {true, b.pose, s.timestamp_s, s.received_ns};
     }
     samples.publish(s);
   }
@@ -203,7 +313,9 @@ NatNetClient::NatNetClient(NatNetClientConfig config)
     : impl_(std::make_unique<Impl>(std::move(config), samples_)) {
   impl_->open();
   impl_->start();
-  thread_ = std::thread([this] { impl_->io.run(); });
+  // Nothing may escape the receive thread: a fault stops it and waits in thread_fault() for the
+  // owner (the station polls it and stops with zero force).
+  thread_ = std::thread([this] { impl_->fault.run([this] { impl_->io.run(); }); });
   name_thread(thread_.native_handle(), "telex-natnet");
   scheduling_ = try_realtime(thread_.native_handle(), impl_->cfg.realtime_priority);
 }
@@ -223,6 +335,12 @@ std::string NatNetClient::last_error() const {
   return impl_->last_error;
 }
 
+int NatNetClient::command_port() const { return impl_->command_port; }
+
+std::optional<ThreadFaultReport> NatNetClient::thread_fault() const {
+  return impl_->fault.report();
+}
+
 NatNetClientStats NatNetClient::stats() const {
   NatNetClientStats s;
   s.datagrams = impl_->datagrams;
@@ -231,6 +349,11 @@ NatNetClientStats NatNetClient::stats() const {
   s.before_version = impl_->before_version;
   s.pings_sent = impl_->pings_sent;
   s.io_errors = impl_->io_errors;
+  s.foreign_datagrams = impl_->foreign;
+  s.rejected_nonfinite = impl_->rejected_nonfinite;
+  s.rejected_quaternion = impl_->rejected_quaternion;
+  s.rejected_too_fast = impl_->rejected_too_fast;
+  s.thread_faults = impl_->fault.count();
   return s;
 }
 

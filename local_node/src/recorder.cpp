@@ -221,15 +221,17 @@ RecorderStats SessionRecorder::finish() {
 }
 
 void SessionRecorder::writer_loop(std::stop_token stop) {
-  try {
+  const bool ok = fault_.run([&] {
     while (!stop.stop_requested())
       if (!write_pending()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
     // The producers have stopped: write what they left.
     while (write_pending()) {
     }
-  } catch (const std::exception& e) {
+  });
+  if (!ok) {
+    const std::string what = fault_.report()->what();
     std::lock_guard lock(error_mu_);
-    error_ = e.what();
+    error_ = what;
   }
 }
 

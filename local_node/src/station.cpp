@@ -88,6 +88,10 @@ cv::Rect grow_rect(const cv::Rect& r, int margin) {
   return {r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin};
 }
 
+bool all_finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
 }  // namespace
 
 Station::Station(StationConfig config) : cfg_(std::move(config)) {
@@ -143,8 +147,14 @@ class Station::Run {
   void send_head(std::int64_t now_ns);
   std::int64_t next_head_ns_ = 0;
   StationSummary summarize();
-  // A thread's error: the first one is kept (run() rethrows it) and the station stops.
-  void fail(std::exception_ptr error);
+  // A thread's error: logged once, the first one kept (run() rethrows it as a
+  // StationThreadError naming `thread`), and the station stops.
+  void fail(const std::string& thread, std::exception_ptr error);
+  // The threads the station does not run itself (network client, tracker and gloves, display
+  // writer, recorder): each stops on an exception and keeps it; the main thread polls them here
+  // and fails the station on the first. True when one has failed.
+  bool poll_thread_faults();
+  std::array<bool, 4> fault_reported_{};
   void check(StationLoop loop) const {
     if (cfg_.fault_hook) cfg_.fault_hook(loop);
   }
@@ -323,6 +333,7 @@ StationSummary Station::Run::execute() {
       if (auto f = assembler_.take_repaired(now)) frames_.put(std::move(*f));
   };
   events.on_manifest = [this](const proto::Header& h, const proto::FrameManifest& m) {
+    check(StationLoop::Network);
     const std::int64_t now = monotonic_ns();
     {
       std::lock_guard lock(watch_mu_);
@@ -376,10 +387,15 @@ StationSummary Station::Run::execute() {
   summary_.thread_scheduling.emplace_back("network", client_->scheduling());
 
   if (wait_first_surface()) {
-    start_haptics();
-    main_loop();
+    start_haptics();  // a bad tracker spec or device is a start-up error, thrown as it is
+    try {
+      main_loop();
+    } catch (...) {
+      fail("main", std::current_exception());
+    }
   }
   stop_threads();
+  poll_thread_faults();  // one that failed while the others stopped
   if (window_)
     std::fprintf(stderr,
                  "telex-local: view window: %llu stereo pairs shown, %llu replaced by a newer one "
@@ -391,12 +407,29 @@ StationSummary Station::Run::execute() {
   return summarize();
 }
 
-void Station::Run::fail(std::exception_ptr error) {
+void Station::Run::fail(const std::string& thread, std::exception_ptr error) {
+  const std::string what = ThreadFaultReport{thread, error}.what();
+  std::fprintf(stderr,
+               "telex-local: the %s thread failed: %s; stopping the station with zero force\n",
+               thread.c_str(), what.c_str());
   {
     std::lock_guard lock(error_mu_);
-    if (!error_) error_ = std::move(error);
+    if (!error_) error_ = std::make_exception_ptr(StationThreadError(thread, what));
   }
   stop_.store(true);
+}
+
+bool Station::Run::poll_thread_faults() {
+  const auto poll = [&](std::size_t i, std::optional<ThreadFaultReport> f) {
+    if (!f || fault_reported_[i]) return;
+    fault_reported_[i] = true;
+    fail(f->thread, f->error);
+  };
+  if (client_) poll(0, client_->thread_fault());
+  if (tracker_) poll(1, tracker_->thread_fault());
+  poll(2, display_->thread_fault());
+  if (recorder_) poll(3, recorder_->thread_fault());
+  return std::find(fault_reported_.begin(), fault_reported_.end(), true) != fault_reported_.end();
 }
 
 // ---- surface thread: frames -> snapshots for the haptic loop ----
@@ -515,7 +548,7 @@ void Station::Run::surface_loop(std::stop_token stop) {
       }
     }
   } catch (...) {
-    fail(std::current_exception());
+    fail("surface (telex-surface)", std::current_exception());
   }
 }
 
@@ -528,6 +561,7 @@ bool Station::Run::wait_first_surface() {
   const std::int64_t deadline =
       (duration_first ? t_start_ns_ : monotonic_ns()) + static_cast<std::int64_t>(wait_s * 1e9);
   while (surfaces_built_.load() == 0 && !stop_.load()) {
+    if (poll_thread_faults()) break;
     if (window_ && pump_window()) break;
     if (monotonic_ns() > deadline) {
       const auto& cs = client_->stats();
@@ -555,6 +589,7 @@ void Station::Run::start_haptics() {
   TrackerConfig tracker_cfg = cfg_.tracker;
   tracker_cfg.realtime_priority = cfg_.realtime ? kStationPathPriority : 0;
   if (first_centre_depth_m_.load() > 0) tracker_cfg.surface_depth_m = first_centre_depth_m_.load();
+  if (cfg_.fault_hook) tracker_cfg.natnet_receive_hook = [this] { check(StationLoop::Tracking); };
   tracker_ = make_tracker(cfg_.hand_spec, tracker_cfg);
   std::fprintf(stderr, "telex-local: surface at %.3f m ahead; hand %s; haptics %s\n",
                tracker_cfg.surface_depth_m, tracker_->name().c_str(), display_->name().c_str());
@@ -580,7 +615,7 @@ void Station::Run::haptic_loop(std::stop_token stop) {
   try {
     haptic_ticks(stop);
   } catch (...) {
-    fail(std::current_exception());
+    fail("haptic (telex-haptic)", std::current_exception());
   }
   // Release the device: zero force on every finger (the guard does it again after the join).
   display_zero_.release();
@@ -617,6 +652,12 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
         in_base ? hand.R_BaseCamera : (newest ? newest->R_ModelCamera : glm::dmat3(1.0));
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& tip = hand.tips[static_cast<std::size_t>(i)];
+      // The tracker's poses are checked; a fingertip that still is not finite is not touched,
+      // and its value never reaches the model's state.
+      if (!all_finite(tip.p_CameraFingertip) || !all_finite(tip.axis_Camera)) {
+        in[static_cast<std::size_t>(i)] = {glm::dvec3(0.0), glm::dvec3(0.0, 0.0, 1.0), false};
+        continue;
+      }
       in[static_cast<std::size_t>(i)] = {to_model * tip.p_CameraFingertip,
                                          to_model * tip.axis_Camera, tip.valid && fresh};
     }
@@ -666,6 +707,7 @@ void Station::Run::main_loop() {
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
     check(StationLoop::Main);
+    if (poll_thread_faults()) break;
     if (window_) {
       if (monotonic_ns() >= next_view) {
         next_view = monotonic_ns() + kOnScreenViewPeriodNs;
@@ -720,6 +762,13 @@ void Station::Run::send_head(std::int64_t now_ns) {
   head_for_main_.take(head_sample_);
   if (head_sample_.time_ns == 0) return;  // no head tracked yet
   const auto q = head_joints(cfg_.robot_head, head_sample_.R_BaseCamera);
+  // Never a non-finite target (the tracker's poses are checked; this is the last line): the
+  // command is not built, and the remote holds the head as it does for a silent station.
+  if (!std::all_of(q.begin(), q.end(),
+                   [](double v) { return std::isfinite(static_cast<float>(v)); })) {
+    ++summary_.head_commands_invalid;
+    return;
+  }
   proto::HeadCommand c;
   c.operator_ns = static_cast<std::uint64_t>(head_sample_.time_ns);
   for (std::size_t j = 0; j < 3; ++j) c.joint_rad[j] = static_cast<float>(q[j]);
@@ -889,7 +938,17 @@ std::string Station::Run::status_text(double fps) {
                 "build %.1f ms | %s",
                 fps, percentile(window_latency_, 0.5), ps.mean_rate_hz, ps.p99_jitter_us,
                 build_ms_.load(), std::string(to_string(client_->state())).c_str());
-  return std::string(b);
+  std::string text(b);
+  if (tracker_) {
+    // What the tracker's checks dropped, when they dropped anything (docs/HARDWARE.md).
+    const TrackerStats t = tracker_->stats();
+    const std::uint64_t rejected =
+        t.rejected_nonfinite + t.rejected_quaternion + t.rejected_too_fast;
+    if (t.foreign_datagrams + rejected > 0)
+      text += " | tracking dropped " + std::to_string(t.foreign_datagrams) +
+              " foreign datagrams, " + std::to_string(rejected) + " bad poses";
+  }
+  return text;
 }
 
 cv::Mat3b Station::Run::render_view() {
@@ -1007,7 +1066,7 @@ void Station::Run::stereo_loop(std::stop_token stop) {
       }
     }
   } catch (...) {
-    fail(std::current_exception());
+    fail("view (stereo)", std::current_exception());
   }
 }
 
@@ -1023,6 +1082,7 @@ StationSummary Station::Run::summarize() {
   s.haptic_span_s =
       tick_index_ ? static_cast<double>(last_.deadline_ns - first_deadline_ns_) / 1e9 : 0.0;
   s.log_origin_monotonic_ns = t_start_ns_;
+  if (tracker_) s.tracker = tracker_->stats();
   if (recorder_) {
     const RecorderStats r = recorder_->finish();
     s.record_ticks = r.ticks;

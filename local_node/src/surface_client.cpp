@@ -59,6 +59,7 @@ struct SurfaceClient::Impl {
   tcp::resolver resolver;
   asio::steady_timer heartbeat_timer;
   asio::steady_timer retry_timer;
+  ThreadFault fault{"network (telex-net)"};
   std::thread thread;
 
   proto::StreamParser parser;
@@ -448,7 +449,7 @@ SurfaceClient::~SurfaceClient() { stop(); }
 void SurfaceClient::start() {
   if (impl_->thread.joinable()) return;
   asio::post(impl_->io, [this] { impl_->connect(); });
-  impl_->thread = std::thread([this] { impl_->io.run(); });
+  impl_->thread = std::thread([this] { impl_->fault.run([this] { impl_->io.run(); }); });
   name_thread(impl_->thread.native_handle(), "telex-net");
   scheduling_ = try_realtime(impl_->thread.native_handle(), impl_->cfg.realtime_priority);
 }
@@ -474,6 +475,10 @@ void SurfaceClient::stop() {
     impl_->set_state(ClientState::Stopped, "stopped");
   });
   impl_->thread.join();
+}
+
+std::optional<ThreadFaultReport> SurfaceClient::thread_fault() const {
+  return impl_->fault.report();
 }
 
 void SurfaceClient::request_roi(const proto::RoiRequest& roi) {

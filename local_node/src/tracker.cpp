@@ -55,9 +55,22 @@ class NatNetTracker final : public HandTracker {
   bool poll(std::int64_t now_ns, HandState& out) override {
     ++stats_.polls;
     bool mocap_fresh = false, fresh = false;
-    if (client_->latest(sample_)) {
-      have_sample_ = true;
-      mocap_fresh = fresh = true;
+    if (client_->latest(incoming_)) {
+      // A frame whose head or haptic hand failed the pose checks is set aside whole: the last
+      // good state stays and ages, so the haptic loop's staleness limit releases the fingers and
+      // the head is not sent from it (a rejected shoulder or elbow is only not drawn).
+      const auto rejected = [&](std::int32_t id) {
+        const auto* b = id >= 0 ? incoming_.find(id) : nullptr;
+        return b != nullptr && b->rejected;
+      };
+      if (rejected(cfg_.head_body_id) || rejected(hand_id_[index_of(haptic_)])) {
+        ++stats_.frames_rejected;
+      } else {
+        sample_ = incoming_;
+        have_sample_ = true;
+        mocap_fresh = fresh = true;
+        mocap_ns_ = now_ns;
+      }
     }
     GloveSample g;
     if (glove_ && glove_->latest(g)) {
@@ -123,26 +136,39 @@ class NatNetTracker final : public HandTracker {
     cur.bodies_fresh = mocap_fresh;
     previous_ = cur;
     out = cur;
-    out.time_ns = now_ns;
+    out.time_ns = mocap_ns_;
     ++stats_.updates;
     return true;
   }
 
   std::string name() const override { return name_; }
   std::string scheduling() const override { return client_->scheduling(); }
+  std::optional<ThreadFaultReport> thread_fault() const override {
+    if (auto f = client_->thread_fault()) return f;
+    for (const auto* gl : {glove_.get(), other_glove_.get()})
+      if (gl != nullptr)
+        if (auto f = gl->thread_fault()) return f;
+    return std::nullopt;
+  }
   TrackerStats stats() const override {
-    TrackerStats s = stats_;
+    TrackerStats s = stats_.snapshot();
     const auto c = client_->stats();
     s.frames_in = c.frames;
     s.frames_dropped = client_->overwritten();
     s.parse_errors = c.parse_errors;
     s.io_errors = c.io_errors;
+    s.foreign_datagrams = c.foreign_datagrams;
+    s.rejected_nonfinite = c.rejected_nonfinite;
+    s.rejected_quaternion = c.rejected_quaternion;
+    s.rejected_too_fast = c.rejected_too_fast;
+    s.thread_faults = c.thread_faults;
     for (const auto* gl : {glove_.get(), other_glove_.get()}) {
       if (!gl) continue;
       s.frames_in += gl->reports();
       s.frames_dropped += gl->overwritten();
       s.parse_errors += gl->bad_reports();
       s.io_errors += gl->read_errors();
+      s.thread_faults += gl->thread_faults();
     }
     return s;
   }
@@ -154,12 +180,13 @@ class NatNetTracker final : public HandTracker {
   std::unique_ptr<GloveDevice> glove_, other_glove_;
   std::unique_ptr<NatNetClient> client_;
   std::array<std::int32_t, 2> hand_id_{-1, -1}, shoulder_id_{-1, -1}, elbow_id_{-1, -1};
-  NatNetSample sample_;
+  NatNetSample sample_, incoming_;  // the last frame taken, and the newest before it is checked
   bool have_sample_ = false;
+  std::int64_t mocap_ns_ = 0;         // poll time of the last frame taken
   std::array<JointBends, 2> bend_{};  // each joint's bend by Side: the glove's, or the default
   HandState previous_;
   std::string name_;
-  TrackerStats stats_;
+  TrackerCounters stats_;
 };
 
 // A glove without a mocap system: the wrist is held at a fixed pose in front of the camera with the
@@ -196,13 +223,15 @@ class GloveTracker final : public HandTracker {
   }
   std::string name() const override { return glove_->name(); }
   TrackerStats stats() const override {
-    TrackerStats s = stats_;
+    TrackerStats s = stats_.snapshot();
     s.frames_in = glove_->reports();
     s.frames_dropped = glove_->overwritten();
     s.parse_errors = glove_->bad_reports();
     s.io_errors = glove_->read_errors();
+    s.thread_faults = glove_->thread_faults();
     return s;
   }
+  std::optional<ThreadFaultReport> thread_fault() const override { return glove_->thread_fault(); }
 
  private:
   std::unique_ptr<GloveDevice> glove_;
@@ -210,7 +239,7 @@ class GloveTracker final : public HandTracker {
   Pose wrist_;
   HandState previous_;
   bool have_previous_ = false;
-  TrackerStats stats_;
+  TrackerCounters stats_;
 };
 
 std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerConfig& cfg) {
@@ -220,6 +249,7 @@ std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerC
   c.multicast_group = cfg.natnet_multicast_group;
   c.local_address = cfg.natnet_local_address;
   c.realtime_priority = cfg.realtime_priority;
+  c.receive_hook = cfg.natnet_receive_hook;
   c = parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", c);
   std::unique_ptr<GloveDevice> glove, other_glove;
   const std::size_t haptic = index_of(cfg.use_left_hand ? Side::Left : Side::Right);

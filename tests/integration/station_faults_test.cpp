@@ -1,21 +1,31 @@
 // SPDX-License-Identifier: MIT
 // A fault in any station thread stops the station cleanly with zero force on every finger.
 // The remote runs in-process on the synthetic plane; the station presses it with the scripted hand
-// into the recording display, and a test hook throws from the main loop, the surface thread or the
-// haptic thread once the finger pushes. Before the jthread members and the zero-force guard, the
-// main-loop case destroyed a joinable std::thread and the process terminated mid-press.
+// (or a NatNet hand held 10 mm inside the wall) into the recording display, and a test hook throws
+// from the main loop, the surface thread, the haptic thread, the network client's thread or the
+// NatNet receive thread once the finger pushes. Before the jthread members and the zero-force
+// guard, the main-loop case destroyed a joinable std::thread and the process terminated mid-press;
+// before the network and NatNet threads caught what escaped them, those cases called
+// std::terminate with the display still pressing.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <memory>
+#include <numbers>
 #include <opencv2/core/utility.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "process.h"
 #include "telex/base/periodic.h"
+#include "telex/local/hand_model.h"
 #include "telex/local/station.h"
 #include "telex/remote/daemon.h"
+#include "telex/sim/natnet_server.h"
 
 namespace telex::local {
 namespace {
@@ -55,9 +65,71 @@ std::string loop_name(StationLoop loop) {
       return "Surface";
     case StationLoop::Haptic:
       return "Haptic";
+    case StationLoop::Network:
+      return "Network";
+    case StationLoop::Tracking:
+      return "Tracking";
   }
   return "?";
 }
+
+// The thread a loop's fault names (StationThreadError::thread()).
+std::string thread_name(StationLoop loop) {
+  switch (loop) {
+    case StationLoop::Main:
+      return "main";
+    case StationLoop::Surface:
+      return "surface (telex-surface)";
+    case StationLoop::Haptic:
+      return "haptic (telex-haptic)";
+    case StationLoop::Network:
+      return "network (telex-net)";
+    case StationLoop::Tracking:
+      return "tracking (telex-natnet)";
+  }
+  return "?";
+}
+
+// A NatNet server holding the index fingertip 10 mm inside the plane's wall (0.8 m ahead of the
+// camera) from the start, the head still: the Tracking case's hand.
+struct PressingMocap {
+  explicit PressingMocap(TrackerConfig& tc) {
+    tc.head_body_id = 1;
+    tc.right_hand_body_id = 2;
+    tc.right_shoulder_body_id = -1;
+    tc.hand.p_HeadCamera = glm::dvec3(0.0);
+    const glm::dvec3 tip_world =
+        glm::dvec3(0.0, 1.6, 0.0) + glm::transpose(tc.hand.R_CameraHead) * glm::dvec3(0, 0, 0.81);
+    const double s = std::sin(std::numbers::pi / 4), c = std::cos(std::numbers::pi / 4);
+    Pose hand{{0, 0, 0}, glm::dquat(c, 0, s, 0)};  // fingers along world -z
+    hand.p_m = tip_world - hand_forward(tc.hand, hand, tc.default_bend).joints[1][3];
+    sim::NatNetServerConfig scfg;
+    scfg.command_port = 0;
+    scfg.rate_hz = 240.0;
+    server = std::make_unique<sim::NatNetServer>(scfg, [hand](double, natnet::Frame& f) {
+      natnet::RigidBody head;
+      head.id = 1;
+      head.p_m = {0.0f, 1.6f, 0.0f};
+      natnet::RigidBody h;
+      h.id = 2;
+      h.p_m = {static_cast<float>(hand.p_m.x), static_cast<float>(hand.p_m.y),
+               static_cast<float>(hand.p_m.z)};
+      h.qy = static_cast<float>(hand.q.y);
+      h.qw = static_cast<float>(hand.q.w);
+      f.rigid_bodies = {head, h};
+    });
+    thread = std::thread([this] { server->run_for(120.0); });
+  }
+  ~PressingMocap() {
+    server->stop();
+    thread.join();
+  }
+  std::string spec() const {
+    return "natnet:127.0.0.1,unicast,cmd=" + std::to_string(server->command_port());
+  }
+  std::unique_ptr<sim::NatNetServer> server;
+  std::thread thread;
+};
 
 TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastCommand) {
   const StationLoop faulty = GetParam();
@@ -74,14 +146,18 @@ TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastComma
   remote::RemoteDaemon remote(rc);
   remote.start();
 
-  const auto dir = ::telex::test::scratch_dir("station_fault_" + loop_name(faulty));
-  std::filesystem::create_directories(dir);
+  const auto dir = test::scratch_dir("station_fault_" + loop_name(faulty));
   const auto csv = dir / "display.csv";
 
   StationConfig cfg;
   cfg.client.host = "127.0.0.1";
   cfg.client.port = remote.port();
   cfg.hand_spec = "script:press";
+  std::unique_ptr<PressingMocap> mocap;
+  if (faulty == StationLoop::Tracking) {
+    mocap = std::make_unique<PressingMocap>(cfg.tracker);
+    cfg.hand_spec = mocap->spec();
+  }
   cfg.haptics_spec = "sim:" + csv.string();
   cfg.haptic.stiffness_N_per_m = 500.0;
   // This test is about the exit path, not the stale-surface fade (RemoteRestart tests that): a
@@ -108,10 +184,16 @@ TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastComma
     try {
       station.run();
       ADD_FAILURE() << "run() returned although its " << loop_name(faulty) << " loop threw";
-    } catch (const std::runtime_error& e) {
-      EXPECT_EQ(std::string(e.what()), "injected fault in the " + loop_name(faulty) + " loop");
+    } catch (const StationThreadError& e) {
+      // The exit message names the thread and what it threw.
+      std::printf("StationFault %s: %s\n", loop_name(faulty).c_str(), e.what());
+      EXPECT_EQ(e.thread(), thread_name(faulty));
+      EXPECT_EQ(std::string(e.what()), "the " + thread_name(faulty) +
+                                           " thread failed: injected fault in the " +
+                                           loop_name(faulty) + " loop");
     }
   }  // the station and its display are gone: the CSV is complete
+  mocap.reset();
   remote.stop();
   cv::setNumThreads(cv_threads);
   EXPECT_TRUE(thrown.load());
@@ -123,12 +205,15 @@ TEST_P(StationFault, ExceptionStopsTheStationWithZeroForceAsTheDisplaysLastComma
   EXPECT_GT(peak_N, 0.5) << "the finger never pressed: the test would not see a missing release";
   EXPECT_FALSE(rows.back().any_force_or_contact)
       << "the display's last command is not zero force (" << rows.back().max_pressure_N << " N)";
+  std::printf("StationFault %s: %zu display commands, peak %.2f N, last %.2f N\n",
+              loop_name(faulty).c_str(), rows.size(), peak_N, rows.back().max_pressure_N);
   std::filesystem::remove_all(dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(Loops, StationFault,
                          ::testing::Values(StationLoop::Main, StationLoop::Surface,
-                                           StationLoop::Haptic),
+                                           StationLoop::Haptic, StationLoop::Network,
+                                           StationLoop::Tracking),
                          [](const auto& info) { return loop_name(info.param); });
 
 }  // namespace

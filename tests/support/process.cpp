@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -166,6 +167,27 @@ void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
   const sockaddr_in a = loopback(port);
   sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&a), sizeof a);
   close(fd);
+}
+
+std::size_t udp_send_from(const std::string& from_address, std::uint16_t port,
+                          const std::vector<std::vector<std::uint8_t>>& datagrams) {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in from{};
+  from.sin_family = AF_INET;
+  if (fd < 0 || inet_pton(AF_INET, from_address.c_str(), &from.sin_addr) != 1 ||
+      bind(fd, reinterpret_cast<const sockaddr*>(&from), sizeof from) != 0) {
+    const std::string why = std::strerror(errno);
+    if (fd >= 0) close(fd);
+    throw std::runtime_error("cannot bind a UDP socket to " + from_address + ": " + why);
+  }
+  const sockaddr_in to = loopback(port);
+  std::size_t sent = 0;
+  for (const auto& d : datagrams)
+    if (sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to) ==
+        static_cast<ssize_t>(d.size()))
+      ++sent;
+  close(fd);
+  return sent;
 }
 
 std::string read_text(const std::filesystem::path& p) {

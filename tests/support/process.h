@@ -59,6 +59,11 @@ CsvFile read_csv_file(const std::filesystem::path& p);
 // ignored: a daemon may reset a hostile peer); or send one UDP datagram there.
 void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
 void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
+// A spoofing sender: from a socket bound to `from_address` (another loopback address, e.g.
+// 127.0.0.2), sends each datagram to 127.0.0.1:port. Returns how many were sent; throws when the
+// address cannot be bound.
+std::size_t udp_send_from(const std::string& from_address, std::uint16_t port,
+                          const std::vector<std::vector<std::uint8_t>>& datagrams);
 // Polls `pred` every 20 ms until it holds or the timeout passes.
 bool eventually(std::chrono::milliseconds timeout, const std::function<bool()>& pred);
 

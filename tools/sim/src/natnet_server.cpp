@@ -7,13 +7,14 @@
 #include <utility>
 // clang-format on
 #include <algorithm>
+#include <array>
 #include <boost/asio.hpp>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 
 namespace telex::sim {
@@ -69,16 +70,28 @@ NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop) {
       header = true;
       continue;
     }
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream ls(line);
-    double t = 0, x = 0, y = 0, z = 0, qx = 0, qy = 0, qz = 0, qw = 1;
-    std::int32_t id = 0;
-    std::string extra;
-    if (!(ls >> t >> id >> x >> y >> z >> qx >> qy >> qz >> qw) || (ls >> extra) ||
-        !std::isfinite(t) || t < t_end)
+    // from_chars, not a stream: "nan" and "inf" are read too, so a recording can replay a faulty
+    // stream (the station's pose checks are tested with one).
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    std::array<double, 9> v{};
+    std::size_t n = 0;
+    bool ok = true;
+    for (std::size_t pos = 0; ok && pos <= line.size(); ++n) {
+      const std::size_t end = std::min(line.find(',', pos), line.size());
+      const char* first = line.data() + pos;
+      while (first < line.data() + end && *first == ' ') ++first;
+      ok = n < v.size() &&
+           std::from_chars(first, line.data() + end, v[n]).ptr == line.data() + end &&
+           first != line.data() + end;
+      pos = end + 1;
+    }
+    const double t = v[0], x = v[2], y = v[3], z = v[4], qx = v[5], qy = v[6], qz = v[7], qw = v[8];
+    if (!ok || n != v.size() || !std::isfinite(t) || t < t_end || !(std::abs(v[1]) < 2e9) ||
+        v[1] != std::trunc(v[1]))
       throw std::runtime_error("NatNet recording " + path.string() + " line " +
                                std::to_string(line_no) +
                                ": expected 9 numbers with non-decreasing time_s");
+    const auto id = static_cast<std::int32_t>(v[1]);
     t_end = t;
     tracks[id].push_back({t, body(id, x, y, z, qx, qy, qz, qw)});
   }

@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "telex/base/thread_fault.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/common/hand_kinematics.h"
 #include "telex/common/rig.h"
@@ -136,9 +137,13 @@ class GloveDevice {
   std::uint64_t bad_reports() const { return bad_reports_; }
   std::uint64_t read_errors() const { return read_errors_; }
   std::uint64_t overwritten() const { return samples_.overwritten(); }
+  // The reading thread's fault, named with the glove (empty while it runs).
+  std::optional<ThreadFaultReport> thread_fault() const;
+  std::uint64_t thread_faults() const { return fault_.count(); }
 
  protected:
   void publish(const GloveRaw& raw);
+  ThreadFault fault_{"glove"};  // the reading thread runs through it
   GloveCalibration calibration_;
   TripleBuffer<GloveSample> samples_;
   std::atomic<std::uint64_t> reports_{0}, bad_reports_{0}, read_errors_{0};

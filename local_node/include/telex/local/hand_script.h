@@ -58,7 +58,7 @@ class ScriptTracker final : public HandTracker {
   ScriptTracker(HandScript script, std::string name, bool repeat);
   bool poll(std::int64_t now_ns, HandState& out) override;
   std::string name() const override { return name_; }
-  TrackerStats stats() const override { return stats_; }
+  TrackerStats stats() const override { return stats_.snapshot(); }
   bool finished() const { return finished_; }
 
  private:
@@ -69,7 +69,7 @@ class ScriptTracker final : public HandTracker {
   bool finished_ = false;
   std::int64_t start_ns_ = 0;
   std::int64_t last_ns_ = 0;
-  TrackerStats stats_;
+  TrackerCounters stats_;
 };
 
 }  // namespace telex::local

@@ -6,8 +6,11 @@
 #include <cstdint>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <span>
 #include <string>
+
+#include "telex/base/thread_fault.h"
 
 namespace telex::local {
 
@@ -60,6 +63,9 @@ class HapticDisplay {
   virtual void write(std::int64_t now_ns, std::span<const FingerForce> forces) = 0;
   virtual std::string name() const = 0;
   virtual DisplayStats stats() const = 0;
+  // A display with a writer thread: that thread's fault (it stopped on an exception; the owner
+  // stops the station, whose last write() and destructor still command zero force).
+  virtual std::optional<ThreadFaultReport> thread_fault() const { return std::nullopt; }
 };
 
 // The safety duty as an object: commands zero force on every finger when it goes out of scope,

@@ -6,6 +6,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "telex/base/thread_fault.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/local/hand_model.h"
 #include "telex/local/natnet.h"
@@ -33,7 +35,35 @@ struct NatNetClientConfig {
   // SCHED_FIFO priority of the receive thread (0: the scheduling it was started with): the
   // station asks for kStationPathPriority, as the hand's pose is on the path to the force.
   int realtime_priority = 0;
+  // Test seam, never set by telex-local: called on the receive thread for every datagram from the
+  // server before it is parsed; an exception it throws takes that thread's fault path.
+  std::function<void()> receive_hook;
 };
+
+// What every tracked rigid body must pass before a frame carries it (docs/HARDWARE.md, "What the
+// station checks"). The defaults pass real Motive data with a wide margin and reject what no
+// operator can do.
+struct PoseLimits {
+  // Motive's volumes are tens of metres at most; a coordinate beyond this is corrupt.
+  double max_abs_coordinate_m = 100.0;
+  // Motive sends unit quaternions in float32: |q| is within about 1e-6 of 1. Within this
+  // tolerance the quaternion is normalised; beyond it the pose is rejected.
+  double quaternion_norm_tolerance = 1e-3;
+  // Hand and head speeds while teleoperating stay below 3 m/s and a boxer's punch peaks near
+  // 10 m/s; two bodies swapped by a labelling error jump by their distance (0.3 m in one 120 Hz
+  // frame is 36 m/s). Faster than this, plus jump_slack_m for noise, is rejected.
+  double max_speed_m_per_s = 10.0;
+  double jump_slack_m = 0.01;
+};
+
+enum class PoseVerdict { Ok, NonFinite, BadQuaternion, TooFast };
+std::string_view to_string(PoseVerdict v);
+
+// One body's pose from a frame against `limits` (pure). `previous` is the body's last accepted
+// pose, `dt_s` the time since it (ignored without one). On Ok, `out` holds the pose with its
+// quaternion normalised.
+PoseVerdict check_pose(const natnet::RigidBody& body, const PoseLimits& limits,
+                       const Pose* previous, double dt_s, Pose& out);
 
 // "SERVER_IP[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT][,version=X.Y]" (the
 // station's natnet: spec after its prefix, `telex calibrate body --natnet`) over `base`. Throws
@@ -46,8 +76,9 @@ struct NatNetSample {
   struct Body {
     std::int32_t id = -1;
     Pose pose;
-    bool present = false;  // in this frame
-    bool valid = false;    // present and tracked
+    bool present = false;   // in this frame
+    bool valid = false;     // present, tracked and its pose passed check_pose
+    bool rejected = false;  // present and tracked, but its pose failed check_pose (pose unset)
   };
   std::uint32_t frame_number = 0;
   double timestamp_s = 0;        // server clock (2.6+), else the arrival time
@@ -63,11 +94,19 @@ struct NatNetClientStats {
   std::uint64_t before_version = 0;  // frames dropped while the layout was still unknown
   std::uint64_t pings_sent = 0;
   std::uint64_t io_errors = 0;
+  // Datagrams from an address other than the configured server's: dropped unread.
+  std::uint64_t foreign_datagrams = 0;
+  // Tracked bodies whose pose check_pose rejected, by reason (a frame with a non-finite
+  // timestamp counts once under rejected_nonfinite).
+  std::uint64_t rejected_nonfinite = 0, rejected_quaternion = 0, rejected_too_fast = 0;
+  std::uint64_t thread_faults = 0;  // exceptions that stopped the receive thread
 };
 
 // Owns one thread running its io_context: the haptic thread only calls latest(), which never
 // blocks. The constructor opens and binds the sockets and throws std::runtime_error naming the
-// address and port when it cannot.
+// address and port when it cannot. Only datagrams from the configured server's address are read
+// (unicast replies and frames, and the multicast frames the server host sends); each tracked body
+// must pass check_pose. An exception on the receive thread stops it and is kept in thread_fault().
 class NatNetClient {
  public:
   explicit NatNetClient(NatNetClientConfig config);
@@ -80,6 +119,8 @@ class NatNetClient {
   NatNetClientStats stats() const;
   std::uint64_t overwritten() const { return samples_.overwritten(); }
   std::string last_error() const;  // reason of the newest rejected packet (for logs)
+  int command_port() const;        // the command socket's local port (replies arrive there)
+  std::optional<ThreadFaultReport> thread_fault() const;
   const std::string& scheduling() const { return scheduling_; }  // the receive thread's
 
  private:

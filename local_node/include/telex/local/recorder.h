@@ -10,10 +10,12 @@
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 
 #include "telex/base/spsc_ring.h"
+#include "telex/base/thread_fault.h"
 #include "telex/common/haptic_model.h"
 #include "telex/local/surface_builder.h"
 #include "telex/local/tracker.h"
@@ -80,8 +82,9 @@ struct RecorderStats {
 
 // Writes a session to a bag on its own thread. The producers never wait: each queue is a bounded
 // lock-free ring (ticks and bodies from the station's main thread, surfaces from the surface
-// thread); what does not fit is dropped and counted. A write failure (disk full) stops the
-// recording, not the station: the error is kept and reported by stats().
+// thread); what does not fit is dropped and counted. A write failure (disk full) or any other
+// exception stops the writer thread: the error is kept, reported by stats() and thread_fault(),
+// and the station stops on it (a session that is not being recorded as asked is not run on).
 class SessionRecorder {
  public:
   // Opens the bag (throws std::runtime_error naming the file) and starts the writer.
@@ -97,6 +100,7 @@ class SessionRecorder {
   // Writes what is queued, closes the bag and returns the totals (idempotent).
   RecorderStats finish();
   RecorderStats stats() const;
+  std::optional<ThreadFaultReport> thread_fault() const { return fault_.report(); }
   const std::string& path() const { return cfg_.path; }
 
  private:
@@ -118,6 +122,7 @@ class SessionRecorder {
   std::string error_;
   bool finished_ = false;
   RecorderStats final_{};
+  ThreadFault fault_{"recorder (bag writer)"};
   std::jthread thread_;  // last: stopped first
 };
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "telex/common/haptic_model.h"
@@ -21,8 +22,23 @@
 
 namespace telex::local {
 
-// The station's loops, each on its own thread (Main is the thread that called Station::run).
-enum class StationLoop { Main, Surface, Haptic };
+// The station's loops, each on its own thread (Main is the thread that called Station::run;
+// Network is the SurfaceClient's thread, at each frame's manifest; Tracking the NatNet client's
+// receive thread, at each datagram from the server).
+enum class StationLoop { Main, Surface, Haptic, Network, Tracking };
+
+// What run() throws when one of the station's threads (its own or a device's or the network
+// client's) stopped on an exception: names the thread and the error.
+class StationThreadError : public std::runtime_error {
+ public:
+  StationThreadError(std::string thread, const std::string& what)
+      : std::runtime_error("the " + thread + " thread failed: " + what),
+        thread_(std::move(thread)) {}
+  const std::string& thread() const { return thread_; }
+
+ private:
+  std::string thread_;
+};
 
 struct StationConfig {
   ClientConfig client;
@@ -133,6 +149,10 @@ struct StationSummary {
   std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
   std::uint64_t record_dropped_ticks = 0, record_dropped_surfaces = 0, record_dropped_bodies = 0;
   std::string record_error;
+  // Head poses not sent because a joint target was not finite (never reached with checked poses).
+  std::uint64_t head_commands_invalid = 0;
+  // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
+  TrackerStats tracker;
 };
 
 class Station {
@@ -141,8 +161,10 @@ class Station {
   ~Station();
   // Runs until duration_s elapses or request_stop() (e.g. from a signal handler thread).
   // Throws std::runtime_error / std::invalid_argument for start-up problems (bad device, file),
-  // and rethrows the first exception of any of its threads after stopping them all. On every exit,
-  // normal or not, the display's last command is zero force on every finger.
+  // and StationThreadError for the first thread that stopped on an exception (its own threads,
+  // the network client's, the tracker's and gloves', the display's writer, the recorder's), after
+  // stopping them all. On every exit, normal or not, the display's last command is zero force on
+  // every finger.
   StationSummary run();
   void request_stop() { stop_.store(true); }
 

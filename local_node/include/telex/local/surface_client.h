@@ -8,8 +8,10 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "telex/base/thread_fault.h"
 #include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
 
@@ -103,6 +105,9 @@ class SurfaceClient {
   // What the network thread got (try_realtime's description); empty before start().
   const std::string& scheduling() const { return scheduling_; }
   ClientState state() const { return static_cast<ClientState>(stats_.state.load()); }
+  // The network thread stops on an exception (its own or an event handler's) instead of
+  // terminating the process; the owner polls this and stops (the station: with zero force).
+  std::optional<ThreadFaultReport> thread_fault() const;
 
  private:
   struct Impl;

@@ -3,12 +3,15 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <glm/glm.hpp>
 #include <memory>
 #include <optional>
 #include <string>
 
+#include "telex/base/thread_fault.h"
 #include "telex/common/body.h"
 #include "telex/common/rig.h"
 #include "telex/local/hand_model.h"
@@ -50,7 +53,9 @@ struct ArmTrack {
 
 // One tracker sample, everything in the remote camera frame (x right, y down, z forward, metres).
 struct HandState {
-  std::int64_t time_ns = 0;  // when the sample was taken, on the caller's clock (poll's now_ns)
+  // When the sample was taken, on the caller's clock (poll's now_ns); with NatNet, the poll that
+  // took the newest accepted mocap frame (a glove-only update does not make old poses new).
+  std::int64_t time_ns = 0;
   std::array<Fingertip, kFingerCount> tips{};
   // Joint chain per finger for drawing: knuckle (MCP), PIP, DIP, tip. Valid when skeleton_valid.
   std::array<std::array<glm::dvec3, 4>, kFingerCount> joints_camera{};
@@ -81,6 +86,27 @@ struct TrackerStats {
   std::uint64_t frames_dropped = 0;  // frames overwritten before a poll took them
   std::uint64_t parse_errors = 0;    // malformed packets / reports rejected
   std::uint64_t io_errors = 0;       // socket or device read failures
+  // NatNet: datagrams from another address than the server's (dropped unread), tracked bodies
+  // whose pose failed the checks (NatNetClient, PoseLimits) by reason, and frames the tracker set
+  // aside because the head or the haptic hand was among those: the last good state stays, ageing.
+  std::uint64_t foreign_datagrams = 0;
+  std::uint64_t rejected_nonfinite = 0, rejected_quaternion = 0, rejected_too_fast = 0;
+  std::uint64_t frames_rejected = 0;
+  std::uint64_t thread_faults = 0;  // exceptions that stopped a receive thread
+};
+
+// The counters a tracker updates on the polling (haptic) thread, read from any other (the
+// station's status line) without a lock.
+struct TrackerCounters {
+  std::atomic<std::uint64_t> polls{0}, updates{0}, frames_in{0}, frames_rejected{0};
+  TrackerStats snapshot() const {
+    TrackerStats s;
+    s.polls = polls;
+    s.updates = updates;
+    s.frames_in = frames_in;
+    s.frames_rejected = frames_rejected;
+    return s;
+  }
 };
 
 // Everything a tracker spec may need beyond its own string.
@@ -104,6 +130,8 @@ struct TrackerConfig {
   std::string natnet_multicast_group = "239.255.42.99";
   std::string natnet_local_address = "0.0.0.0";  // interface to join the group on
   int realtime_priority = 0;  // the NatNet receive thread's SCHED_FIFO priority (0: none)
+  // Test seam (NatNetClientConfig::receive_hook), never set by telex-local.
+  std::function<void()> natnet_receive_hook;
 
   HandModelConfig hand;  // the right hand's geometry and the head-to-camera offset
   HandGeometry left_hand = BodyDims::left_hand();  // the left hand's geometry
@@ -130,6 +158,8 @@ class HandTracker {
   virtual TrackerStats stats() const = 0;
   // Its receive thread's scheduling (try_realtime's description); empty without a thread.
   virtual std::string scheduling() const { return {}; }
+  // The first of its threads (NatNet, gloves) that an exception stopped; empty while all run.
+  virtual std::optional<ThreadFaultReport> thread_fault() const { return std::nullopt; }
 };
 
 // Spec grammar (docs/HARDWARE.md):

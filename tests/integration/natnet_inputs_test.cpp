@@ -1,0 +1,140 @@
+// SPDX-License-Identifier: MIT
+// The operator's own inputs are checked, end to end with the daemons as processes: telex-remote on
+// the synthetic plane, telex-sim-natnet multicasting a recording whose hand and head poses are
+// at times NaN, of non-unit quaternion or jump 3 m in one frame, and telex-local tracking it.
+// A spoofer on 127.0.0.2 sends server info and frames to the station's data port. The station
+// keeps running on the real server's good frames, every force it logs is finite, and its summary
+// counts each kind of drop.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include "daemons.h"
+#include "process.h"
+#include "telex/local/natnet.h"
+#include "test_support.h"
+
+namespace telex::test {
+namespace {
+
+using namespace std::chrono_literals;
+namespace natnet = local::natnet;
+
+// Head (1), right hand (2) and shoulder (3) as telex-sim-natnet's press motion holds them, with a
+// fault in one body for 0.1 s at a time; the recording loops every 2 s.
+constexpr const char* kGlitchyRecording =
+    "time_s,body_id,x,y,z,qx,qy,qz,qw\n"
+    "0.0,1,0,1.6,0,0,0,0,1\n"
+    "0.0,2,0.03,1.5,-0.4,0,0.707107,0,0.707107\n"
+    "0.0,3,0.2,1.45,0.05,0,0,0,1\n"
+    "0.5,2,nan,1.5,-0.4,0,0.707107,0,0.707107\n"  // non-finite position
+    "0.6,2,0.03,1.5,-0.4,0,0.707107,0,0.707107\n"
+    "0.8,2,0.03,1.5,-0.4,0,0.848528,0,0.848528\n"  // |q| = 1.2
+    "0.9,2,0.03,1.5,-0.4,0,0.707107,0,0.707107\n"
+    "1.1,2,3.03,1.5,-0.4,0,0.707107,0,0.707107\n"  // 3 m in one frame
+    "1.2,2,0.03,1.5,-0.4,0,0.707107,0,0.707107\n"
+    "1.4,1,0,1.6,0,0,nan,0,1\n"  // the head's quaternion
+    "1.5,1,0,1.6,0,0,0,0,1\n"
+    "2.0,1,0,1.6,0,0,0,0,1\n";
+
+std::vector<std::vector<std::uint8_t>> spoofed_datagrams() {
+  std::vector<std::vector<std::uint8_t>> out;
+  natnet::ServerInfo info;
+  info.app_name = "spoofer";
+  info.natnet_version = {2, 0};  // the real server streams 3.1
+  for (int i = 0; i < 5; ++i) out.push_back(natnet::make_server_info(info));
+  for (int i = 0; i < 50; ++i) {
+    natnet::Frame f;
+    natnet::RigidBody hand;
+    hand.id = 2;
+    hand.p_m = {0.03f, 1.5f, -0.45f};
+    hand.qy = hand.qw = 0.707107f;
+    f.rigid_bodies = {hand};
+    f.frame_number = 0x5900'0000u + static_cast<std::uint32_t>(i);
+    out.push_back(natnet::encode_frame(f, {3, 1}));
+  }
+  return out;
+}
+
+TEST(NatNetInputs, SpoofedSenderAndBadPosesAreDroppedAndCountedWhileTheStationRuns) {
+  TELEX_REQUIRE_BINARIES("telex-local", "telex-remote", "telex-sim-natnet");
+  const auto dir = scratch_dir("natnet_inputs_spoof_and_bad_poses");
+  std::ofstream(dir / "glitchy.csv") << kGlitchyRecording;
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
+  const std::uint16_t cmd_port = free_port(), data_port = free_port();
+  Process sim(
+      {built_binary("telex-sim-natnet").string(), "--command-port", std::to_string(cmd_port),
+       "--multicast", "--data-port", std::to_string(data_port), "--interface", "127.0.0.1",
+       "--rate", "120", "--duration", "60", "--motion", (dir / "glitchy.csv").string()},
+      dir / "sim.out", dir / "sim.err");
+  Process local(local_args(remote.port, dir,
+                           {"--hand",
+                            "natnet:127.0.0.1,multicast,local=127.0.0.1,cmd=" +
+                                std::to_string(cmd_port) + ",data=" + std::to_string(data_port),
+                            "--log-tracking", (dir / "tracking.csv").string(), "--duration", "8"}),
+                dir / "local.out", dir / "local.err");
+  // The tracker exists once the haptic loop runs: then the spoofer sends to its data port.
+  ASSERT_TRUE(eventually(30s, [&] {
+    return local.stderr_text().find("haptic loop at") != std::string::npos || !local.running();
+  }));
+  const std::size_t sent = udp_send_from("127.0.0.2", data_port, spoofed_datagrams());
+  ASSERT_EQ(sent, 55u);
+  const auto rc = local.wait(60s);
+  sim.signal(SIGINT);
+  ASSERT_EQ(rc.value_or(-1), 0) << local.stderr_text();
+
+  const nlohmann::json j = summary_of(local);
+  ASSERT_TRUE(j.contains("tracker")) << local.stdout_text();
+  const nlohmann::json& t = j["tracker"];
+  std::printf("NatNetInputs: tracker %s; head commands %llu, invalid %llu\n", t.dump().c_str(),
+              j.value("head_commands", 0ULL), j.value("head_commands_invalid", 0ULL));
+  // The spoofer: every datagram counted and none believed (a 2.0 layout would break the parse).
+  EXPECT_EQ(t["foreign_datagrams"].get<std::uint64_t>(), sent);
+  EXPECT_EQ(t["parse_errors"].get<std::uint64_t>(), 0u);
+  // Each kind of bad pose was seen and dropped (three 2 s cycles in the run; 12 frames each).
+  EXPECT_GE(t["rejected_nonfinite"].get<std::uint64_t>(), 12u);
+  EXPECT_GE(t["rejected_quaternion"].get<std::uint64_t>(), 24u);  // the hand's and the head's
+  EXPECT_GE(t["rejected_too_fast"].get<std::uint64_t>(), 12u);
+  EXPECT_GE(t["frames_rejected"].get<std::uint64_t>(), 12u);
+  EXPECT_EQ(t["thread_faults"].get<std::uint64_t>(), 0u);
+  // The real server still drives the station.
+  EXPECT_GT(t["frames_in"].get<std::uint64_t>(), 300u);
+  EXPECT_EQ(j["head_commands_invalid"].get<std::uint64_t>(), 0u);
+  EXPECT_NE(local.stderr_text().find("tracking dropped"), std::string::npos)
+      << "the status line does not report the drops";
+  // Every force and fingertip the station logged is finite, and the fingertips were tracked.
+  const CsvFile forces = read_csv_file(dir / "forces.csv");
+  ASSERT_GT(forces.rows.size(), 1000u);
+  std::size_t non_finite = 0;
+  for (const auto& row : forces.rows) {
+    ASSERT_GE(row.size(), 13u);
+    for (const std::size_t c : {2u, 3u, 5u, 6u, 7u, 8u, 10u, 11u, 12u})
+      non_finite += std::isfinite(std::stod(row[c])) ? 0 : 1;
+  }
+  EXPECT_EQ(non_finite, 0u);
+  // Every body the tracker used (--log-tracking logs the frames it took) is the recording's good
+  // pose: finite, of unit quaternion, the hand never where the 3 m jump put it.
+  const CsvFile tracking = read_csv_file(dir / "tracking.csv");
+  std::size_t hand_rows = 0, bad_rows = 0;
+  for (const auto& row : tracking.rows) {
+    ASSERT_EQ(row.size(), 10u);
+    if (row[9] != "1") continue;
+    double q2 = 0.0;
+    for (const std::size_t c : {5u, 6u, 7u, 8u}) q2 += std::stod(row[c]) * std::stod(row[c]);
+    const bool finite = std::isfinite(std::stod(row[2])) && std::isfinite(std::stod(row[3])) &&
+                        std::isfinite(std::stod(row[4]));
+    const bool hand_jumped = row[1] == "2" && std::abs(std::stod(row[2]) - 0.03) > 0.01;
+    bad_rows += (!finite || std::abs(q2 - 1.0) > 1e-5 || hand_jumped) ? 1 : 0;
+    hand_rows += row[1] == "2" ? 1 : 0;
+  }
+  std::printf("NatNetInputs: %zu tracked hand rows logged, %zu with a bad pose\n", hand_rows,
+              bad_rows);
+  EXPECT_GT(hand_rows, 300u);
+  EXPECT_EQ(bad_rows, 0u);
+}
+
+}  // namespace
+}  // namespace telex::test
