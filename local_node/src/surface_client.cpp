@@ -232,6 +232,10 @@ struct SurfaceClient::Impl {
     link->async_read_some(asio::buffer(tcp_buf), [this, gen, keep = link](
                                                      boost::system::error_code ec, std::size_t n) {
       if (gen != generation) return;
+      // TLS 1.3: the client's handshake ends before the remote has checked its certificate, so
+      // the remote's refusal (an alert) arrives at the first read.
+      if (ec && link->tls() && session_id == 0 && ec.category() == asio::error::get_ssl_category())
+        return on_handshake_failed(ec);
       if (ec)
         return disconnect(ec == asio::error::eof ? "remote closed the connection"
                                                  : "read failed: " + ec.message());

@@ -125,6 +125,7 @@ void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string 
     connected_ = false;
   }
   if (!send) {
+    ++counters_.clients_rejected;
     a->link->close();
     return;
   }
