@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 // telex-local: the operator-station daemon (thin main around telex::local::Station).
+#include <openssl/ssl.h>
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
@@ -50,7 +51,8 @@ int main(int argc, char** argv) {
   std::string connect = "127.0.0.1:7300";
   std::string transport = "udp";
   std::string glove;
-  std::string psk_file;
+  std::string psk_file, cert_file, key_file, ca_file;
+  bool insecure = false;
   std::string elbow_bodies;
   bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
   app.add_option("--connect", connect, "remote node HOST:PORT")->capture_default_str();
@@ -227,8 +229,16 @@ int main(int argc, char** argv) {
   app.add_flag("--json-summary", json_summary, "print a JSON summary on stdout at exit");
   app.add_flag("--quiet", quiet, "no status line");
   app.add_option("--psk", psk_file,
-                 "pre-shared key FILE (16..1024 raw bytes, mode 0600): every message carries an "
-                 "HMAC-SHA256 tag and replays are dropped; the remote needs the same key");
+                 "pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "(EC)DHE on TCP, sealed datagrams on UDP; the remote needs the same key");
+  app.add_option("--cert", cert_file,
+                 "this station's certificate chain FILE (PEM), instead of --psk; with --key, --ca");
+  app.add_option("--key", key_file, "the private key FILE (PEM, mode 0600) of --cert");
+  app.add_option("--ca", ca_file,
+                 "CA FILE (PEM): the remote's certificate must chain to it (required, verified)");
+  app.add_flag("--insecure", insecure,
+               "accept a --connect address off loopback without --psk or certificates: anyone on "
+               "the network can then move the robot head and watch its cameras and depth");
   try {
     app.parse(argc, argv);
     auto [host, port] = host_port(connect, "--connect");
@@ -248,15 +258,34 @@ int main(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
   }
-  if (!psk_file.empty()) {
-    try {
-      telex::proto::check_key_file_permissions(psk_file);
-      cfg.client.psk = telex::proto::load_key_file(psk_file);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "telex-local: error: --psk: %s\n", e.what());
-      return 2;
+  try {
+    telex::proto::validate_tls_flags(!psk_file.empty(), cert_file, key_file, ca_file);
+    if (!psk_file.empty()) {
+      try {
+        telex::proto::check_key_file_permissions(psk_file);
+        cfg.client.tls.psk = telex::proto::load_key_file(psk_file);
+      } catch (const std::exception& e) {
+        throw std::invalid_argument(std::string("--psk: ") + e.what());
+      }
     }
+    if (!cert_file.empty()) {
+      telex::proto::check_key_file_permissions(key_file, "private key file");
+      cfg.client.tls.cert = cert_file;
+      cfg.client.tls.key = key_file;
+      cfg.client.tls.ca = ca_file;
+      // Loaded once here, so an unreadable or mismatched file exits 2 before anything starts.
+      SSL_CTX_free(telex::proto::make_tls_context(cfg.client.tls, telex::proto::TlsRole::Client));
+    }
+    const bool loopback = telex::proto::is_loopback_host(cfg.client.host);
+    if (!cfg.client.tls.enabled() && !loopback && !insecure)
+      throw std::invalid_argument(telex::proto::insecure_refusal("--connect", connect));
+    cfg.insecure = !cfg.client.tls.enabled() && !loopback;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+    return 2;
   }
+  if (cfg.insecure)
+    std::fprintf(stderr, "telex-local: warning: %s\n", telex::proto::insecure_warning().c_str());
   cfg.client.use_udp = transport == "udp";
   cfg.client.frame_parts = !no_frame_parts;
   cfg.client.repair = !no_repair;
@@ -345,7 +374,7 @@ int main(int argc, char** argv) {
           {"scheduling", s.scheduling},
           {"thread_scheduling", thread_scheduling},
           {"auth_failed", s.auth_failed},
-          {"unexpected_tag", s.unexpected_tag},
+          {"unsealed", s.unsealed},
           {"replayed", s.replayed},
           {"dropped_malformed", s.dropped_malformed},
           {"upstream_dropped", s.upstream_dropped},

@@ -94,7 +94,8 @@ int main(int argc, char** argv) {
   std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
               size = "640x480", video_size = "0x0";
   int client_timeout_ms = 3000;
-  std::string psk_file;
+  std::string psk_file, cert_file, key_file, ca_file;
+  bool insecure = false;
   bool no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
   app.add_option("--rig", rig_file,
                  "Rig FILE (docs/RIG.md): the depth and eye cameras' calibration and the "
@@ -190,8 +191,17 @@ int main(int argc, char** argv) {
                  "dynamixel:DEV[,ids=1,2,3][,baud=57600] (Protocol 2.0 servos yaw, pitch, roll) | "
                  "udp:HOST:PORT (a lab's own head controller; docs/PROTOCOL.md)");
   app.add_option("--psk", psk_file,
-                 "Pre-shared key FILE (16..1024 raw bytes, mode 0600): every message carries an "
-                 "HMAC-SHA256 tag and replays are dropped; the station needs the same key");
+                 "Pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "(EC)DHE on TCP, sealed datagrams on UDP; the station needs the same key");
+  app.add_option(
+      "--cert", cert_file,
+      "This remote's certificate chain FILE (PEM), instead of --psk; with --key and --ca");
+  app.add_option("--key", key_file, "The private key FILE (PEM, mode 0600) of --cert");
+  app.add_option("--ca", ca_file,
+                 "CA FILE (PEM): the station's certificate must chain to it (required, verified)");
+  app.add_flag("--insecure", insecure,
+               "Accept a --listen address off loopback without --psk or certificates: anyone on "
+               "the network can then move the robot head and watch its cameras and depth");
 
   try {
     app.parse(argc, argv);
@@ -247,10 +257,20 @@ int main(int argc, char** argv) {
           fmt::format("--fill-window {} must be odd", cfg.pipeline.hole_fill.window_px));
     cfg.stats_line = !no_stats;
     cfg.realtime = !no_realtime;
+    telex::proto::validate_tls_flags(!psk_file.empty(), cert_file, key_file, ca_file);
     if (!psk_file.empty()) {
       telex::proto::check_key_file_permissions(psk_file);
-      cfg.server.psk = telex::proto::load_key_file(psk_file);
+      cfg.server.tls.psk = telex::proto::load_key_file(psk_file);
     }
+    if (!cert_file.empty()) {
+      telex::proto::check_key_file_permissions(key_file, "private key file");
+      cfg.server.tls.cert = cert_file;
+      cfg.server.tls.key = key_file;
+      cfg.server.tls.ca = ca_file;
+    }
+    if (!cfg.server.tls.enabled() && !telex::proto::is_loopback_host(cfg.server.host) && !insecure)
+      throw std::invalid_argument(telex::proto::insecure_refusal("--listen", listen));
+    cfg.insecure = !cfg.server.tls.enabled() && !telex::proto::is_loopback_host(cfg.server.host);
     telex::remote::validate(cfg);
   } catch (const std::exception& e) {
     std::cerr << "telex-remote: " << e.what() << "\n";
@@ -278,9 +298,11 @@ int main(int argc, char** argv) {
   for (const auto& [name, how] : daemon->scheduling())
     path += (path.empty() ? "" : ", ") + name + " " + how;
   spdlog::info("telex-remote: depth path: {}", path);
-  spdlog::info(
-      "telex-remote: {} -> listening on {}:{} ({}{})", daemon->depth_source().describe(),
-      cfg.server.host, daemon->port(), cfg.server.force_tcp ? "tcp" : "udp if the client offers it",
-      cfg.server.psk ? ", messages authenticated with --psk" : ", no --psk: unauthenticated");
+  spdlog::info("telex-remote: {} -> listening on {}:{} ({}, {})", daemon->depth_source().describe(),
+               cfg.server.host, daemon->port(),
+               cfg.server.force_tcp ? "tcp" : "udp if the client offers it",
+               cfg.server.tls.enabled() ? cfg.server.tls.describe() + ", datagrams sealed"
+                                        : "plain: unauthenticated, unencrypted");
+  if (cfg.insecure) spdlog::warn("telex-remote: {}", telex::proto::insecure_warning());
   return daemon->run();
 }

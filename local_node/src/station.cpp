@@ -240,6 +240,7 @@ class Station::Run {
   std::int64_t next_print_ns_ = 0;
   std::uint64_t surfaces_at_last_status_ = 0;
   std::string last_status_ = "starting";
+  int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
   HandState view_hand_{};
 
   // ---- last: stopped and joined first on destruction ----
@@ -565,15 +566,13 @@ bool Station::Run::wait_first_surface() {
     if (window_ && pump_window()) break;
     if (monotonic_ns() > deadline) {
       const auto& cs = client_->stats();
-      const std::uint64_t auth_drops = cs.auth_failed.load() + cs.unexpected_tag.load();
-      if (auth_drops > 0)
+      if (cs.auth_failed.load() > 0)
         throw std::runtime_error(
             "no depth surface from the remote at " + cfg_.client.host + ":" +
             std::to_string(cfg_.client.port) + ": authentication failed (" +
-            std::to_string(cs.auth_failed.load()) + " message(s) with a missing or wrong tag, " +
-            std::to_string(cs.unexpected_tag.load()) +
-            " tagged while this station has no key; see the lines above): start both daemons "
-            "with the same --psk FILE, or neither");
+            std::to_string(cs.auth_failed.load()) +
+            " TLS handshake(s) or datagram(s) refused; see the lines above): start both daemons "
+            "with the same --psk FILE (or certificates from one CA), or neither");
       throw std::runtime_error(
           "no depth surface from the remote at " + cfg_.client.host + ":" +
           std::to_string(cfg_.client.port) + " within " + fmt::format("{:g}", wait_s) + " s" +
@@ -909,7 +908,12 @@ void Station::Run::print_status() {
                     last_.forces[static_cast<std::size_t>(i)].shear_along_axis_N);
       forces += b;
     }
-    std::fprintf(stderr, "telex-local: %s |%s\n", text.c_str(), forces.c_str());
+    std::fprintf(stderr, "telex-local: %s |%s%s\n", text.c_str(), forces.c_str(),
+                 cfg_.insecure ? " | INSECURE link (--insecure)" : "");
+  }
+  if (cfg_.insecure && ++statuses_since_insecure_warning_ >= 60) {
+    statuses_since_insecure_warning_ = 0;
+    std::fprintf(stderr, "telex-local: warning: %s\n", proto::insecure_warning().c_str());
   }
   last_status_ = text;
   write_view_files();
@@ -1106,7 +1110,7 @@ StationSummary Station::Run::summarize() {
   s.build_wait_median_ms = build_wait_ms_.quantile(0.5);
   s.build_wait_p99_ms = build_wait_ms_.quantile(0.99);
   s.auth_failed = client_->stats().auth_failed.load();
-  s.unexpected_tag = client_->stats().unexpected_tag.load();
+  s.unsealed = client_->stats().unsealed.load();
   s.replayed = client_->stats().replayed.load();
   s.dropped_malformed = client_->stats().dropped_malformed.load();
   s.upstream_dropped = client_->stats().upstream_dropped.load();

@@ -10,7 +10,9 @@
 
 #include "telex/base/periodic.h"
 #include "telex/proto/fragment.h"
+#include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
+#include "telex/proto/seal.h"
 
 namespace telex::local {
 
@@ -40,6 +42,7 @@ struct SurfaceClient::Impl {
         ev(std::move(e)),
         stats(s),
         work(asio::make_work_guard(io)),
+        tls_ctx(make_tls(cfg.tls)),
         tcp_sock(io),
         udp_sock(io),
         resolver(io),
@@ -54,7 +57,10 @@ struct SurfaceClient::Impl {
   ClientStats& stats;
   asio::io_context io;
   asio::executor_work_guard<asio::io_context::executor_type> work;
-  tcp::socket tcp_sock;
+  // With a key or certificates; main() has loaded them once already, so bad files exit 2 there.
+  std::optional<asio::ssl::context> tls_ctx;
+  tcp::socket tcp_sock;                     // while connecting; then moved into `link`
+  std::shared_ptr<proto::LinkStream> link;  // the connection: TLS or plain
   udp::socket udp_sock;
   tcp::resolver resolver;
   asio::steady_timer heartbeat_timer;
@@ -74,12 +80,10 @@ struct SurfaceClient::Impl {
   std::deque<std::vector<std::uint8_t>> out_queue;  // front: being written while `writing`
   bool writing = false;
 
-  // Authentication: the pre-shared key until Accept, then the session key (null without --psk).
-  const proto::AuthKey* psk() const { return cfg.psk ? &*cfg.psk : nullptr; }
-  std::optional<proto::AuthKey> session_key;
-  std::uint64_t hello_nonce = 0;
-  std::uint64_t conn_auth_failed = 0, conn_unexpected_tag = 0;  // on this connection
-  std::string conn_auth_detail;
+  // With TLS, after the handshake: opens the remote's datagrams (remote->station key).
+  std::unique_ptr<proto::DatagramOpener> opener;
+  std::vector<std::uint8_t> udp_plain;
+  bool handshake_failed = false;  // on this connection, or the remote said why (Reject)
   std::int64_t last_warning_ns = 0;
 
   std::uint64_t generation = 0;  // bumps on every (re)connect so stale handlers bail out
@@ -95,16 +99,19 @@ struct SurfaceClient::Impl {
     if (ev.on_state) ev.on_state(s, why);
   }
 
-  const proto::AuthKey* tx_key() const { return session_key ? &*session_key : psk(); }
+  static std::optional<asio::ssl::context> make_tls(const proto::TlsConfig& t) {
+    if (!t.enabled()) return std::nullopt;
+    return std::optional<asio::ssl::context>(std::in_place,
+                                             proto::make_tls_context(t, proto::TlsRole::Client));
+  }
+  bool link_open() const { return link && link->is_open(); }
 
   void send(const proto::Message& m) {
     proto::Header h;
     h.session_id = session_id;
     h.seq = seq++;
     h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
-    // With a key, Hello's capture_ns is the client nonce of the session key (it has no capture).
-    if (cfg.psk && std::holds_alternative<proto::Hello>(m)) h.capture_ns = hello_nonce;
-    out_queue.push_back(proto::encode_stream_sealed(h, m, tx_key()));
+    out_queue.push_back(proto::encode_stream(h, m));
     // A stuck link must not grow memory: past kMaxQueued drop the oldest message still waiting.
     // Never the front while a write is in flight: async_write reads that buffer until its handler
     // runs, and the handler pops it.
@@ -116,14 +123,15 @@ struct SurfaceClient::Impl {
   }
 
   void write_next() {
-    if (out_queue.empty() || !tcp_sock.is_open()) {
+    if (out_queue.empty() || !link_open()) {
       writing = false;
       return;
     }
     writing = true;
     const auto gen = generation;
-    asio::async_write(tcp_sock, asio::buffer(out_queue.front()),
-                      [this, gen](boost::system::error_code ec, std::size_t) {
+    // The handler keeps the stream alive: a TLS stream must outlive its operations.
+    link->async_write(asio::buffer(out_queue.front()),
+                      [this, gen, keep = link](boost::system::error_code ec, std::size_t) {
                         if (gen != generation) return;
                         if (!out_queue.empty()) out_queue.pop_front();
                         if (ec) return disconnect("write failed: " + ec.message());
@@ -145,40 +153,76 @@ struct SurfaceClient::Impl {
                               [this, gen](boost::system::error_code ec2, const tcp::endpoint& ep) {
                                 if (gen != generation || stopping) return;
                                 if (ec2) return retry("cannot connect: " + ec2.message());
-                                on_connected(ep);
+                                start_link(ep);
                               });
         });
   }
 
-  void on_connected(const tcp::endpoint& ep) {
+  // TCP is up: the TLS handshake (when configured), then the session.
+  void start_link(const tcp::endpoint& ep) {
     remote_tcp = ep;
     stats.connects.fetch_add(1);
     boost::system::error_code ec;
     tcp_sock.set_option(tcp::no_delay(true), ec);
+    link = tls_ctx ? std::make_shared<proto::LinkStream>(std::move(tcp_sock), *tls_ctx)
+                   : std::make_shared<proto::LinkStream>(std::move(tcp_sock));
+    tcp_sock = tcp::socket(io);
+    opener.reset();
+    handshake_failed = false;
+    session_id = 0;
+    set_state(ClientState::Handshaking,
+              "connected to " + ep.address().to_string() + (link->tls() ? ", TLS handshake" : ""));
+    last_rx_ns = monotonic_ns();
+    arm_heartbeat();  // its silence check also bounds the handshake
+    const auto gen = generation;
+    link->async_handshake(
+        asio::ssl::stream_base::client, [this, gen, ep, keep = link](boost::system::error_code e) {
+          if (gen != generation) return;
+          if (e) return on_handshake_failed(e);
+          if (link->tls()) {
+            try {
+              opener = std::make_unique<proto::DatagramOpener>(
+                  proto::export_link_keys(link->ssl(), proto::TlsRole::Client).rx);
+            } catch (const std::exception& x) {
+              return disconnect(x.what());
+            }
+          }
+          on_connected(ep);
+        });
+  }
+
+  void on_handshake_failed(const boost::system::error_code& e) {
+    stats.auth_failed.fetch_add(1);
+    handshake_failed = true;
+    const bool ssl_error = e.category() == asio::error::get_ssl_category();
+    disconnect(ssl_error
+                   ? proto::explain_tls_failure(static_cast<unsigned long>(e.value()), e.message(),
+                                                proto::TlsRole::Client, cfg.tls)
+                   : "the remote closed the connection during the TLS handshake (" + e.message() +
+                         "): it may run without --psk or certificates, or refuse this "
+                         "station's; see its log");
+  }
+
+  void on_connected(const tcp::endpoint& ep) {
+    boost::system::error_code ec;
     parser = proto::StreamParser(cfg.limits);
     dgram = proto::DatagramParser(cfg.limits);
-    parser.set_key(cfg.psk);
     reassembler = proto::Reassembler();
     udp_lost_counted = 0;
     by_fragments_counted = {};
-    session_id = 0;
-    session_key.reset();
-    conn_auth_failed = conn_unexpected_tag = 0;
-    conn_auth_detail.clear();
-    if (cfg.psk) hello_nonce = proto::random_u64();
     std::uint16_t udp_port = 0;
     if (cfg.use_udp) {
       // Receive UDP on the interface the TCP session uses, so loopback stays loopback.
       udp_sock.open(ep.protocol() == tcp::v4() ? udp::v4() : udp::v6(), ec);
       if (!ec) udp_sock.set_option(asio::socket_base::receive_buffer_size(4 << 20), ec);
       if (!ec)
-        udp_sock.bind(udp::endpoint(tcp_sock.local_endpoint().address(), cfg.udp_bind_port), ec);
+        udp_sock.bind(udp::endpoint(link->socket().local_endpoint().address(), cfg.udp_bind_port),
+                      ec);
       if (ec) return disconnect("cannot open UDP socket: " + ec.message());
       udp_port =
           cfg.udp_announce_port != 0 ? cfg.udp_announce_port : udp_sock.local_endpoint().port();
       udp_receive();
     }
-    set_state(ClientState::Handshaking, "connected to " + ep.address().to_string());
     last_rx_ns = monotonic_ns();
     proto::Hello hello;
     hello.capabilities =
@@ -189,35 +233,38 @@ struct SurfaceClient::Impl {
     hello.udp_port = udp_port;
     send(hello);
     tcp_read();
-    arm_heartbeat();
   }
 
   void tcp_read() {
     const auto gen = generation;
-    tcp_sock.async_read_some(
-        asio::buffer(tcp_buf), [this, gen](boost::system::error_code ec, std::size_t n) {
-          if (gen != generation) return;
-          if (ec)
-            return disconnect(ec == asio::error::eof ? "remote closed the connection"
-                                                     : "read failed: " + ec.message());
-          stats.bytes_in.fetch_add(n);
-          std::span<const std::uint8_t> rest(tcp_buf.data(), n);
-          while (true) {
-            const std::size_t took = parser.feed(rest);
-            rest = rest.subspan(took);
-            while (auto r = parser.next()) {
-              if (!r->ok()) {
-                count_drop(*r, "TCP");
-                continue;
-              }
-              handle(*r->envelope);
-              if (gen != generation) return;  // handling disconnected us
-            }
-            if (parser.failed()) return disconnect("malformed stream from remote");
-            if (rest.empty() || took == 0) break;
+    link->async_read_some(asio::buffer(tcp_buf), [this, gen, keep = link](
+                                                     boost::system::error_code ec, std::size_t n) {
+      if (gen != generation) return;
+      // TLS 1.3: the client's handshake ends before the remote has checked its certificate, so
+      // the remote's refusal (an alert) arrives at the first read.
+      if (ec && link->tls() && session_id == 0 && ec.category() == asio::error::get_ssl_category())
+        return on_handshake_failed(ec);
+      if (ec)
+        return disconnect(ec == asio::error::eof ? "remote closed the connection"
+                                                 : "read failed: " + ec.message());
+      stats.bytes_in.fetch_add(n);
+      std::span<const std::uint8_t> rest(tcp_buf.data(), n);
+      while (true) {
+        const std::size_t took = parser.feed(rest);
+        rest = rest.subspan(took);
+        while (auto r = parser.next()) {
+          if (!r->ok()) {
+            count_drop(*r, "TCP");
+            continue;
           }
-          tcp_read();
-        });
+          handle(*r->envelope);
+          if (gen != generation) return;  // handling disconnected us
+        }
+        if (parser.failed()) return disconnect("malformed stream from remote");
+        if (rest.empty() || took == 0) break;
+      }
+      tcp_read();
+    });
   }
 
   void udp_receive() {
@@ -239,22 +286,20 @@ struct SurfaceClient::Impl {
       stats.dropped_foreign.fetch_add(1);
       return;
     }
-    if (cfg.psk) {
-      // Datagrams exist only inside a session and carry tags under its key; the reassembler sees
+    if (opener) {
+      // Sealed under the remote->station key exported from this TLS session: the reassembler sees
       // only authentic fragments, so forged ones cannot evict or supersede real frames.
-      if (!session_key) {
-        stats.dropped_foreign.fetch_add(1);
-        return;
-      }
-      const auto body = proto::verify_and_strip(d, *session_key);
-      if (!body) {
+      const auto why = opener->open(d, udp_plain);
+      if (why != proto::OpenError::None) {
         proto::Result bad;
-        bad.error = proto::ErrorReason::AuthFailed;
-        bad.detail = "datagram tag does not verify";
+        bad.error = why == proto::OpenError::AuthFailed ? proto::ErrorReason::AuthFailed
+                    : why == proto::OpenError::Replayed ? proto::ErrorReason::Replayed
+                                                        : proto::ErrorReason::Unsealed;
+        bad.detail = proto::open_error_name(why).data();  // a string literal
         count_drop(bad, "UDP");
         return;
       }
-      d = *body;
+      d = udp_plain;
     }
     const auto now = static_cast<std::uint64_t>(monotonic_ns());
     const auto before = reassembler.counters().malformed;
@@ -283,12 +328,9 @@ struct SurfaceClient::Impl {
     switch (r.error) {
       case proto::ErrorReason::AuthFailed:
         stats.auth_failed.fetch_add(1);
-        ++conn_auth_failed;
-        conn_auth_detail = r.detail;
         break;
-      case proto::ErrorReason::UnexpectedTag:
-        stats.unexpected_tag.fetch_add(1);
-        ++conn_unexpected_tag;
+      case proto::ErrorReason::Unsealed:
+        stats.unsealed.fetch_add(1);
         break;
       case proto::ErrorReason::Replayed:
         stats.replayed.fetch_add(1);
@@ -303,25 +345,19 @@ struct SurfaceClient::Impl {
       ev.on_warning("dropped a " + std::string(transport) + " message from the remote: " +
                     std::string(proto::error_reason_name(r.error)) + " (" + r.detail +
                     "); totals: auth_failed " + std::to_string(stats.auth_failed.load()) +
-                    " unexpected_tag " + std::to_string(stats.unexpected_tag.load()) +
-                    " replayed " + std::to_string(stats.replayed.load()) + " malformed " +
+                    " unsealed " + std::to_string(stats.unsealed.load()) + " replayed " +
+                    std::to_string(stats.replayed.load()) + " malformed " +
                     std::to_string(stats.dropped_malformed.load()));
     }
   }
 
-  // What authentication failures on this connection say about the keys, for the state reason.
+  // A plain station that loses the connection before Accept may be talking to a remote that
+  // requires TLS (whose Reject it would have read, unless the remote is older or the bytes were
+  // cut).
   std::string auth_hint() const {
-    if (conn_unexpected_tag > 0)
-      return "; the remote's messages carry authentication tags but this station has no --psk "
-             "key: start telex-local with the remote's --psk FILE";
-    if (conn_auth_failed > 0 && session_id == 0) {
-      if (conn_auth_detail == "message has no tag")
-        return "; the remote's messages carry no authentication tag: start telex-remote with the "
-               "same --psk FILE as telex-local";
-      return "; " + std::to_string(conn_auth_failed) +
-             " message(s) from the remote failed authentication: the two daemons' --psk keys "
-             "differ";
-    }
+    if (!tls_ctx && session_id == 0 && !handshake_failed)
+      return "; if the remote requires TLS, start telex-local with its --psk FILE (or "
+             "--cert/--key/--ca)";
     return "";
   }
 
@@ -343,12 +379,6 @@ struct SurfaceClient::Impl {
               return;
             }
             session_id = m.session_id;
-            if (cfg.psk) {
-              session_key =
-                  proto::derive_session_key(*cfg.psk, hello_nonce, h.capture_ns, m.session_id);
-              parser.set_key(session_key);
-              dgram.set_key(session_key);
-            }
             backoff_ns = cfg.backoff_min_ns;
             set_state(ClientState::Streaming,
                       "session " + std::to_string(m.session_id) + ", " +
@@ -356,6 +386,7 @@ struct SurfaceClient::Impl {
                           std::string(proto::codec_name(m.codec)));
           } else if constexpr (std::is_same_v<T, proto::Reject>) {
             stats.rejects.fetch_add(1);
+            handshake_failed = true;  // the remote said why: no guessing in auth_hint
             disconnect("remote refused: " + m.text);
           } else if constexpr (std::is_same_v<T, proto::Heartbeat>) {
             on_heartbeat(m);
@@ -409,10 +440,8 @@ struct SurfaceClient::Impl {
   void close_sockets() {
     boost::system::error_code ec;
     heartbeat_timer.cancel();
-    if (tcp_sock.is_open()) {
-      tcp_sock.shutdown(tcp::socket::shutdown_both, ec);
-      tcp_sock.close(ec);
-    }
+    if (tcp_sock.is_open()) tcp_sock.close(ec);
+    if (link) link->close();
     if (udp_sock.is_open()) udp_sock.close(ec);
     out_queue.clear();
     writing = false;
@@ -458,21 +487,29 @@ void SurfaceClient::stop() {
   if (!impl_->thread.joinable()) return;
   asio::post(impl_->io, [this] {
     impl_->stopping = true;
-    if (impl_->tcp_sock.is_open() && impl_->session_id != 0) {
-      // Best effort goodbye; the socket closes right after.
-      boost::system::error_code ec;
+    ++impl_->generation;  // handlers still queued bail out
+    impl_->retry_timer.cancel();
+    impl_->resolver.cancel();
+    const auto finish = [this] {
+      impl_->close_sockets();
+      impl_->work.reset();
+      impl_->set_state(ClientState::Stopped, "stopped");
+    };
+    // Best effort goodbye; the socket closes right after. Never beside a write in flight, whose
+    // bytes (or TLS record) it would cut, and only once the read in flight has been cancelled
+    // (its aborted completion runs before the handler posted here).
+    if (!impl_->link_open() || impl_->session_id == 0 || impl_->writing) return finish();
+    boost::system::error_code ec;
+    impl_->link->socket().cancel(ec);
+    asio::post(impl_->io, [this, finish] {
+      boost::system::error_code ignore;
       proto::Header h;
       h.session_id = impl_->session_id;
       h.seq = impl_->seq++;
-      auto bytes = proto::encode_stream_sealed(h, proto::Bye{0}, impl_->tx_key());
-      asio::write(impl_->tcp_sock, asio::buffer(bytes), ec);
-    }
-    ++impl_->generation;
-    impl_->retry_timer.cancel();
-    impl_->resolver.cancel();
-    impl_->close_sockets();
-    impl_->work.reset();
-    impl_->set_state(ClientState::Stopped, "stopped");
+      const auto bytes = proto::encode_stream(h, proto::Bye{0});
+      if (impl_->link_open()) impl_->link->write_now(asio::buffer(bytes), ignore);
+      finish();
+    });
   });
   impl_->thread.join();
 }
@@ -483,25 +520,25 @@ std::optional<ThreadFaultReport> SurfaceClient::thread_fault() const {
 
 void SurfaceClient::request_roi(const proto::RoiRequest& roi) {
   asio::post(impl_->io, [this, roi] {
-    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(roi);
+    if (impl_->session_id != 0 && impl_->link_open()) impl_->send(roi);
   });
 }
 
 void SurfaceClient::send_nack(const proto::TileNack& nack) {
   asio::post(impl_->io, [this, nack] {
-    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(nack);
+    if (impl_->session_id != 0 && impl_->link_open()) impl_->send(nack);
   });
 }
 
 void SurfaceClient::send_head(const proto::HeadCommand& head) {
   asio::post(impl_->io, [this, head] {
-    if (impl_->session_id != 0 && impl_->tcp_sock.is_open()) impl_->send(head);
+    if (impl_->session_id != 0 && impl_->link_open()) impl_->send(head);
   });
 }
 
 void SurfaceClient::request_key_frame() {
   asio::post(impl_->io, [this] {
-    if (impl_->session_id != 0 && impl_->tcp_sock.is_open())
+    if (impl_->session_id != 0 && impl_->link_open())
       impl_->send(proto::Stats{{{"key_frame_request", 1}}});
   });
 }

@@ -459,7 +459,7 @@ std::string_view error_reason_name(ErrorReason reason) {
   static constexpr std::string_view kNames[kErrorReasonCount] = {
       "Truncated",   "BadMagic",    "BadVersion",      "BadLength",
       "BadChecksum", "UnknownType", "BadTileGeometry", "DecompressionBomb",
-      "BadPayload",  "AuthFailed",  "UnexpectedTag",   "Replayed"};
+      "BadPayload",  "AuthFailed",  "Unsealed",        "Replayed"};
   const auto i = static_cast<std::size_t>(reason);
   return i < kErrorReasonCount ? kNames[i] : std::string_view("unknown");
 }

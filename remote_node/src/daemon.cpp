@@ -57,10 +57,9 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
       "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} | client {} (accepted {} "
       "rejected {} timeouts {}) | ended{} | "
-      "errors {} malformed {} | auth-failed {} unexpected-tag {} replayed {} udp-ignored {} | "
-      "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} over-queue "
-      "{} "
-      "control-dropped {} | frames-sent {} | head-in {} "
+      "errors {} malformed {} | auth-failed {} unsealed {} replayed {} udp-ignored {} | "
+      "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
+      "over-queue {} control-dropped {} | frames-sent {} | head-in {} "
       "clamped {} rate-limited {} link-lost {}{} head-errors {} | realtime {}/{}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
@@ -78,7 +77,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
       now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
       now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
-      now.source_errors, now.malformed_in, now.auth_failed, now.unexpected_tag, now.replayed,
+      now.source_errors, now.malformed_in, now.auth_failed, now.unsealed, now.replayed,
       now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
       now.repair_unavailable, now.repair_duplicates, now.repair_over_budget, now.repair_over_queue,
       now.control_dropped, now.frames_sent, now.head_commands_in, now.head_control.clamped,
@@ -196,7 +195,7 @@ DaemonStats RemoteDaemon::stats() const {
     s.bytes_sent = c.bytes_sent;
     s.malformed_in = c.malformed_in;
     s.auth_failed = c.auth_failed;
-    s.unexpected_tag = c.unexpected_tag;
+    s.unsealed = c.unsealed;
     s.replayed = c.replayed;
     s.udp_ignored = c.udp_ignored;
     s.key_frame_requests = c.key_frame_requests;
@@ -411,6 +410,7 @@ int RemoteDaemon::run() {
   });
   const auto t_start = std::chrono::steady_clock::now();
   auto last = t_start;
+  auto last_insecure_warning = t_start;  // main() warned at start
   DaemonStats before = stats();
   asio::steady_timer tick(io);
   std::function<void()> arm = [&] {
@@ -418,10 +418,14 @@ int RemoteDaemon::run() {
     tick.async_wait([&](boost::system::error_code ec) {
       if (ec) return;
       const auto now = std::chrono::steady_clock::now();
+      if (config_.insecure && now - last_insecure_warning >= 60s) {
+        spdlog::warn("telex-remote: {}", proto::insecure_warning());
+        last_insecure_warning = now;
+      }
       if (config_.stats_line && now - last >= 1s) {
         const DaemonStats s = stats();
         std::cerr << format_stats_line(s, before, std::chrono::duration<double>(now - last).count())
-                  << std::endl;
+                  << (config_.insecure ? " | INSECURE link (--insecure)" : "") << std::endl;
         before = s;
         last = now;
       }

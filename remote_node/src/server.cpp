@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The remote's network server, acceptor part: the listening socket, the one-operator policy, the
 // client timeout, session ends (logged and counted by reason), and RemoteServer's public face.
+#include <openssl/objects.h>
+#include <openssl/ssl.h>
+
 #include <stdexcept>
 
 #include "server_impl.h"
@@ -38,6 +41,9 @@ RemoteServer::Impl::Impl(ServerConfig config)
       udp_(io_),
       timer_(io_),
       cache_(config_.repair_cache_frames) {
+  // Bad certificate, key or CA files are configuration errors (std::invalid_argument: exit 2).
+  if (config_.tls.enabled())
+    tls_.emplace(proto::make_tls_context(config_.tls, proto::TlsRole::Server));
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(config_.host, ec);
   if (ec)
@@ -99,9 +105,10 @@ void RemoteServer::Impl::do_accept() {
       return;
     }
     if (active_) {
-      reject(std::move(socket), proto::RejectReason::Busy,
+      reject(make_link(std::move(socket)), proto::RejectReason::Busy,
              fmt::format("another operator is connected from {}; try again when it disconnects",
-                         active_->peer));
+                         active_->peer),
+             true);
     } else {
       start_session(std::move(socket));
     }
@@ -109,33 +116,96 @@ void RemoteServer::Impl::do_accept() {
   });
 }
 
-void RemoteServer::Impl::reject(tcp::socket socket, proto::RejectReason reason, std::string text) {
+std::shared_ptr<proto::LinkStream> RemoteServer::Impl::make_link(tcp::socket socket) {
+  if (tls_) return std::make_shared<proto::LinkStream>(std::move(socket), *tls_);
+  return std::make_shared<proto::LinkStream>(std::move(socket));
+}
+
+// With TLS and `handshake`, the Reject goes out only after a handshake (a peer without the key or
+// a valid certificate learns nothing, not even that the remote is busy); a handshake that does not
+// finish within 2 s is dropped.
+void RemoteServer::Impl::reject(std::shared_ptr<proto::LinkStream> link, proto::RejectReason reason,
+                                std::string text, bool handshake) {
   ++counters_.clients_rejected;
-  auto sock = std::make_shared<tcp::socket>(std::move(socket));
   proto::Reject r;
   r.reason = reason;
   r.text = std::move(text);
-  // Under the pre-shared key: the station can tell a refusal from a forgery.
-  auto buf =
-      make_buffer(proto::encode_stream_sealed(header(0, 0, steady_now_ns(), false), r, psk()));
-  asio::async_write(*sock, asio::buffer(*buf), [sock, buf](boost::system::error_code, std::size_t) {
-    boost::system::error_code ignore;
-    sock->shutdown(tcp::socket::shutdown_both, ignore);
-    sock->close(ignore);
+  auto buf = make_buffer(proto::encode_stream(header(0, 0, steady_now_ns(), false), r));
+  const auto write = [link, buf] {
+    link->async_write(asio::buffer(*buf),
+                      [link, buf](boost::system::error_code, std::size_t) { link->close(); });
+  };
+  if (!handshake || !link->tls()) return write();
+  auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::seconds(2));
+  timer->async_wait([link](boost::system::error_code ec) {
+    if (!ec) link->close();
   });
+  link->async_handshake(asio::ssl::stream_base::server,
+                        [link, timer, write](boost::system::error_code ec) {
+                          timer->cancel();
+                          if (ec) return link->close();
+                          write();
+                        });
 }
 
 void RemoteServer::Impl::start_session(tcp::socket socket) {
-  active_ = std::make_shared<Session>(std::move(socket), config_.repair_limits);
+  active_ = std::make_shared<Session>(make_link(std::move(socket)), config_.repair_limits);
   ++active_generation_;
   boost::system::error_code ec;
-  const auto remote = active_->socket.remote_endpoint(ec);
+  const auto remote = active_->link->socket().remote_endpoint(ec);
   active_->peer =
       ec ? std::string("?") : fmt::format("{}:{}", remote.address().to_string(), remote.port());
-  active_->socket.set_option(tcp::no_delay(true), ec);
+  active_->link->socket().set_option(tcp::no_delay(true), ec);
+  // A handshake that never finishes ends as client-silent after the client timeout.
   active_->last_rx = std::chrono::steady_clock::now();
-  if (config_.psk) active_->parser.set_key(*config_.psk);
-  do_read(active_, active_generation_);
+  auto a = active_;
+  const auto gen = active_generation_;
+  a->link->async_handshake(
+      asio::ssl::stream_base::server,
+      [this, a, gen](boost::system::error_code e) { on_handshake(a, gen, e); });
+}
+
+void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a, std::uint32_t gen,
+                                      boost::system::error_code ec) {
+  if (active_ != a || gen != active_generation_) return;
+  if (ec) {
+    ++counters_.auth_failed;
+    const bool ssl_error = ec.category() == asio::error::get_ssl_category();
+    const auto code = static_cast<unsigned long>(ec.value());
+    const std::string why =
+        ssl_error
+            ? proto::explain_tls_failure(code, ec.message(), proto::TlsRole::Server, config_.tls)
+            : "the connection closed during the TLS handshake (" + ec.message() + ")";
+    spdlog::warn("TLS handshake with {} failed: {}", a->peer, why);
+    // A station without TLS reads a clear-text Reject and can say what to fix.
+    const bool plain_peer = ssl_error && proto::tls_failure_is_plain_peer(code);
+    refuse_session(proto::RejectReason::AuthFailed,
+                   plain_peer ? "this telex-remote requires TLS (" + config_.tls.describe() +
+                                    "): start telex-local with the same --psk FILE (or "
+                                    "--cert/--key/--ca)"
+                              : why,
+                   plain_peer, plain_peer);
+    return;
+  }
+  a->handshake_done = true;
+  if (a->link->tls()) {
+    try {
+      auto keys = proto::export_link_keys(a->link->ssl(), proto::TlsRole::Server);
+      a->sealer = std::make_shared<proto::DatagramSealer>(keys.tx);
+      a->opener = std::make_unique<proto::DatagramOpener>(keys.rx);
+    } catch (const std::exception& e) {
+      spdlog::error("session with {}: {}", a->peer, e.what());
+      refuse_session(proto::RejectReason::Unspecified, e.what(), false);
+      return;
+    }
+    SSL* ssl = a->link->ssl();
+    const int group = SSL_get_negotiated_group(ssl);
+    spdlog::info("TLS with {}: {} {} ({}, key exchange {})", a->peer, SSL_get_version(ssl),
+                 SSL_get_cipher_name(ssl), config_.tls.describe(),
+                 group != 0 ? OBJ_nid2sn(group) : "none");
+  }
+  a->last_rx = std::chrono::steady_clock::now();
+  do_read(a, gen);
 }
 
 // Every way a session ends comes through here (or refuse_session, which answers first): the
@@ -144,9 +214,7 @@ void RemoteServer::Impl::end_session(SessionEnd why) {
   if (!active_) return;
   ++counters_.sessions_ended[static_cast<std::size_t>(why)];
   spdlog::info("session {} with {} ended: {}", session_id_, active_->peer, session_end_name(why));
-  boost::system::error_code ec;
-  active_->socket.shutdown(tcp::socket::shutdown_both, ec);
-  active_->socket.close(ec);
+  active_->link->close();
   active_.reset();
   std::lock_guard lock(mu_);
   connected_ = false;

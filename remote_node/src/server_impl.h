@@ -17,7 +17,9 @@
 #include <utility>
 #include <vector>
 
+#include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
+#include "telex/proto/seal.h"
 #include "telex/remote/repair_cache.h"
 #include "telex/remote/server.h"
 
@@ -27,7 +29,7 @@ namespace asio = boost::asio;
 using tcp = asio::ip::tcp;
 using udp = asio::ip::udp;
 using Buffer = std::shared_ptr<const std::vector<std::uint8_t>>;
-using KeyPtr = std::shared_ptr<const proto::AuthKey>;
+using SealerPtr = std::shared_ptr<proto::DatagramSealer>;  // used on the io thread only
 
 inline Buffer make_buffer(std::vector<std::uint8_t> bytes) {
   return std::make_shared<const std::vector<std::uint8_t>>(std::move(bytes));
@@ -44,14 +46,20 @@ struct OutFrame {
   bool trimmable = true;
 };
 
-// The connected operator (Asio's chat_session): its socket, parser and queues. Lives on the io
-// thread; the server holds the one current session and drops it when the session ends.
+// The connected operator (Asio's chat_session): its connection (TLS or plain), parser and queues.
+// Lives on the io thread; the server holds the one current session and drops it when it ends.
 struct Session {
-  Session(tcp::socket s, RepairLimiter::Config limits) : socket(std::move(s)), repair(limits) {}
-  tcp::socket socket;
+  Session(std::shared_ptr<proto::LinkStream> s, RepairLimiter::Config limits)
+      : link(std::move(s)), repair(limits) {}
+  std::shared_ptr<proto::LinkStream> link;
   proto::StreamParser parser;
-  KeyPtr session_key;  // after Hello with --psk
+  // With TLS, after the handshake: datagrams out are sealed under the remote->station key, and
+  // datagrams in must open under the station->remote key.
+  SealerPtr sealer;
+  std::unique_ptr<proto::DatagramOpener> opener;
   std::array<std::uint8_t, 16384> rx{};
+  bool handshake_done = false;
+  bool first_bytes_seen = false;  // plain server: the first read checks for a TLS ClientHello
   bool hello_done = false;
   std::chrono::steady_clock::time_point last_rx;
   udp::endpoint udp_peer;
@@ -107,24 +115,29 @@ class RemoteServer::Impl {
     std::uint32_t generation = 0;
     bool udp = false;
     bool repair = false;  // the client announced kCapRepair: its frames' tiles are cached
-    KeyPtr key;           // the session key with --psk, else null
+    SealerPtr sealer;     // with TLS: seals this session's datagrams; else null
   };
 
   // ---- acceptor (server.cpp), io thread ----
   void do_accept();
-  void reject(tcp::socket socket, proto::RejectReason reason, std::string text);
+  void reject(std::shared_ptr<proto::LinkStream> link, proto::RejectReason reason, std::string text,
+              bool handshake);
   void start_session(tcp::socket socket);
+  void on_handshake(const std::shared_ptr<Session>& s, std::uint32_t gen,
+                    boost::system::error_code ec);
   void end_session(SessionEnd why);
   void arm_timer();
-  const proto::AuthKey* psk() const { return config_.psk ? &*config_.psk : nullptr; }
+  std::shared_ptr<proto::LinkStream> make_link(tcp::socket socket);
 
   // ---- session (server_session.cpp), io thread ----
   void do_read(std::shared_ptr<Session> s, std::uint32_t gen);
   void handle(const std::shared_ptr<Session>& s, const proto::Envelope& env);
   void on_bad_message(const std::shared_ptr<Session>& s, const proto::Result& r);
-  void on_hello(const std::shared_ptr<Session>& s, const proto::Hello& hello,
-                std::uint64_t hello_nonce);
-  void refuse_session(proto::RejectReason reason, std::string text);
+  void on_hello(const std::shared_ptr<Session>& s, const proto::Hello& hello);
+  // Ends the session as Refused; the Reject goes over the session's link, or with `plain` in
+  // clear text on its socket (a peer that does not speak TLS), or not at all with `send` false.
+  void refuse_session(proto::RejectReason reason, std::string text, bool send = true,
+                      bool plain = false);
   void request_key_frame();
   void on_nack(const proto::TileNack& nack);
   void send_control(Buffer buf);
@@ -152,9 +165,11 @@ class RemoteServer::Impl {
   void enqueue_frame(OutFrame f);  // io thread
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
+  void on_udp_datagram(std::span<const std::uint8_t> d);
 
   ServerConfig config_;
   asio::io_context io_;
+  std::optional<asio::ssl::context> tls_;  // with a key or certificates
   std::optional<asio::executor_work_guard<asio::io_context::executor_type>> work_{
       asio::make_work_guard(io_)};
   tcp::acceptor acceptor_;
@@ -169,6 +184,7 @@ class RemoteServer::Impl {
   std::uint32_t next_session_id_ = 1;
   std::chrono::steady_clock::time_point last_drop_log_{};
   std::array<std::uint8_t, 2048> udp_rx_{};
+  std::vector<std::uint8_t> udp_plain_;
   udp::endpoint udp_from_;
 
   // processing thread only

@@ -7,12 +7,28 @@
 namespace telex::remote {
 
 void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) {
-  a->socket.async_read_some(
+  a->link->async_read_some(
       asio::buffer(a->rx), [this, a, gen](boost::system::error_code ec, std::size_t n) {
         if (active_ != a || gen != active_generation_) return;
         if (ec) {
           end_session(SessionEnd::ConnectionLost);
           return;
+        }
+        if (!a->first_bytes_seen) {
+          a->first_bytes_seen = true;
+          // A TLS record (handshake 0x16, version 3.x) where a plain length prefix belongs.
+          if (!a->link->tls() && n >= 2 && a->rx[0] == 0x16 && a->rx[1] == 0x03) {
+            ++counters_.auth_failed;
+            spdlog::warn(
+                "connection from {} speaks TLS but this telex-remote has no --psk key or "
+                "certificates",
+                a->peer);
+            refuse_session(proto::RejectReason::AuthFailed,
+                           "this telex-remote has no --psk key or certificates but the station "
+                           "speaks TLS: start both daemons with the same --psk FILE, or neither",
+                           true, true);
+            return;
+          }
         }
         std::size_t off = 0;
         while (off < n) {
@@ -25,7 +41,7 @@ void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) 
               if (active_ != a) return;
               continue;
             }
-            // Only a message that decoded (and, with --psk, verified) keeps the session alive.
+            // Only a message that decoded (over TLS when configured) keeps the session alive.
             a->last_rx = std::chrono::steady_clock::now();
             handle(a, *r->envelope);
             if (active_ != a) return;
@@ -49,7 +65,7 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
       refuse_session(proto::RejectReason::BadRequest, "the first message must be Hello");
       return;
     }
-    on_hello(a, *hello, env.header.capture_ns);
+    on_hello(a, *hello);
     return;
   }
   std::visit(
@@ -67,8 +83,8 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
           proto::Heartbeat reply = m;
           reply.t2_ns = static_cast<std::uint64_t>(steady_now_ns());
           reply.t3_ns = static_cast<std::uint64_t>(steady_now_ns());
-          send_control(make_buffer(proto::encode_stream_sealed(
-              header(session_id_, 0, steady_now_ns(), false), reply, a->session_key.get())));
+          send_control(make_buffer(
+              proto::encode_stream(header(session_id_, 0, steady_now_ns(), false), reply)));
         } else if constexpr (std::is_same_v<T, proto::RoiRequest>) {
           std::lock_guard lock(mu_);
           request_.rois = m.rects;
@@ -92,44 +108,20 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
       env.message);
 }
 
-// Counts a rejected message by reason and logs at most once a second. Before Hello an
-// authentication failure refuses the connection with a reason the station can report.
+// Counts a rejected message and logs at most once a second. Authenticity is TLS's: whatever
+// reaches the parser came from the peer that passed the handshake.
 void RemoteServer::Impl::on_bad_message(const std::shared_ptr<Session>& a, const proto::Result& r) {
-  switch (r.error) {
-    case proto::ErrorReason::AuthFailed:
-      ++counters_.auth_failed;
-      break;
-    case proto::ErrorReason::UnexpectedTag:
-      ++counters_.unexpected_tag;
-      break;
-    case proto::ErrorReason::Replayed:
-      ++counters_.replayed;
-      break;
-    default:
-      ++counters_.malformed_in;
-      break;
-  }
+  ++counters_.malformed_in;
   const auto now = std::chrono::steady_clock::now();
   if (now - last_drop_log_ > std::chrono::seconds(1)) {
     last_drop_log_ = now;
-    spdlog::warn(
-        "dropped a message from {}: {} ({}); totals: auth_failed {} unexpected_tag {} replayed "
-        "{} malformed {}",
-        a->peer, proto::error_reason_name(r.error), r.detail, counters_.auth_failed.load(),
-        counters_.unexpected_tag.load(), counters_.replayed.load(), counters_.malformed_in.load());
+    spdlog::warn("dropped a message from {}: {} ({}); malformed {}", a->peer,
+                 proto::error_reason_name(r.error), r.detail, counters_.malformed_in.load());
   }
-  if (a->hello_done) return;
-  if (r.error == proto::ErrorReason::AuthFailed)
-    refuse_session(proto::RejectReason::AuthFailed,
-                   "authentication failed: the station's Hello does not verify under this "
-                   "telex-remote's --psk key (a different key, or the station has none)");
-  else if (r.error == proto::ErrorReason::UnexpectedTag)
-    refuse_session(proto::RejectReason::AuthFailed,
-                   "this telex-remote has no --psk key but the station's messages carry "
-                   "authentication tags: start both daemons with the same --psk, or neither");
 }
 
-void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string text) {
+void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string text, bool send,
+                                        bool plain) {
   auto a = active_;
   ++counters_.sessions_ended[static_cast<std::size_t>(SessionEnd::Refused)];
   spdlog::info("session with {} refused: {}", a->peer, text);
@@ -138,11 +130,17 @@ void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string 
     std::lock_guard lock(mu_);
     connected_ = false;
   }
-  reject(std::move(a->socket), reason, std::move(text));
+  if (!send) {
+    ++counters_.clients_rejected;
+    a->link->close();
+    return;
+  }
+  // In clear text on the socket under a failed TLS layer: a plain station can read it.
+  auto link = plain ? std::make_shared<proto::LinkStream>(std::move(a->link->socket())) : a->link;
+  reject(std::move(link), reason, std::move(text), false);
 }
 
-void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto::Hello& hello,
-                                  std::uint64_t hello_nonce) {
+void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto::Hello& hello) {
   if (hello.version != proto::kProtocolVersion) {
     refuse_session(proto::RejectReason::VersionMismatch,
                    fmt::format("server speaks protocol version {}, client {}",
@@ -157,31 +155,23 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
       !config_.force_tcp && (hello.capabilities & proto::kCapDepthUdp) && hello.udp_port != 0;
   boost::system::error_code ec;
   if (a->over_udp)
-    a->udp_peer = udp::endpoint(a->socket.remote_endpoint(ec).address(), hello.udp_port);
+    a->udp_peer = udp::endpoint(a->link->socket().remote_endpoint(ec).address(), hello.udp_port);
   a->hello_done = true;
   session_id_ = next_session_id_++;
-  proto::Header accept_header = header(session_id_, 0, steady_now_ns(), false);
-  if (config_.psk) {
-    // Both nonces go into the session key: a Hello or a stream recorded in another session
-    // verifies under none of this session's keys (docs/PROTOCOL.md section 7).
-    accept_header.capture_ns = proto::random_u64();
-    a->session_key = std::make_shared<const proto::AuthKey>(proto::derive_session_key(
-        *config_.psk, hello_nonce, accept_header.capture_ns, session_id_));
-  }
+  const proto::Header accept_header = header(session_id_, 0, steady_now_ns(), false);
   proto::Accept acc;
   acc.session_id = session_id_;
   acc.codec = codec;
   acc.transport = a->over_udp ? proto::Transport::Udp : proto::Transport::Tcp;
   acc.udp_port = a->over_udp ? udp_.local_endpoint().port() : 0;
-  send_control(make_buffer(proto::encode_stream_sealed(accept_header, acc, psk())));
-  if (a->session_key) a->parser.set_key(*a->session_key);
+  send_control(make_buffer(proto::encode_stream(accept_header, acc)));
   ++counters_.clients_accepted;
   std::lock_guard lock(mu_);
   connected_ = true;
   video_wanted_ = config_.video_available && (hello.capabilities & proto::kCapVideo);
   frame_parts_ = (hello.capabilities & proto::kCapFrameParts) != 0;
   const bool repair = (hello.capabilities & proto::kCapRepair) != 0;
-  link_ = Link{session_id_, active_generation_, a->over_udp, repair, a->session_key};
+  link_ = Link{session_id_, active_generation_, a->over_udp, repair, a->sealer};
   {
     std::lock_guard cache_lock(cache_mu_);
     cache_.clear();  // tiles sent to an earlier session were encoded against its frames
@@ -282,22 +272,21 @@ void RemoteServer::Impl::kick_tcp(const std::shared_ptr<Session>& a) {
   }
   if (!buf) return;
   a->tcp_writing = true;
-  asio::async_write(
-      a->socket, asio::buffer(*buf),
-      [this, a, buf, frame_done, counts, is_data](boost::system::error_code ec, std::size_t n) {
-        a->tcp_writing = false;
-        if (active_ != a) return;
-        if (ec) {
-          end_session(SessionEnd::WriteFailed);
-          return;
-        }
-        if (is_data) {
-          counters_.bytes_sent += n;
-          ++counters_.messages_sent;
-          if (frame_done && counts) ++counters_.frames_sent;
-        }
-        kick_tcp(a);
-      });
+  a->link->async_write(asio::buffer(*buf), [this, a, buf, frame_done, counts, is_data](
+                                               boost::system::error_code ec, std::size_t n) {
+    a->tcp_writing = false;
+    if (active_ != a) return;
+    if (ec) {
+      end_session(SessionEnd::WriteFailed);
+      return;
+    }
+    if (is_data) {
+      counters_.bytes_sent += n;
+      ++counters_.messages_sent;
+      if (frame_done && counts) ++counters_.frames_sent;
+    }
+    kick_tcp(a);
+  });
 }
 
 }  // namespace telex::remote

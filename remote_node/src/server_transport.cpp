@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The remote's network server, transport part: frames and video packed into messages for the
-// current session (fragmented into tagged datagrams over UDP, length-prefixed over TCP), the
-// bounded frame queue, and the UDP send loop (one async_send_to in flight).
+// current session (fragmented into datagrams, sealed with TLS, over UDP; length-prefixed over TCP),
+// the bounded frame queue, the UDP send loop (one async_send_to in flight) and the UDP socket's
+// receive side, which opens what arrives and acts on none of it.
 #include "server_impl.h"
 #include "telex/proto/fragment.h"
 
@@ -55,14 +56,15 @@ OutFrame RemoteServer::Impl::pack(
   f.frame_id = frame_id;
   for (const auto& [h, m] : msgs) {
     if (l.udp) {
-      const auto bytes = proto::encode_sealed(h, m, l.key.get());
+      const auto bytes = proto::encode(h, m);
       for (auto& d : proto::fragment_message(bytes, message_id_++, frame_id)) {
-        // Every datagram carries its own tag, so a forged fragment never reaches the reassembler.
-        if (l.key) proto::append_tag(d, *l.key);
-        f.items.push_back(make_buffer(std::move(d)));
+        // Every datagram is sealed on its own, so a forged fragment never reaches the
+        // reassembler. Sealing happens here, on the io thread, in queue order: sequence numbers
+        // rise in sending order (trimmed frames leave gaps, which the replay window allows).
+        f.items.push_back(make_buffer(l.sealer ? l.sealer->seal(d) : std::move(d)));
       }
     } else {
-      f.items.push_back(make_buffer(proto::encode_stream_sealed(h, m, l.key.get())));
+      f.items.push_back(make_buffer(proto::encode_stream(h, m)));
     }
   }
   return f;
@@ -85,8 +87,8 @@ void RemoteServer::Impl::announce(const Link& l, const ProcessedFrame& frame) {
   if (l.generation == announced_generation_ && sc == announced_) return;
   announced_generation_ = l.generation;
   announced_ = sc;
-  auto buf = make_buffer(proto::encode_stream_sealed(
-      header(l.session_id, frame.frame_id, frame.capture_ns, false), sc, l.key.get()));
+  auto buf = make_buffer(
+      proto::encode_stream(header(l.session_id, frame.frame_id, frame.capture_ns, false), sc));
   asio::post(io_, [this, buf, gen = l.generation] {
     if (active_ && active_generation_ == gen) send_control(buf);
   });
@@ -211,11 +213,46 @@ void RemoteServer::Impl::kick_udp(const std::shared_ptr<Session>& a) {
 
 void RemoteServer::Impl::udp_receive() {
   udp_.async_receive_from(asio::buffer(udp_rx_), udp_from_,
-                          [this](boost::system::error_code ec, std::size_t) {
+                          [this](boost::system::error_code ec, std::size_t n) {
                             if (ec == asio::error::operation_aborted || !udp_.is_open()) return;
-                            if (!ec) ++counters_.udp_ignored;
+                            if (!ec) on_udp_datagram({udp_rx_.data(), n});
                             udp_receive();
                           });
+}
+
+// No message travels from the station over UDP (yet), so nothing here is acted on; on a sealed
+// link each datagram is still opened under the station->remote key, so forged, reflected and
+// replayed datagrams are told apart and counted.
+void RemoteServer::Impl::on_udp_datagram(std::span<const std::uint8_t> d) {
+  if (!active_ || !active_->opener) {
+    ++counters_.udp_ignored;
+    return;
+  }
+  const auto why = active_->opener->open(d, udp_plain_);
+  switch (why) {
+    case proto::OpenError::None:
+      ++counters_.udp_ignored;
+      return;
+    case proto::OpenError::AuthFailed:
+      ++counters_.auth_failed;
+      break;
+    case proto::OpenError::Replayed:
+      ++counters_.replayed;
+      break;
+    case proto::OpenError::Truncated:
+    case proto::OpenError::BadMagic:
+      ++counters_.unsealed;
+      break;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_drop_log_ > std::chrono::seconds(1)) {
+    last_drop_log_ = now;
+    spdlog::warn(
+        "dropped a datagram from {}:{}: {} under this session's station->remote key; "
+        "totals: auth_failed {} unsealed {} replayed {}",
+        udp_from_.address().to_string(), udp_from_.port(), proto::open_error_name(why),
+        counters_.auth_failed.load(), counters_.unsealed.load(), counters_.replayed.load());
+  }
 }
 
 }  // namespace telex::remote

@@ -2,6 +2,9 @@
 // Writes valid seed inputs for each fuzz target (in each target's own input layout) into
 // OUT/<target>/, so the fuzzers start deep inside the formats. Built with TELEX_FUZZ; the kept
 // corpus in corpus/ is these seeds after fuzzing, minimised with -merge=1 (docs/BENCHMARKS.md).
+#include <openssl/bio.h>
+#include <openssl/ssl.h>
+
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -19,6 +22,8 @@
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/fragment.h"
 #include "telex/proto/messages.h"
+#include "telex/proto/seal.h"
+#include "telex/proto/tls.h"
 
 namespace {
 
@@ -32,6 +37,39 @@ void write(const fs::path& dir, const std::string& name, const Bytes& b) {
   std::ofstream(dir / name, std::ios::binary)
       .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
   ++g_written;
+}
+
+// What `ssl` wrote into its output memory BIO so far.
+Bytes drain(SSL* ssl) {
+  Bytes out(1 << 16);
+  const int n = BIO_read(SSL_get_wbio(ssl), out.data(), static_cast<int>(out.size()));
+  out.resize(n > 0 ? static_cast<std::size_t>(n) : 0);
+  return out;
+}
+
+// A real ClientHello and the server's first flight under the fuzz target's PSK (0x42 x 32).
+std::pair<Bytes, Bytes> tls_first_flights() {
+  using namespace telex::proto;
+  TlsConfig c;
+  c.psk = AuthKey(Bytes(32, 0x42));
+  SSL_CTX* sctx = make_tls_context(c, TlsRole::Server);
+  SSL_CTX* cctx = make_tls_context(c, TlsRole::Client);
+  SSL* server = SSL_new(sctx);
+  SSL* client = SSL_new(cctx);
+  SSL_set_bio(server, BIO_new(BIO_s_mem()), BIO_new(BIO_s_mem()));
+  SSL_set_bio(client, BIO_new(BIO_s_mem()), BIO_new(BIO_s_mem()));
+  SSL_set_accept_state(server);
+  SSL_set_connect_state(client);
+  (void)SSL_do_handshake(client);
+  const Bytes hello = drain(client);
+  BIO_write(SSL_get_rbio(server), hello.data(), static_cast<int>(hello.size()));
+  (void)SSL_do_handshake(server);
+  const Bytes flight = drain(server);
+  SSL_free(server);
+  SSL_free(client);
+  SSL_CTX_free(sctx);
+  SSL_CTX_free(cctx);
+  return {hello, flight};
 }
 
 Bytes cat(std::initializer_list<Bytes> parts) {
@@ -104,6 +142,22 @@ int main(int argc, char** argv) {
   // datagram_fuzz: one whole datagram message.
   for (std::size_t i = 0; i < msgs.size(); ++i)
     write(out / "datagram_fuzz", "msg" + std::to_string(i), encode({}, msgs[i]));
+
+  // tls_record_fuzz: byte 0 bit 0 picks the end (0 server, 1 client), then the peer's bytes; the
+  // same bytes go to the datagram opener (key 0x42 x 32, IV 0x24 x 12) and the stream parser.
+  {
+    const auto [hello, flight] = tls_first_flights();
+    write(out / "tls_record_fuzz", "client_hello", cat({{0x00}, hello}));
+    write(out / "tls_record_fuzz", "server_flight", cat({{0x01}, flight}));
+    DirectionKey key;
+    key.key.fill(0x42);
+    key.iv.fill(0x24);
+    DatagramSealer sealer(key);
+    for (std::size_t i = 0; i < msgs.size(); ++i)
+      for (const auto& d : fragment_message(encode({}, msgs[i]), static_cast<std::uint32_t>(i), 7))
+        write(out / "tls_record_fuzz", "sealed" + std::to_string(i), cat({{0x02}, sealer.seal(d)}));
+    write(out / "tls_record_fuzz", "stream", cat({{0x00}, encode_stream({}, msgs[0])}));
+  }
 
   // reassembler_fuzz: records of u16 length, u8 time step, datagram.
   {

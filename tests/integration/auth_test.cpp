@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Tests for message authentication: RFC 4231 vector, tampering, wrong keys, key files, replays.
+// Tests for pre-shared key files (length bounds, loading, errors) and the datagrams' replay window.
 #include "telex/proto/auth.h"
 
 #include <gtest/gtest.h>
@@ -13,108 +13,10 @@
 
 #include "process.h"
 #include "telex/proto/messages.h"
+#include "telex/proto/seal.h"
 
 namespace telex::proto {
 namespace {
-
-std::vector<std::uint8_t> bytes_of(std::string_view s) { return {s.begin(), s.end()}; }
-
-AuthKey key_of(std::uint8_t fill, std::size_t n = 32) {
-  return AuthKey(std::vector<std::uint8_t>(n, fill));
-}
-
-std::vector<std::uint8_t> sample_message(std::uint32_t seq) {
-  Header h;
-  h.session_id = 0xC0FFEE;
-  h.seq = seq;
-  h.frame_id = 7;
-  h.capture_ns = 123456789;
-  DepthTile t;
-  t.tile_index = 3;
-  t.x = 80;
-  t.y = 0;
-  t.w = 80;
-  t.h = 60;
-  t.codec = Codec::Raw;
-  t.payload.assign(80 * 60 * 2, 0x5A);
-  return encode(h, t);
-}
-
-TEST(Auth, MatchesRfc4231TestCase1Truncated) {
-  // RFC 4231 4.2: key = 20 x 0x0b, data = "Hi There".
-  const AuthKey key(std::vector<std::uint8_t>(20, 0x0b));
-  const auto tag = compute_tag(bytes_of("Hi There"), key);
-  const std::array<std::uint8_t, 16> expected{0xb0, 0x34, 0x4c, 0x61, 0xd8, 0xdb, 0x38, 0x53,
-                                              0x5c, 0xa8, 0xaf, 0xce, 0xaf, 0x0b, 0xf1, 0x2b};
-  EXPECT_EQ(tag, expected);
-}
-
-TEST(Auth, RoundTripStripsExactlyTheTag) {
-  const auto key = key_of(0x11);
-  const auto msg = sample_message(1);
-  auto tagged = msg;
-  append_tag(tagged, key);
-  ASSERT_EQ(tagged.size(), msg.size() + kAuthTagBytes);
-  const auto body = verify_and_strip(tagged, key);
-  ASSERT_TRUE(body.has_value());
-  EXPECT_TRUE(std::equal(body->begin(), body->end(), msg.begin(), msg.end()));
-  // The stripped bytes still decode as the original message.
-  EXPECT_TRUE(decode(*body).ok());
-}
-
-TEST(Auth, FlippingAnyBitOfHeaderPayloadOrTagFails) {
-  const auto key = key_of(0x22);
-  auto tagged = sample_message(2);
-  tagged.resize(kHeaderSize + 40);  // keep the exhaustive loop small; coverage is the point
-  append_tag(tagged, key);
-  for (std::size_t i = 0; i < tagged.size(); ++i) {
-    for (int bit = 0; bit < 8; ++bit) {
-      auto bad = tagged;
-      bad[i] ^= static_cast<std::uint8_t>(1u << bit);
-      EXPECT_FALSE(verify_and_strip(bad, key).has_value()) << "byte " << i << " bit " << bit;
-    }
-  }
-  EXPECT_TRUE(verify_and_strip(tagged, key).has_value());
-}
-
-TEST(Auth, TruncatedExtendedAndTagMovedFail) {
-  const auto key = key_of(0x23);
-  auto tagged = sample_message(3);
-  append_tag(tagged, key);
-  for (std::size_t cut :
-       {std::size_t{1}, std::size_t{15}, std::size_t{16}, tagged.size() - 1, tagged.size()}) {
-    const std::span<const std::uint8_t> s(tagged.data(), tagged.size() - cut);
-    EXPECT_FALSE(verify_and_strip(s, key).has_value()) << "cut " << cut;
-  }
-  auto longer = tagged;
-  longer.push_back(0);
-  EXPECT_FALSE(verify_and_strip(longer, key).has_value());
-  EXPECT_FALSE(verify_and_strip({}, key).has_value());
-}
-
-TEST(Auth, WrongKeyFailsIncludingOneBitDifferentKey) {
-  const auto key = key_of(0x33);
-  auto tagged = sample_message(4);
-  append_tag(tagged, key);
-  EXPECT_FALSE(verify_and_strip(tagged, key_of(0x34)).has_value());
-  std::vector<std::uint8_t> k(32, 0x33);
-  k[31] ^= 0x80;
-  EXPECT_FALSE(verify_and_strip(tagged, AuthKey(k)).has_value());
-  // A key that is a prefix of the real one is a different key.
-  EXPECT_FALSE(verify_and_strip(tagged, key_of(0x33, 31)).has_value());
-}
-
-TEST(Auth, RandomForgeriesNeverVerify) {
-  const auto key = key_of(0x44);
-  std::mt19937 rng(42);
-  std::size_t accepted = 0;
-  for (int i = 0; i < 2000; ++i) {
-    std::vector<std::uint8_t> m(kHeaderSize + 16 + rng() % 200);
-    for (auto& b : m) b = static_cast<std::uint8_t>(rng());
-    accepted += verify_and_strip(m, key).has_value();
-  }
-  EXPECT_EQ(accepted, 0u);
-}
 
 TEST(Auth, KeyLengthBounds) {
   EXPECT_THROW(AuthKey(std::vector<std::uint8_t>(15, 1)), std::invalid_argument);
@@ -247,14 +149,5 @@ TEST(ReplayWindow, MatchesASetBasedModel) {
     }
   }
 }
-
-TEST(ExtendSeq, FollowsTheU32Wrap) {
-  EXPECT_EQ(extend_seq(5, 3), 5u);
-  EXPECT_EQ(extend_seq(2, 3), 2u);
-  EXPECT_EQ(extend_seq(0x00000002u, 0xFFFFFFF0u), 0x100000002ull);    // wrapped forward
-  EXPECT_EQ(extend_seq(0xFFFFFFF0u, 0x100000002ull), 0xFFFFFFF0ull);  // late, before the wrap
-  EXPECT_EQ(extend_seq(0x10u, 0x100000002ull), 0x100000010ull);
-}
-
 }  // namespace
 }  // namespace telex::proto

@@ -11,7 +11,6 @@ namespace {
 TEST(FrameParts, RoiPartFlagIsHeaderBitTwoAndRoundTrips) {
   EXPECT_EQ(kFlagRoiPart, 0x0004);
   EXPECT_EQ(kFlagRoiPart & kFlagKeyFrame, 0);
-  EXPECT_EQ(kFlagRoiPart & kFlagAuth, 0);
   Header h;
   h.frame_id = 42;
   h.capture_ns = 123456789;

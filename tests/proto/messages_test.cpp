@@ -30,7 +30,7 @@ TEST(Messages, HeaderLayoutIsLittleEndianFieldByField) {
                                  'L',
                                  'X',
                                  '1',                                      // magic
-                                 3,                                        // version
+                                 4,                                        // version
                                  static_cast<std::uint8_t>(MsgType::Bye),  // type
                                  0x01,
                                  0x00,  // flags

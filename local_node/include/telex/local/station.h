@@ -91,7 +91,10 @@ struct StationConfig {
   std::array<std::array<int, kFingerCount>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
   double print_forces_hz = 0.0;  // live force lines on stdout (0 = off)
   bool status_line = true;       // one status line per second on stderr
-  bool roi_requests = true;      // ask the remote for full-rate tiles near the hands
+  // --insecure: a plain link off loopback, accepted on purpose: every status line says so and a
+  // warning goes to stderr every minute (main() warns at start).
+  bool insecure = false;
+  bool roi_requests = true;  // ask the remote for full-rate tiles near the hands
   // Test seam, never set by telex-local: called at the top of every pass of the named loop; an
   // exception it throws takes that loop's error path (tests/integration/station_faults_test.cpp).
   std::function<void(StationLoop)> fault_hook;
@@ -129,7 +132,7 @@ struct StationSummary {
   // Per thread on the depth-to-force path (surface, network, haptic, tracking): what it got.
   std::vector<std::pair<std::string, std::string>> thread_scheduling;
   // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
-  std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, dropped_malformed = 0;
+  std::uint64_t auth_failed = 0, unsealed = 0, replayed = 0, dropped_malformed = 0;
   std::uint64_t upstream_dropped = 0;  // messages to the remote dropped behind a stalled write
   // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
   std::uint64_t udp_datagrams = 0, udp_lost = 0;

@@ -12,8 +12,8 @@
 #include <string>
 
 #include "telex/base/thread_fault.h"
-#include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
+#include "telex/proto/tls.h"
 
 namespace telex::local {
 
@@ -33,9 +33,9 @@ struct ClientConfig {
   // tell the remote to send to udp_announce_port (0 = the bound port), where the proxy listens.
   std::uint16_t udp_bind_port = 0;
   std::uint16_t udp_announce_port = 0;
-  // --psk: tag every message under this key (per session, a key derived from it) and accept only
-  // messages whose tag verifies (docs/PROTOCOL.md section 7).
-  std::optional<proto::AuthKey> psk;
+  // --psk or --cert/--key/--ca: TLS 1.3 on TCP and sealed datagrams under keys exported from it
+  // (docs/PROTOCOL.md section 7); nothing else is accepted. Neither: plain TCP and UDP.
+  proto::TlsConfig tls;
   // SCHED_FIFO priority of the network thread (0: the scheduling it was started with). The
   // station asks for kStationPathPriority: tiles are decoded there, on the path to the force.
   int realtime_priority = 0;
@@ -61,10 +61,12 @@ struct ClientStats {
   // Messages to the remote dropped unsent because 64 were already queued behind a stalled write.
   std::atomic<std::uint64_t> upstream_dropped{0};
   std::atomic<std::uint64_t> dropped_foreign{0};  // wrong session or source
-  // Authentication drops (TCP messages and UDP datagrams): missing or wrong tag, a tag when no key
-  // is configured, an authentic message replayed.
+  // Authentication: auth_failed counts TLS handshakes that failed (another key, a peer without
+  // TLS, a certificate the CA does not vouch for) and datagrams that do not open under the
+  // remote->station key; unsealed: plain datagrams on a sealed link; replayed: authentic datagrams
+  // seen before.
   std::atomic<std::uint64_t> auth_failed{0};
-  std::atomic<std::uint64_t> unexpected_tag{0};
+  std::atomic<std::uint64_t> unsealed{0};
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> heartbeats{0};
   std::atomic<std::int64_t> clock_offset_ns{0};  // remote clock minus local clock (NTP estimate)

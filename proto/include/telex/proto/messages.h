@@ -19,7 +19,7 @@ namespace telex::proto {
 
 // "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
-inline constexpr std::uint8_t kProtocolVersion = 3;
+inline constexpr std::uint8_t kProtocolVersion = 4;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
@@ -46,8 +46,8 @@ std::string_view msg_type_name(MsgType type);
 // Header flag bits.
 inline constexpr std::uint16_t kFlagKeyFrame =
     1u << 0;  // the frame this message belongs to is a key frame
-// A 16-byte authentication tag follows the payload (auth.h; sent only with a pre-shared key).
-inline constexpr std::uint16_t kFlagAuth = 1u << 1;
+// Bit 1 is reserved: version 3 marked an HMAC tag with it; version 4 protects the link with TLS
+// and sealed datagrams instead (tls.h, seal.h), below the messages.
 // The message belongs to the ROI part of its frame: a second FrameManifest with the same frame id
 // (without this flag) follows and closes the frame (PROTOCOL.md 2.4).
 inline constexpr std::uint16_t kFlagRoiPart = 1u << 2;
@@ -252,9 +252,9 @@ enum class ErrorReason : std::uint8_t {
   BadTileGeometry,    // tile rectangle empty, outside the frame or inconsistent with the grid
   DecompressionBomb,  // a tile claims more pixels than allowed
   BadPayload,         // payload shape wrong (counts, enum values, trailing bytes)
-  AuthFailed,         // a key is configured and the tag is missing or does not verify
-  UnexpectedTag,      // a tag arrived but no key is configured
-  Replayed,           // authentic, but its sequence number was seen or is older than the window
+  AuthFailed,         // a sealed datagram that does not open (another key, or bits changed)
+  Unsealed,           // a datagram without the seal (seal.h) while the link is sealed
+  Replayed,  // a sealed datagram whose sequence number was seen or is older than the window
 };
 inline constexpr int kErrorReasonCount = 12;
 std::string_view error_reason_name(ErrorReason reason);

@@ -9,28 +9,9 @@
 #include <span>
 #include <vector>
 
-#include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
 
 namespace telex::proto {
-
-// Message authentication shared by both parsers (docs/PROTOCOL.md section 7). With a key, every
-// message must carry kFlagAuth and a tag that verifies under it, else AuthFailed; its sequence
-// number must pass the replay window, else Replayed. Without a key a tagged message is
-// UnexpectedTag. The three skip one message: the framing is intact, so parsing continues.
-class MessageAuth {
- public:
-  // A new key (the session key after the handshake) starts a fresh replay window.
-  void set_key(std::optional<AuthKey> key);
-  bool keyed() const { return key_.has_value(); }
-  const AuthKey* key() const { return key_ ? &*key_ : nullptr; }
-  // `message` is header + payload (+ tag when its header says so), exactly.
-  Result open(std::span<const std::uint8_t> message, const DecodeLimits& limits);
-
- private:
-  std::optional<AuthKey> key_;
-  ReplayWindow window_;
-};
 
 // Messages rejected, per reason (indexed by ErrorReason).
 struct DropCounters {
@@ -39,30 +20,25 @@ struct DropCounters {
   std::uint64_t total() const;
 };
 
-// What both parsers keep: the decode limits (with the frame size once known), the authentication
-// state and the counters.
+// What both parsers keep: the decode limits (with the frame size once known) and the counters.
+// Authenticity lives below them: TLS on the stream, the seal (seal.h) on datagrams.
 class ParserCore {
  public:
   const DropCounters& drops() const { return drops_; }
   std::uint64_t messages() const { return messages_; }
   // Lets tile rectangles be checked against the frame once StreamConfig is known.
   void set_frame_size(std::uint16_t width, std::uint16_t height);
-  // Pre-shared or session key (nullopt: none); see MessageAuth. Applies from the next message.
-  void set_key(std::optional<AuthKey> key) { auth_.set_key(std::move(key)); }
-  bool keyed() const { return auth_.keyed(); }
 
  protected:
   explicit ParserCore(DecodeLimits limits) : limits_(limits) {}
   DecodeLimits limits_;
-  MessageAuth auth_;
   DropCounters drops_;
   std::uint64_t messages_ = 0;
 };
 
 // TCP stream parser. Bytes in: feed(); messages out: next(). Never touches a socket.
 //
-// Memory: the internal buffer never holds more than 4 + limits.max_message_bytes + kAuthTagBytes
-// bytes (the bound applies to header + payload; a tag may follow); feed()
+// Memory: the internal buffer never holds more than 4 + limits.max_message_bytes bytes; feed()
 // accepts only what fits and returns how many bytes it took, so a caller drains with next() and
 // feeds the rest.
 //
@@ -72,9 +48,8 @@ class ParserCore {
 //    parser reports the error once, then stays failed() (feed takes nothing, next() returns
 //    nullopt): THE CALLER CLOSES THE CONNECTION. No resynchronisation is attempted.
 //  - Content errors in a correctly framed message whose CRC verified (BadVersion, UnknownType,
-//    BadPayload, BadTileGeometry, DecompressionBomb) and authentication errors (AuthFailed,
-//    UnexpectedTag, Replayed; see MessageAuth): the message is skipped, the error returned, and
-//    parsing continues with the next message.
+//    BadPayload, BadTileGeometry, DecompressionBomb): the message is skipped, the error returned,
+//    and parsing continues with the next message.
 class StreamParser : public ParserCore {
  public:
   explicit StreamParser(DecodeLimits limits = {});
@@ -86,7 +61,7 @@ class StreamParser : public ParserCore {
 
   bool failed() const { return failed_; }
   std::size_t buffered() const { return end_ - begin_; }
-  std::size_t capacity() const { return 4 + limits_.max_message_bytes + kAuthTagBytes; }
+  std::size_t capacity() const { return 4 + limits_.max_message_bytes; }
 
  private:
   Result fail(ErrorReason reason, const char* detail, bool fatal);
@@ -98,7 +73,7 @@ class StreamParser : public ParserCore {
 };
 
 // One message per datagram (or per reassembled UDP message); no length prefix. Stateless apart
-// from counters and, with a key, the replay window, so every datagram stands alone.
+// from counters, so every datagram stands alone.
 class DatagramParser : public ParserCore {
  public:
   explicit DatagramParser(DecodeLimits limits = {});

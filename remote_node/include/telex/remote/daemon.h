@@ -43,6 +43,9 @@ struct DaemonConfig {
   // SCHED_FIFO for the threads from capture to the network (kRemotePathPriority) and the head loop
   // (kHeadLoopPriority); --no-realtime turns it off. Video and the stats line stay below them.
   bool realtime = true;
+  // --insecure: a plain link off loopback, accepted on purpose; every stats line says so and a
+  // warning is logged at start and every minute.
+  bool insecure = false;
 };
 
 // Throws std::invalid_argument naming the first bad value.
@@ -61,7 +64,7 @@ struct DaemonStats {
   std::uint64_t source_errors = 0;
   std::uint64_t video_frames = 0;
   std::uint64_t malformed_in = 0;
-  std::uint64_t auth_failed = 0, unexpected_tag = 0, replayed = 0, udp_ignored = 0;
+  std::uint64_t auth_failed = 0, unsealed = 0, replayed = 0, udp_ignored = 0;
   // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
   // tiles asked for that the cache no longer held.
   std::uint64_t key_frame_requests = 0, nacks_in = 0, repair_tiles_sent = 0, repair_unavailable = 0;

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "telex/proto/auth.h"
 #include "telex/proto/messages.h"
+#include "telex/proto/tls.h"
 #include "telex/remote/pipeline.h"
 #include "telex/remote/repair_cache.h"
 
@@ -32,9 +32,10 @@ struct ServerConfig {
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
   float fps = 30.0f;
-  // --psk: every message in both directions carries a tag under this key (per session: a key
-  // derived from it, docs/PROTOCOL.md section 7); nothing unauthenticated is acted on.
-  std::optional<proto::AuthKey> psk;
+  // --psk or --cert/--key/--ca: the TCP connection runs TLS 1.3 and every datagram is sealed
+  // under keys exported from it (docs/PROTOCOL.md section 7); nothing unauthenticated is acted on.
+  // Neither: plain TCP and UDP.
+  proto::TlsConfig tls;
   // The operator's head as joint targets (PROTOCOL.md 2.6), with the time it was received (steady
   // clock): called on the network thread, so it must not block. Unset: counted and dropped.
   std::function<void(const proto::HeadCommand&, std::int64_t received_ns)> on_head_command;
@@ -67,11 +68,14 @@ struct ServerCounters {
   std::atomic<std::uint64_t> datagrams_sent{0};
   std::atomic<std::uint64_t> bytes_sent{0};  // depth + video payload bytes on the wire (UDP or TCP)
   std::atomic<std::uint64_t> malformed_in{0};  // messages from the client rejected by the parser
-  // Messages dropped by authentication (not in malformed_in): missing or wrong tag, a tag when no
-  // key is configured, an authentic message replayed. udp_ignored: datagrams to the server's UDP
-  // port, which accepts nothing (only forged or stray traffic arrives there).
+  // Refused by authentication (not in malformed_in): auth_failed counts TLS handshakes that failed
+  // (another key, no TLS, a certificate the CA does not vouch for) and datagrams to the server's
+  // UDP port that do not open under the station->remote key (forged, or reflected: a datagram the
+  // remote sent is sealed under the other direction's key); unsealed: plain datagrams there while
+  // the link is sealed; replayed: authentic datagrams seen before. udp_ignored: datagrams at that
+  // port that open or arrive on a plain link: no message travels that way yet, so none is acted on.
   std::atomic<std::uint64_t> auth_failed{0};
-  std::atomic<std::uint64_t> unexpected_tag{0};
+  std::atomic<std::uint64_t> unsealed{0};
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> udp_ignored{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
