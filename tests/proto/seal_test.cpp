@@ -12,6 +12,7 @@
 #include <set>
 #include <string>
 
+#include "process.h"
 #include "telex/proto/auth.h"
 
 namespace telex::proto {
@@ -218,8 +219,7 @@ TEST(DatagramSeal, RandomForgeriesNeverOpen) {
 }
 
 TEST(AuthKeyFile, PermissionsOpenToOthersAreRefusedWithTheFix) {
-  const auto dir =
-      std::filesystem::temp_directory_path() / ("telex_psk_perm_" + std::to_string(::getpid()));
+  const auto dir = ::telex::test::scratch_dir("psk_perm");
   std::filesystem::create_directories(dir);
   const auto path = dir / "key";
   { std::ofstream(path, std::ios::binary) << std::string(32, 'k'); }
