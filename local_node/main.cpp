@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
 #include "telex/local/view_window.h"
 
@@ -146,6 +147,11 @@ int main(int argc, char** argv) {
   app.add_flag("--no-realtime", no_realtime,
                "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
                "depth network, tracking)");
+  bool no_supervisor = false;
+  app.add_flag("--no-supervisor", no_supervisor,
+               "no display supervisor (default: a child process that commands zero force on the "
+               "haptic display if the station dies by SIGKILL, abort or a segfault; "
+               "docs/HARDWARE.md)");
   bool full_frame = false, roi_flag = false;
   app.add_flag("--full-frame", full_frame,
                "filter and build normals over the whole frame (default: only near the "
@@ -250,6 +256,16 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       std::fprintf(stderr, "telex-local: error: --psk: %s\n", e.what());
       return 2;
+    }
+  }
+  // Forked before any thread starts: the supervisor is a copy of this one thread.
+  DisplaySupervisor supervisor;
+  if (!no_supervisor) {
+    try {
+      supervisor = start_display_supervisor(zero_channel_for(cfg.haptics_spec, cfg.display), {});
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+      return dynamic_cast<const std::invalid_argument*>(&e) != nullptr ? 2 : 1;
     }
   }
   cfg.client.use_udp = transport == "udp";
