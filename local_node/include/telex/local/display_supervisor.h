@@ -4,6 +4,7 @@
 #pragma once
 
 #include <netinet/in.h>
+#include <pthread.h>
 #include <sys/types.h>
 
 #include <cstdint>
@@ -38,23 +39,26 @@ struct ZeroChannel {
 ZeroChannel zero_channel_for(const std::string& spec, const DisplayConfig& config);
 
 // The zero commands the supervisor sends when the station dies: `repeats` copies (UDP may lose
-// one), the k-th after `spacing_us` x (2^k - 1) microseconds: 0, 1, 3, 7, 15 ms by default, so the
-// last goes out within 16 ms of the death.
+// one), the k-th after `spacing_us` x (2^k - 1) microseconds: 0, 0.5, 1.5, 3.5 and 7.5 ms by
+// default, so a burst of loss does not take them all and the last goes out within 8 ms.
 struct SupervisorOptions {
   int repeats = 5;
-  int spacing_us = 1000;
+  int spacing_us = 500;
   // Write a line to stderr when the station dies and what was commanded.
   bool report = true;
 };
 
 // The running supervisor, seen from the station. Destroying it is the station's clean exit: it
 // says goodbye (the supervisor commands zero once more, zero is always safe, and exits) and reaps
-// it. A station that dies without that (the pipe to the supervisor closes with no goodbye, or the
-// parent changes) gets zero force on the channel within milliseconds.
+// it. A station that dies without that gets zero force on the channel within milliseconds: the
+// starting thread holds a robust process-shared mutex the kernel hands to the waiting supervisor
+// as that thread starts to exit; the socket's end of file and getppid() are checked every 10 ms
+// as a second line (they come only after the kernel has freed the station's memory).
 class DisplaySupervisor {
  public:
   DisplaySupervisor() = default;  // none (--no-supervisor)
-  DisplaySupervisor(pid_t pid, int pipe_fd) : pid_(pid), pipe_fd_(pipe_fd) {}
+  DisplaySupervisor(pid_t pid, int pipe_fd, pthread_mutex_t* alive)
+      : pid_(pid), pipe_fd_(pipe_fd), alive_(alive) {}
   DisplaySupervisor(DisplaySupervisor&& o) noexcept;
   DisplaySupervisor& operator=(DisplaySupervisor&& o) noexcept;
   DisplaySupervisor(const DisplaySupervisor&) = delete;
@@ -69,6 +73,7 @@ class DisplaySupervisor {
  private:
   pid_t pid_ = -1;
   int pipe_fd_ = -1;
+  pthread_mutex_t* alive_ = nullptr;  // shared with the supervisor, held by the starting thread
 };
 
 // Forks the supervisor for `channel` (whose fd it takes over). Call it before any thread starts,
