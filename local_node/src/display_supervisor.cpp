@@ -213,7 +213,7 @@ End wait_for_end(int sock, pid_t station, pthread_mutex_t* alive) {
       if (command_zero(c)) ++sent;
     }
   }
-  if (end != End::Goodbye && o.report) {
+  if (end != End::Goodbye && o.report_fd >= 0) {
     char line[640];
     const char* how = seen_by(end);
     const std::size_t how_n = std::strlen(how);
@@ -227,7 +227,7 @@ End wait_for_end(int sock, pid_t station, pthread_mutex_t* alive) {
     std::memcpy(p, how, how_n);
     p += how_n;
     std::memcpy(p, ")\n", 2);
-    write_all(STDERR_FILENO, line, static_cast<std::size_t>(p + 2 - line));
+    write_all(o.report_fd, line, static_cast<std::size_t>(p + 2 - line));
   }
   ::_exit(sent == tried ? 0 : 1);
 }

@@ -6,11 +6,13 @@
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <linux/futex.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sched.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -29,7 +31,10 @@
 namespace telex::local {
 namespace {
 
-enum class Death { Goodbye, Kill, Abort, Segfault };
+// KillWithoutRobustList: the station's robust-mutex list is lost first (as a heap-smashing bug
+// could lose it), so the kernel cannot hand the mutex on and the supervisor's second line must see
+// it.
+enum class Death { Goodbye, Kill, Abort, Segfault, KillWithoutRobustList };
 
 const char* name_of(Death d) {
   switch (d) {
@@ -41,6 +46,8 @@ const char* name_of(Death d) {
       return "Abort";
     case Death::Segfault:
       return "Segfault";
+    case Death::KillWithoutRobustList:
+      return "KillWithoutRobustList";
   }
   return "?";
 }
@@ -81,14 +88,14 @@ struct Receiver {
 // The stand-in station: forks, starts the supervisor on `channel`, runs `press` (its own command
 // on the channel), then ends as `death` says. Returns the stand-in's exit status as Process::wait
 // gives it (128 + signal). `press` gets the supervisor's pid; `before_start` runs in the stand-in
-// first.
+// first; the supervisor's death line goes to `report_fd`.
 int run_station(Death death, ZeroChannel channel, const std::function<void(pid_t)>& press,
-                const std::function<void()>& before_start = {}) {
+                const std::function<void()>& before_start = {}, int report_fd = -1) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     if (before_start) before_start();
     SupervisorOptions options;
-    options.report = false;
+    options.report_fd = report_fd;
     DisplaySupervisor s = start_display_supervisor(std::move(channel), options);
     press(s.pid());
     switch (death) {
@@ -103,6 +110,12 @@ int run_station(Death death, ZeroChannel channel, const std::function<void(pid_t
         // Both volatile: GCC would drop a plain store, or turn a known null one into a trap.
         volatile int* volatile nowhere = nullptr;
         *nowhere = 1;
+        break;
+      }
+      case Death::KillWithoutRobustList: {
+        static robust_list_head empty{{&empty.list}, 0, nullptr};
+        ::syscall(SYS_set_robust_list, &empty, sizeof empty);
+        ::raise(SIGKILL);
         break;
       }
     }
@@ -143,22 +156,28 @@ int policy_of(pid_t pid) {
 class SupervisorUdp : public ::testing::TestWithParam<Death> {};
 
 // The station's last datagram is a press; whatever ends it, the supervisor's five zero datagrams
-// come after it, from the supervisor's own socket.
+// come after it, from the supervisor's own socket, and its line says what saw the death.
 TEST_P(SupervisorUdp, ZeroDatagramsFollowThePressFromTheSupervisorsOwnSocket) {
   const Death death = GetParam();
   Receiver rx;
+  int said[2];
+  ASSERT_EQ(::pipe(said), 0);
   ZeroChannel ch = zero_channel_for("udp:127.0.0.1:" + std::to_string(rx.port()), DisplayConfig{});
   ASSERT_EQ(ch.kind, ZeroChannel::Kind::Udp);
-  const int station_rc = run_station(death, std::move(ch), [&](pid_t) {
-    auto display = open_udp_sink("127.0.0.1", rx.port());
-    std::array<FingerForce, 1> f{FingerForce{1, 2.5, 0.0, true}};
-    display->write(monotonic_ns(), f);
-    display.release();  // dies holding the press, as a killed station does
-  });
-  const int want_rc = death == Death::Goodbye ? 0
-                      : death == Death::Kill  ? 128 + SIGKILL
-                      : death == Death::Abort ? 128 + SIGABRT
-                                              : 128 + SIGSEGV;
+  const int station_rc = run_station(
+      death, std::move(ch),
+      [&](pid_t) {
+        auto display = open_udp_sink("127.0.0.1", rx.port());
+        std::array<FingerForce, 1> f{FingerForce{1, 2.5, 0.0, true}};
+        display->write(monotonic_ns(), f);
+        display.release();  // dies holding the press, as a killed station does
+      },
+      {}, said[1]);
+  ::close(said[1]);
+  const int want_rc = death == Death::Goodbye    ? 0
+                      : death == Death::Abort    ? 128 + SIGABRT
+                      : death == Death::Segfault ? 128 + SIGSEGV
+                                                 : 128 + SIGKILL;
   EXPECT_EQ(station_rc, want_rc);
   const auto got = rx.drain(300);
   ASSERT_EQ(got.size(), 6u) << "the press and five zeros";
@@ -167,11 +186,28 @@ TEST_P(SupervisorUdp, ZeroDatagramsFollowThePressFromTheSupervisorsOwnSocket) {
     EXPECT_TRUE(all_zero(got[i].first)) << i << ": '" << got[i].first << "'";
     EXPECT_NE(got[i].second, got[0].second) << "the zero came from the station's socket";
   }
+  // The line ends when the supervisor exits and closes its end of the pipe.
+  std::string line;
+  char buf[256];
+  for (ssize_t n; (n = ::read(said[0], buf, sizeof buf)) > 0;)
+    line.append(buf, static_cast<std::size_t>(n));
+  ::close(said[0]);
+  const char* seen = death == Death::Goodbye ? nullptr
+                     : death == Death::KillWithoutRobustList
+                         ? "seen by its socket's end of file)"
+                         : "seen by its main thread's robust mutex)";
+  if (seen == nullptr) {
+    EXPECT_EQ(line, "") << "a goodbye is quiet";
+  } else {
+    EXPECT_NE(line.find(kSupervisorDiedLine), std::string::npos) << line;
+    EXPECT_NE(line.find("(5 of 5 sent; "), std::string::npos) << line;
+    EXPECT_NE(line.find(seen), std::string::npos) << line;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Ends, SupervisorUdp,
                          ::testing::Values(Death::Goodbye, Death::Kill, Death::Abort,
-                                           Death::Segfault),
+                                           Death::Segfault, Death::KillWithoutRobustList),
                          [](const auto& info) { return std::string(name_of(info.param)); });
 
 // The HID channel is a file descriptor and the motors-off report: a pipe stands in for the hidraw

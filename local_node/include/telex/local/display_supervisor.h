@@ -44,8 +44,8 @@ ZeroChannel zero_channel_for(const std::string& spec, const DisplayConfig& confi
 struct SupervisorOptions {
   int repeats = 5;
   int spacing_us = 500;
-  // Write a line to stderr when the station dies and what was commanded.
-  bool report = true;
+  // Where the line saying the station died, what was commanded and what saw it goes (-1: nowhere).
+  int report_fd = 2;
 };
 
 // The running supervisor, seen from the station. Destroying it is the station's clean exit: it
