@@ -146,7 +146,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-realtime", no_realtime,
                "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
-               "depth network, tracking)");
+               "depth network, tracking) and the display supervisor");
   bool no_supervisor = false;
   app.add_flag("--no-supervisor", no_supervisor,
                "no display supervisor (default: a child process that commands zero force on the "
@@ -262,7 +262,8 @@ int main(int argc, char** argv) {
   DisplaySupervisor supervisor;
   if (!no_supervisor) {
     try {
-      supervisor = start_display_supervisor(zero_channel_for(cfg.haptics_spec, cfg.display), {});
+      supervisor = start_display_supervisor(zero_channel_for(cfg.haptics_spec, cfg.display),
+                                            {.realtime = !no_realtime});
     } catch (const std::exception& e) {
       std::fprintf(stderr, "telex-local: error: %s\n", e.what());
       return dynamic_cast<const std::invalid_argument*>(&e) != nullptr ? 2 : 1;

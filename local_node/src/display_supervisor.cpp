@@ -19,6 +19,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "telex/base/periodic.h"
 #include "telex/local/gravity_grabber.h"
 #include "telex/local/udp_sink.h"
 
@@ -180,15 +181,24 @@ End wait_for_end(int sock, pid_t station, pthread_mutex_t* alive) {
     if (goodbye) return End::Goodbye;
     if (eof) return End::SocketClosed;
     if (::getppid() != station) return End::ParentChanged;
+    if (r != ETIMEDOUT) {  // never spin, even on an error the mutex should not give
+      const timespec wait{0, 10'000'000};
+      ::nanosleep(&wait, nullptr);
+    }
   }
 }
 
 [[noreturn]] void supervise(const ZeroChannel& c, const SupervisorOptions& o, int sock,
                             pid_t station, pthread_mutex_t* alive, const std::string& died_line) {
-  // Never above the station's threads: whatever scheduling the forking thread had, this one waits
-  // at the default. (A blocked process starves no one; this guards a station started under chrt.)
-  const sched_param normal{};
-  ::sched_setscheduler(0, SCHED_OTHER, &normal);
+  // Never the forking thread's scheduling (a station started under chrt would pass on its own):
+  // SCHED_FIFO at the lowest priority, below every thread of the station, so it can never delay
+  // one, but ahead of ordinary programs when the station dies; else the default.
+  sched_param fifo{};
+  fifo.sched_priority = kSupervisorPriority;
+  if (!o.realtime || ::sched_setscheduler(0, SCHED_FIFO, &fifo) != 0) {
+    const sched_param normal{};
+    ::sched_setscheduler(0, SCHED_OTHER, &normal);
+  }
   // Ctrl-C, a terminal hang-up or a SIGTERM to the process group reach the station, which stops
   // in order and says goodbye; the supervisor outlives it to see that, whatever the station does.
   struct sigaction ignore {};

@@ -140,17 +140,20 @@ bool all_zero(const std::string& datagram) {
   return true;
 }
 
-// The policy field of /proc/PID/stat (the 41st), or -1.
-int policy_of(pid_t pid) {
+// The real-time priority and policy fields of /proc/PID/stat (the 40th and 41st), or -1.
+std::pair<int, int> scheduling_of(pid_t pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
   std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const auto close = stat.rfind(')');
-  if (close == std::string::npos) return -1;
+  if (close == std::string::npos) return {-1, -1};
   std::istringstream rest(stat.substr(close + 2));
   std::string field;
-  for (int i = 3; i <= 41 && rest >> field; ++i)
-    if (i == 41) return std::stoi(field);
-  return -1;
+  int priority = -1;
+  for (int i = 3; i <= 41 && rest >> field; ++i) {
+    if (i == 40) priority = std::stoi(field);
+    if (i == 41) return {std::stoi(field), priority};
+  }
+  return {-1, -1};
 }
 
 class SupervisorUdp : public ::testing::TestWithParam<Death> {};
@@ -277,37 +280,56 @@ TEST(SupervisorSimCsv, GoodbyeAppendsNothing) {
   EXPECT_EQ(test::read_text(csv), "header\n");
 }
 
-// A station started at SCHED_FIFO (under chrt) forks a supervisor that waits at the default policy.
-TEST(SupervisorScheduling, ARealtimeStationsSupervisorWaitsAtTheDefaultPolicy) {
+// A station started at SCHED_FIFO 10 (under chrt) forks a supervisor that does not keep that
+// policy: SCHED_FIFO kSupervisorPriority (1, below every thread of the station), or with
+// realtime off SCHED_OTHER.
+class SupervisorScheduling : public ::testing::TestWithParam<bool> {};
+
+TEST_P(SupervisorScheduling, TheSupervisorReplacesTheSchedulingOfARealtimeStation) {
+  const bool realtime = GetParam();
   sched_param fifo{};
   fifo.sched_priority = 10;
   const bool granted = ::sched_setscheduler(0, SCHED_FIFO, &fifo) == 0;
   const sched_param normal{};
   if (granted) ::sched_setscheduler(0, SCHED_OTHER, &normal);
   if (!granted) GTEST_SKIP() << "SCHED_FIFO is not granted here";
+  const int want_policy = realtime ? SCHED_FIFO : SCHED_OTHER;
+  const int want_priority = realtime ? kSupervisorPriority : 0;
   int seen[2];
   ASSERT_EQ(::pipe(seen), 0);
-  const int rc = run_station(
-      Death::Goodbye, ZeroChannel{},
-      [&](pid_t supervisor) {
-        // The supervisor starts as a copy of this SCHED_FIFO thread and resets itself.
-        std::array<int, 2> policies{::sched_getscheduler(0), -1};
-        test::eventually(std::chrono::seconds(2), [&] {
-          policies[1] = policy_of(supervisor);
-          return policies[1] == SCHED_OTHER;
-        });
-        (void)!::write(seen[1], policies.data(), sizeof policies);
-      },
-      [&] { ::sched_setscheduler(0, SCHED_FIFO, &fifo); });
-  EXPECT_EQ(rc, 0);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::sched_setscheduler(0, SCHED_FIFO, &fifo);
+    SupervisorOptions options;
+    options.report_fd = -1;
+    options.realtime = realtime;
+    DisplaySupervisor s = start_display_supervisor(ZeroChannel{}, options);
+    // The supervisor starts as a copy of this SCHED_FIFO 10 thread and then sets its own.
+    std::array<int, 4> got{::sched_getscheduler(0), -1, -1, -1};
+    test::eventually(std::chrono::seconds(2), [&] {
+      const auto [policy, priority] = scheduling_of(s.pid());
+      got[1] = policy;
+      got[2] = priority;
+      return policy == want_policy && priority == want_priority;
+    });
+    got[3] = s.stop();
+    (void)!::write(seen[1], got.data(), sizeof got);
+    ::_exit(0);
+  }
   ::close(seen[1]);
-  std::array<int, 2> policies{-1, -1};
-  EXPECT_EQ(::read(seen[0], policies.data(), sizeof policies),
-            static_cast<ssize_t>(sizeof policies));
+  std::array<int, 4> got{-1, -1, -1, -1};
+  EXPECT_EQ(::read(seen[0], got.data(), sizeof got), static_cast<ssize_t>(sizeof got));
   ::close(seen[0]);
-  EXPECT_EQ(policies[0], SCHED_FIFO) << "the stand-in station";
-  EXPECT_EQ(policies[1], SCHED_OTHER) << "its supervisor";
+  ::waitpid(pid, nullptr, 0);
+  EXPECT_EQ(got[0], SCHED_FIFO) << "the stand-in station";
+  EXPECT_EQ(got[1], want_policy) << "its supervisor's policy";
+  EXPECT_EQ(got[2], want_priority) << "its supervisor's real-time priority";
+  EXPECT_EQ(got[3], 0) << "the supervisor's exit after the goodbye";
 }
+
+INSTANTIATE_TEST_SUITE_P(Realtime, SupervisorScheduling, ::testing::Bool(), [](const auto& info) {
+  return std::string(info.param ? "LowestFifo" : "Default");
+});
 
 }  // namespace
 }  // namespace telex::local

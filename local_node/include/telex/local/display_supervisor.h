@@ -44,6 +44,9 @@ ZeroChannel zero_channel_for(const std::string& spec, const DisplayConfig& confi
 struct SupervisorOptions {
   int repeats = 5;
   int spacing_us = 500;
+  // SCHED_FIFO kSupervisorPriority where the machine grants it (telex-local's --no-realtime:
+  // SCHED_OTHER), whatever the forking thread had.
+  bool realtime = true;
   // Where the line saying the station died, what was commanded and what saw it goes (-1: nowhere).
   int report_fd = 2;
 };
@@ -77,8 +80,9 @@ class DisplaySupervisor {
 };
 
 // Forks the supervisor for `channel` (whose fd it takes over). Call it before any thread starts,
-// from the main thread: the child is a copy of the calling thread only, and inherits its
-// scheduling, which it resets to SCHED_OTHER. Throws std::runtime_error when the fork fails.
+// from the main thread, which must live until the station ends (it holds the mutex the supervisor
+// waits on): the child is a copy of the calling thread only, and replaces the scheduling it
+// inherits (SupervisorOptions::realtime). Throws std::runtime_error when the fork fails.
 DisplaySupervisor start_display_supervisor(ZeroChannel channel, const SupervisorOptions& options);
 
 // The supervisor's log prefix and wording, for tests that read it.
