@@ -21,15 +21,15 @@ namespace telex::local {
 struct ZeroChannel {
   enum class Kind {
     None,    // sim: nothing outside the station to command
-    Udp,     // `datagram` from `fd` (its own socket) to `to`
-    Hid,     // `report` written on `fd` (its own handle on the hidraw node)
+    Udp,     // `bytes` (the zero datagram) from `fd` (its own socket) to `to`
+    Hid,     // `bytes` (the motors-off report) written on `fd` (its own handle on the hidraw node)
     CsvRow,  // sim:CSV: a zero-force row appended to `path`, as the sim display would record it
   };
   Kind kind = Kind::None;
   std::string display;  // the display's name for messages: udp:HOST:PORT, gravity-grabber:PATH
   int fd = -1;          // owned: closed by the parent after the fork, kept by the child
   sockaddr_in to{};
-  std::string bytes;  // the zero datagram or report
+  std::string bytes;  // Udp, Hid: the zero command; CsvRow: the row after its time stamp
   std::string path;   // CsvRow
 };
 
