@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
 #include "telex/local/view_window.h"
 
@@ -147,7 +148,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--no-realtime", no_realtime,
                "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
-               "depth network, tracking)");
+               "depth network, tracking) and the display supervisor");
+  bool no_supervisor = false;
+  app.add_flag("--no-supervisor", no_supervisor,
+               "no display supervisor (default: a child process that commands zero force on the "
+               "haptic display if the station dies by SIGKILL, abort or a segfault; "
+               "docs/HARDWARE.md)");
   bool full_frame = false, roi_flag = false;
   app.add_flag("--full-frame", full_frame,
                "filter and build normals over the whole frame (default: only near the "
@@ -286,6 +292,17 @@ int main(int argc, char** argv) {
   }
   if (cfg.insecure)
     std::fprintf(stderr, "telex-local: warning: %s\n", telex::proto::insecure_warning().c_str());
+  // Forked before any thread starts: the supervisor is a copy of this one thread.
+  DisplaySupervisor supervisor;
+  if (!no_supervisor) {
+    try {
+      supervisor = start_display_supervisor(zero_channel_for(cfg.haptics_spec, cfg.display),
+                                            {.realtime = !no_realtime});
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "telex-local: error: %s\n", e.what());
+      return dynamic_cast<const std::invalid_argument*>(&e) != nullptr ? 2 : 1;
+    }
+  }
   cfg.client.use_udp = transport == "udp";
   cfg.client.frame_parts = !no_frame_parts;
   cfg.client.repair = !no_repair;

@@ -2,6 +2,7 @@
 // Gravity Grabber motor mapping, HID report encoding, and the hidapi display with a writer thread.
 #include "telex/local/gravity_grabber.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <hidapi.h>
 
@@ -14,7 +15,10 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 
+#include "telex/base/demand.h"
+#include "telex/base/periodic.h"
 #include "telex/base/triple_buffer.h"
 
 namespace telex::local {
@@ -184,6 +188,26 @@ std::optional<std::string> choose_hid_device(const HidTarget& target,
   return std::nullopt;
 }
 
+HidReportWriter::~HidReportWriter() = default;
+
+const GravityGrabberReport& GravityGrabberKeepAlive::fresh(std::int64_t now_ns,
+                                                           const GravityGrabberReport& report) {
+  last_ = report;
+  written_ns_ = sent_ns_ = now_ns;
+  holding_ = true;
+  return last_;
+}
+
+const GravityGrabberReport* GravityGrabberKeepAlive::idle(std::int64_t now_ns) {
+  if (!holding_ || now_ns - sent_ns_ < timing_.keepalive_period_ns) return nullptr;
+  sent_ns_ = now_ns;
+  if (now_ns - written_ns_ < timing_.hold_ns) return &last_;
+  // The haptic thread stopped writing: release the belts rather than keep a stale force alive.
+  holding_ = false;
+  last_ = gravity_grabber_report({}, config_, static_cast<std::uint8_t>(last_[1] + 1));
+  return &last_;
+}
+
 namespace {
 
 // Resolves a VID:PID target to the hidraw path hidapi reports for it; a path target stays as is.
@@ -203,23 +227,40 @@ std::string resolve(const HidTarget& t) {
       seen.empty() ? "none" : seen, t.vendor_id, t.product_id));
 }
 
+std::string cannot_open(const std::string& path) {
+  return "Gravity Grabber: cannot open HID device " + path +
+         ". Check that it exists (ls -l /dev/hidraw*; the device's hidraw node appears when it is "
+         "plugged in), that your user may write it (udev rule in docs/HARDWARE.md), or run "
+         "without hardware with --haptics sim or udp:HOST:PORT.";
+}
+
 struct Report {
-  std::array<std::uint8_t, kGravityGrabberReportBytes> bytes;
+  GravityGrabberReport bytes;
+};
+
+// hidapi's handle on the device (hidraw backend: a write() of the report on the node).
+class HidapiWriter final : public HidReportWriter {
+ public:
+  explicit HidapiWriter(std::string path) : path_(std::move(path)) {
+    dev_ = hid_open_path(path_.c_str());
+    if (dev_ == nullptr) throw std::runtime_error(cannot_open(path_));
+  }
+  ~HidapiWriter() override { hid_close(dev_); }
+  int write(std::span<const std::uint8_t> report) override {
+    return hid_write(dev_, report.data(), report.size());
+  }
+  std::string name() const override { return path_; }
+
+ private:
+  std::string path_;
+  hid_device* dev_ = nullptr;
 };
 
 class GravityGrabberDisplay final : public HapticDisplay {
  public:
-  GravityGrabberDisplay(const HidTarget& target, GravityGrabberConfig cfg) : cfg_(cfg) {
-    if (hid_init() != 0) throw std::runtime_error("Gravity Grabber: hidapi failed to initialise");
-    path_ = resolve(target);
-    const std::string& path = path_;
-    dev_ = hid_open_path(path.c_str());
-    if (dev_ == nullptr)
-      throw std::runtime_error(
-          "Gravity Grabber: cannot open HID device " + path +
-          ". Check that it exists (ls -l /dev/hidraw*; the device's hidraw node appears when "
-          "it is plugged in), that your user may write it (udev rule in docs/HARDWARE.md), or "
-          "run without hardware with --display sim or udp:HOST:PORT.");
+  GravityGrabberDisplay(std::unique_ptr<HidReportWriter> writer, const GravityGrabberConfig& cfg,
+                        GravityGrabberTiming timing)
+      : cfg_(cfg), writer_(std::move(writer)), keepalive_(cfg, timing) {
     thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   }
   ~GravityGrabberDisplay() override {
@@ -227,8 +268,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
     stop_ = true;
     if (thread_.joinable()) thread_.join();
     const auto off = gravity_grabber_report({}, cfg_, ++seq_);
-    hid_write(dev_, off.data(), off.size());
-    hid_close(dev_);
+    writer_->write(off);
   }
   void write(std::int64_t, std::span<const FingerForce> forces) override {
     ++writes_;
@@ -238,7 +278,7 @@ class GravityGrabberDisplay final : public HapticDisplay {
     }
     pending_.publish(Report{gravity_grabber_report(forces, cfg_, ++seq_)});
   }
-  std::string name() const override { return "gravity-grabber:" + path_; }
+  std::string name() const override { return "gravity-grabber:" + writer_->name(); }
   DisplayStats stats() const override {
     DisplayStats s;
     s.writes = writes_;
@@ -256,23 +296,28 @@ class GravityGrabberDisplay final : public HapticDisplay {
     if (std::isfinite(v) && v > m.load(std::memory_order_relaxed))
       m.store(v, std::memory_order_relaxed);
   }
+  void send(const GravityGrabberReport& r) {
+    if (writer_->write(r) < 0)
+      ++errors_;
+    else
+      ++sent_;
+  }
   void run() {
     Report r;
     while (!stop_) {
       if (pending_.take(r)) {
-        if (hid_write(dev_, r.bytes.data(), r.bytes.size()) < 0)
-          ++errors_;
-        else
-          ++sent_;
+        send(keepalive_.fresh(monotonic_ns(), r.bytes));
+      } else if (const GravityGrabberReport* again = keepalive_.idle(monotonic_ns())) {
+        send(*again);
       } else {
         std::this_thread::sleep_for(std::chrono::microseconds(250));
       }
     }
   }
-  std::string path_;
   GravityGrabberConfig cfg_;
-  hid_device* dev_ = nullptr;
-  std::uint8_t seq_ = 0;  // haptic thread only
+  std::unique_ptr<HidReportWriter> writer_;
+  GravityGrabberKeepAlive keepalive_;  // writer thread only
+  std::uint8_t seq_ = 0;               // haptic thread only
   TripleBuffer<Report> pending_;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> writes_{0}, sent_{0}, errors_{0};
@@ -281,21 +326,52 @@ class GravityGrabberDisplay final : public HapticDisplay {
   std::thread thread_;
 };
 
+GravityGrabberConfig load_config(const std::string& config_path, const nlohmann::json& rig_config) {
+  return !config_path.empty() ? GravityGrabberConfig::load(config_path)
+         : rig_config.is_object()
+             ? GravityGrabberConfig::from_json(rig_config, "rig gravity_grabber")
+             : GravityGrabberConfig{};
+}
+
+HidTarget checked_target(const std::string& target) {
+  if (target.empty())
+    throw std::invalid_argument(
+        "display spec 'gravity-grabber:' needs the HID path or the controller's USB ids, e.g. "
+        "gravity-grabber:/dev/hidraw3 or gravity-grabber:16c0:05df");
+  return parse_hid_target(target);
+}
+
 }  // namespace
 
 std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
                                                     const std::string& config_path,
                                                     const nlohmann::json& rig_config) {
-  if (target.empty())
-    throw std::invalid_argument(
-        "display spec 'gravity-grabber:' needs the HID path or the controller's USB ids, e.g. "
-        "gravity-grabber:/dev/hidraw3 or gravity-grabber:16c0:05df");
-  const HidTarget t = parse_hid_target(target);
-  const GravityGrabberConfig cfg =
-      !config_path.empty()     ? GravityGrabberConfig::load(config_path)
-      : rig_config.is_object() ? GravityGrabberConfig::from_json(rig_config, "rig gravity_grabber")
-                               : GravityGrabberConfig{};
-  return std::make_unique<GravityGrabberDisplay>(t, cfg);
+  const HidTarget t = checked_target(target);
+  const GravityGrabberConfig cfg = load_config(config_path, rig_config);
+  if (hid_init() != 0) throw std::runtime_error("Gravity Grabber: hidapi failed to initialise");
+  return make_gravity_grabber_display(std::make_unique<HidapiWriter>(resolve(t)), cfg);
+}
+
+std::unique_ptr<HapticDisplay> make_gravity_grabber_display(std::unique_ptr<HidReportWriter> writer,
+                                                            const GravityGrabberConfig& config,
+                                                            GravityGrabberTiming timing) {
+  TELEX_DEMAND(writer != nullptr);
+  return std::make_unique<GravityGrabberDisplay>(std::move(writer), config, timing);
+}
+
+GravityGrabberZero open_gravity_grabber_zero(const std::string& target,
+                                             const std::string& config_path,
+                                             const nlohmann::json& rig_config) {
+  const HidTarget t = checked_target(target);
+  GravityGrabberZero z;
+  z.report = gravity_grabber_report({}, load_config(config_path, rig_config), 0);
+  if (hid_init() != 0) throw std::runtime_error("Gravity Grabber: hidapi failed to initialise");
+  z.path = resolve(t);
+  // The hidraw backend's hid_write is a write() of the report on the node: the supervisor does
+  // the same on its own descriptor, with no library call after the fork.
+  z.fd = ::open(z.path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (z.fd < 0) throw std::runtime_error(cannot_open(z.path));
+  return z;
 }
 
 }  // namespace telex::local

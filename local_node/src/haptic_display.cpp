@@ -139,27 +139,51 @@ class SimDisplay final : public HapticDisplay {
 
 }  // namespace
 
-std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config) {
-  if (spec == "sim") return std::make_unique<SimDisplay>("", config.sim_ring_capacity);
-  if (spec.rfind("sim:", 0) == 0 && spec.size() > 4)
-    return std::make_unique<SimDisplay>(spec.substr(4), config.sim_ring_capacity);
-  if (spec.rfind("gravity-grabber:", 0) == 0)
-    return open_gravity_grabber(spec.substr(16), config.gravity_grabber_config_path,
-                                config.gravity_grabber);
+DisplaySpec parse_display_spec(const std::string& spec, const DisplayConfig& config) {
+  DisplaySpec d;
+  if (spec == "sim") return d;
+  if (spec.rfind("sim:", 0) == 0 && spec.size() > 4) {
+    d.target = spec.substr(4);
+    return d;
+  }
+  if (spec.rfind("gravity-grabber:", 0) == 0) {
+    d.kind = DisplaySpec::Kind::GravityGrabber;
+    d.target = spec.substr(16);
+    return d;
+  }
   if (spec.rfind("udp:", 0) == 0 && spec.size() > 4) {
+    d.kind = DisplaySpec::Kind::Udp;
     const std::string rest = spec.substr(4);
     const auto colon = rest.rfind(':');
-    if (colon == std::string::npos) return open_udp_sink(rest, config.udp_default_port);
-    int port = 0;
-    const auto r = std::from_chars(rest.data() + colon + 1, rest.data() + rest.size(), port);
+    if (colon == std::string::npos) {
+      d.host = rest;
+      d.port = config.udp_default_port;
+      return d;
+    }
+    const auto r = std::from_chars(rest.data() + colon + 1, rest.data() + rest.size(), d.port);
     if (r.ec != std::errc{} || r.ptr != rest.data() + rest.size() || colon == 0)
       throw std::invalid_argument("display spec '" + spec + "': expected udp:HOST[:PORT]");
-    return open_udp_sink(rest.substr(0, colon), port);
+    d.host = rest.substr(0, colon);
+    return d;
   }
   throw std::invalid_argument(
       "display spec '" + spec +
       "' is not one of sim, sim:CSV, gravity-grabber:HIDPATH|VID:PID[:SERIAL], "
       "udp:HOST[:PORT]");
+}
+
+std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config) {
+  const DisplaySpec d = parse_display_spec(spec, config);
+  switch (d.kind) {
+    case DisplaySpec::Kind::Sim:
+      return std::make_unique<SimDisplay>(d.target, config.sim_ring_capacity);
+    case DisplaySpec::Kind::GravityGrabber:
+      return open_gravity_grabber(d.target, config.gravity_grabber_config_path,
+                                  config.gravity_grabber);
+    case DisplaySpec::Kind::Udp:
+      return open_udp_sink(d.host, d.port);
+  }
+  throw std::logic_error("unreachable display kind");
 }
 
 }  // namespace telex::local

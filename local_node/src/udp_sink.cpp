@@ -6,11 +6,15 @@
 // Boost 1.74's asio/awaitable.hpp uses std::exchange without including <utility>.
 #include <utility>
 // clang-format on
+#include <sys/socket.h>
+
 #include <algorithm>
 #include <atomic>
 #include <boost/asio.hpp>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 
@@ -64,19 +68,28 @@ bool parse_udp_sink(std::string_view text, std::array<double, kUdpSinkChannels>&
 
 namespace {
 
+std::string sink_name(const std::string& host, int port) {
+  return "udp:" + host + ":" + std::to_string(port);
+}
+
+udp::endpoint resolve_sink(asio::io_context& io, const std::string& host, int port) {
+  if (port <= 0 || port > 65535)
+    throw std::invalid_argument("display spec " + sink_name(host, port) +
+                                ": port must be 1..65535");
+  boost::system::error_code ec;
+  udp::resolver resolver(io);
+  const auto results = resolver.resolve(udp::v4(), host, std::to_string(port), ec);
+  if (ec || results.empty())
+    throw std::runtime_error("UDP haptic sink: cannot resolve host '" + host +
+                             "': " + ec.message() + " (give an IPv4 address such as 127.0.0.1)");
+  return *results.begin();
+}
+
 class UdpSink final : public HapticDisplay {
  public:
   UdpSink(const std::string& host, int port)
-      : socket_(io_), name_("udp:" + host + ":" + std::to_string(port)) {
-    if (port <= 0 || port > 65535)
-      throw std::invalid_argument("display spec " + name_ + ": port must be 1..65535");
+      : socket_(io_), target_(resolve_sink(io_, host, port)), name_(sink_name(host, port)) {
     boost::system::error_code ec;
-    udp::resolver resolver(io_);
-    const auto results = resolver.resolve(udp::v4(), host, std::to_string(port), ec);
-    if (ec || results.empty())
-      throw std::runtime_error("UDP haptic sink: cannot resolve host '" + host +
-                               "': " + ec.message() + " (give an IPv4 address such as 127.0.0.1)");
-    target_ = *results.begin();
     socket_.open(udp::v4(), ec);
     if (ec) throw std::runtime_error("UDP haptic sink: cannot open a socket: " + ec.message());
     // A full send buffer must cost a datagram, never a wait on the haptic thread.
@@ -118,6 +131,21 @@ class UdpSink final : public HapticDisplay {
 
 std::unique_ptr<HapticDisplay> open_udp_sink(const std::string& host, int port) {
   return std::make_unique<UdpSink>(host, port);
+}
+
+UdpSinkZero open_udp_sink_zero(const std::string& host, int port) {
+  asio::io_context io;
+  const udp::endpoint to = resolve_sink(io, host, port);
+  UdpSinkZero z;
+  z.name = sink_name(host, port);
+  std::memcpy(&z.to, to.data(), sizeof z.to);
+  std::array<char, kUdpSinkMaxBytes> buf{};
+  z.datagram.assign(buf.data(), format_udp_sink({}, buf));
+  z.fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (z.fd < 0)
+    throw std::runtime_error(std::string("UDP haptic sink: cannot open a socket: ") +
+                             std::strerror(errno));
+  return z;
 }
 
 }  // namespace telex::local

@@ -5,6 +5,8 @@
 
 #include <boost/asio.hpp>
 #include <fstream>
+#include <functional>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -85,6 +87,88 @@ TEST(DisplayGravityGrabber, ReportBytesForKnownForces) {
   const auto off = gravity_grabber_report({}, cfg, 3);
   EXPECT_EQ(off[2], 0);
   EXPECT_EQ(off[23], 3);
+}
+
+// The keep-alive (docs/HARDWARE.md, "Keep-alive and watchdog") on its own clock: the unchanged
+// report again every 50 ms, byte for byte, while the haptic thread wrote it less than 200 ms ago;
+// then the motors-off report once, and silence until the next write.
+TEST(DisplayGravityGrabber, KeepAliveResendsTheUnchangedReportUntilTheHoldThenMotorsOff) {
+  GravityGrabberConfig cfg;
+  GravityGrabberKeepAlive ka(cfg, GravityGrabberTiming{});
+  const std::int64_t ms = 1'000'000, t0 = 5'000 * ms;
+  const std::array<FingerForce, 1> press{FingerForce{1, 1.5, 0.0, true}};
+  const auto r = gravity_grabber_report(press, cfg, 9);
+  EXPECT_EQ(ka.idle(t0), nullptr) << "nothing written yet: nothing to keep alive";
+  EXPECT_EQ(ka.fresh(t0, r), r);
+  EXPECT_EQ(ka.idle(t0 + 50 * ms - 1), nullptr);
+  for (const std::int64_t t : {50, 100, 150}) {
+    const GravityGrabberReport* again = ka.idle(t0 + t * ms);
+    ASSERT_NE(again, nullptr) << t << " ms";
+    EXPECT_EQ(*again, r) << t << " ms: the same bytes, sequence included";
+    EXPECT_EQ(ka.idle(t0 + t * ms + 49 * ms), nullptr) << t << " ms";
+  }
+  const GravityGrabberReport* off = ka.idle(t0 + 200 * ms);
+  ASSERT_NE(off, nullptr);
+  EXPECT_EQ(*off, gravity_grabber_report({}, cfg, 10)) << "motors off, the next sequence number";
+  EXPECT_EQ(ka.idle(t0 + 250 * ms), nullptr);
+  EXPECT_EQ(ka.idle(t0 + 10'000 * ms), nullptr);
+  // A fresh report starts it again.
+  const auto r2 = gravity_grabber_report(press, cfg, 11);
+  EXPECT_EQ(ka.fresh(t0 + 20'000 * ms, r2), r2);
+  ASSERT_NE(ka.idle(t0 + 20'050 * ms), nullptr);
+  EXPECT_EQ(*ka.idle(t0 + 20'100 * ms), r2);
+}
+
+// The display's writer thread over a recording HID writer: one write, then the same report again
+// as keep-alives, then motors off when the writes stop; closing sends motors off once more.
+TEST(DisplayGravityGrabber, WriterThreadKeepsTheUnchangedReportAliveThenReleases) {
+  struct Recorded {
+    std::mutex m;
+    std::vector<GravityGrabberReport> reports;
+  };
+  struct RecordingWriter final : HidReportWriter {
+    explicit RecordingWriter(std::shared_ptr<Recorded> r) : rec(std::move(r)) {}
+    int write(std::span<const std::uint8_t> report) override {
+      GravityGrabberReport copy{};
+      if (report.size() != copy.size()) return -1;
+      std::copy(report.begin(), report.end(), copy.begin());
+      std::lock_guard lock(rec->m);
+      rec->reports.push_back(copy);
+      return static_cast<int>(report.size());
+    }
+    std::string name() const override { return "recorder"; }
+    std::shared_ptr<Recorded> rec;
+  };
+  auto rec = std::make_shared<Recorded>();
+  GravityGrabberConfig cfg;
+  auto display = make_gravity_grabber_display(std::make_unique<RecordingWriter>(rec), cfg);
+  EXPECT_EQ(display->name(), "gravity-grabber:recorder");
+  const std::array<FingerForce, 1> press{FingerForce{1, 1.5, 0.0, true}};
+  display->write(0, press);
+  const auto pressed = gravity_grabber_report(press, cfg, 1);  // the display's first sequence
+  const auto off = gravity_grabber_report({}, cfg, 2);
+  const auto snapshot = [&] {
+    std::lock_guard lock(rec->m);
+    return rec->reports;
+  };
+  ASSERT_TRUE(std::invoke([&] {
+    for (int i = 0; i < 400; ++i) {
+      const auto got = snapshot();
+      if (!got.empty() && got.back() == off) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return false;
+  })) << "no motors-off report after the writes stopped";
+  const auto got = snapshot();
+  ASSERT_GE(got.size(), 3u) << "the report, at least one keep-alive, motors off";
+  for (std::size_t i = 0; i + 1 < got.size(); ++i) EXPECT_EQ(got[i], pressed) << i;
+  std::this_thread::sleep_for(std::chrono::milliseconds(120));
+  EXPECT_EQ(snapshot().size(), got.size()) << "motors off is not kept alive";
+  EXPECT_EQ(display->stats().sent, got.size());
+  display.reset();
+  const auto closed = snapshot();
+  ASSERT_EQ(closed.size(), got.size() + 1);
+  EXPECT_EQ(closed.back()[2], 0) << "closing releases the belts";
 }
 
 TEST(DisplayGravityGrabber, ConfigFileLoadsAndRejectsWithTheKey) {

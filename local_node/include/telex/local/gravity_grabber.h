@@ -72,6 +72,54 @@ HidTarget parse_hid_target(std::string_view text);
 std::optional<std::string> choose_hid_device(const HidTarget& target,
                                              std::span<const HidCandidate> candidates);
 
+using GravityGrabberReport = std::array<std::uint8_t, kGravityGrabberReportBytes>;
+
+// The keep-alive and watchdog contract (docs/HARDWARE.md, "Keep-alive and watchdog"): the host
+// sends a report at least every keep-alive period, even when it is unchanged; the firmware turns
+// every motor off when no valid report has arrived for its watchdog time. The host re-sends a
+// report only while the haptic thread wrote it less than `hold` ago, so a station whose haptic loop
+// hangs releases the belts itself instead of feeding the watchdog with a stale force.
+struct GravityGrabberTiming {
+  std::int64_t keepalive_period_ns = 50'000'000;
+  std::int64_t hold_ns = 200'000'000;
+};
+inline constexpr std::int64_t kGravityGrabberWatchdogNs = 200'000'000;  // the firmware's
+
+// The writer thread's choice of what to send, pure, with the time passed in.
+class GravityGrabberKeepAlive {
+ public:
+  GravityGrabberKeepAlive(const GravityGrabberConfig& config, GravityGrabberTiming timing)
+      : config_(config), timing_(timing) {}
+  // The haptic thread wrote `report` (taken at now_ns): send it.
+  const GravityGrabberReport& fresh(std::int64_t now_ns, const GravityGrabberReport& report);
+  // Nothing new: the report to send now, or nullptr. The last report again once a keep-alive
+  // period has passed since the last send, while it is younger than `hold`; after that the
+  // motors-off report once, and then nothing until a fresh report.
+  const GravityGrabberReport* idle(std::int64_t now_ns);
+
+ private:
+  GravityGrabberConfig config_;
+  GravityGrabberTiming timing_;
+  GravityGrabberReport last_{};
+  std::int64_t written_ns_ = 0, sent_ns_ = 0;
+  bool holding_ = false;  // a report is being kept alive
+};
+
+// Where the reports go: the device through hidapi, or a test's recorder.
+class HidReportWriter {
+ public:
+  virtual ~HidReportWriter();
+  // The bytes written, or < 0 on error. Called from the display's writer thread only.
+  virtual int write(std::span<const std::uint8_t> report) = 0;
+  virtual std::string name() const = 0;  // for the display's name: the hidraw path
+};
+
+// The display over any writer: write() encodes and hands the report to a writer thread (newest
+// wins), which sends it and keeps it alive (GravityGrabberTiming); closing sends motors off.
+std::unique_ptr<HapticDisplay> make_gravity_grabber_display(std::unique_ptr<HidReportWriter> writer,
+                                                            const GravityGrabberConfig& config,
+                                                            GravityGrabberTiming timing = {});
+
 // Opens the display `target` names (parse_hid_target) through hidapi, with the calibration in
 // `config_path`, else the rig's object `rig_config` (null = defaults). Reports go out on a writer
 // thread so write() never waits on USB. Throws std::runtime_error naming the path or the ids, what
@@ -79,5 +127,17 @@ std::optional<std::string> choose_hid_device(const HidTarget& target,
 std::unique_ptr<HapticDisplay> open_gravity_grabber(const std::string& target,
                                                     const std::string& config_path,
                                                     const nlohmann::json& rig_config = nullptr);
+
+// What the display supervisor (display_supervisor.h) holds for a Gravity Grabber: its own handle
+// on the same hidraw node, opened before the station forks it, and the motors-off report.
+struct GravityGrabberZero {
+  std::string path;  // the hidraw node
+  int fd = -1;       // open for writing; the caller owns it
+  GravityGrabberReport report{};
+};
+// Resolves `target` and loads the calibration as open_gravity_grabber does, with its errors.
+GravityGrabberZero open_gravity_grabber_zero(const std::string& target,
+                                             const std::string& config_path,
+                                             const nlohmann::json& rig_config = nullptr);
 
 }  // namespace telex::local

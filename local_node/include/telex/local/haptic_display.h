@@ -90,4 +90,15 @@ class ZeroForceOnExit {
 // std::runtime_error when the device or file cannot be opened (naming it and what to try).
 std::unique_ptr<HapticDisplay> make_display(const std::string& spec, const DisplayConfig& config);
 
+// The spec taken apart, as make_display reads it (and with its std::invalid_argument), for what
+// else needs the display's channel: the display supervisor (display_supervisor.h).
+struct DisplaySpec {
+  enum class Kind { Sim, GravityGrabber, Udp };
+  Kind kind = Kind::Sim;
+  std::string target;  // Sim: the CSV path (empty: none); GravityGrabber: HIDPATH|VID:PID[:SERIAL]
+  std::string host;    // Udp
+  int port = 0;        // Udp (the config's default when the spec has none)
+};
+DisplaySpec parse_display_spec(const std::string& spec, const DisplayConfig& config);
+
 }  // namespace telex::local

@@ -2,6 +2,8 @@
 // UDP haptic sink: 18 channels x 1000 as space-separated ASCII integers, one datagram per write.
 #pragma once
 
+#include <netinet/in.h>
+
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -32,5 +34,16 @@ bool parse_udp_sink(std::string_view text, std::array<double, kUdpSinkChannels>&
 
 // Resolves host (name or address) once at start-up; throws std::runtime_error naming it.
 std::unique_ptr<HapticDisplay> open_udp_sink(const std::string& host, int port);
+
+// What the display supervisor (display_supervisor.h) holds for a UDP sink: its own socket, the
+// destination resolved as open_udp_sink resolves it, and the zero-force datagram.
+struct UdpSinkZero {
+  std::string name;  // udp:HOST:PORT
+  int fd = -1;       // an IPv4 datagram socket; the caller owns it
+  sockaddr_in to{};
+  std::string datagram;
+};
+// Throws as open_udp_sink does.
+UdpSinkZero open_udp_sink_zero(const std::string& host, int port);
 
 }  // namespace telex::local

@@ -62,6 +62,10 @@ inline constexpr int kHapticPriority = 80;
 inline constexpr int kStationPathPriority = 70;  // depth network thread, surface thread, tracking
 inline constexpr int kHeadLoopPriority = 60;     // the remote's servo loop
 inline constexpr int kRemotePathPriority = 50;   // capture, process, network
+// The station's display supervisor (a process, blocked until the station ends): below every thread
+// above, so it can never delay one, and above every program at default scheduling, so the zero
+// force it sends when the station dies does not wait for a CPU.
+inline constexpr int kSupervisorPriority = 1;
 
 struct PeriodSummary {
   std::size_t count = 0;
