@@ -291,6 +291,12 @@ void RemoteDaemon::head_loop() {
     if (next < wake) next = wake;  // a slow bus: no burst to catch up
     std::this_thread::sleep_until(next);
   }
+  // Leaving: the head holds where it is, whatever the driver. The last command may be ahead of the
+  // head (it lags), and a lab's controller (--head udp) keeps the last target it was sent.
+  const HeadPose last = head_->measured(steady_now_ns());
+  if (last.valid) head_->command(last.joint_rad, last.time_ns);
+  std::lock_guard lock(head_mu_);
+  head_stats_ = head_->stats();
 }
 
 HeadPose RemoteDaemon::head_pose_at(std::int64_t t) const {
