@@ -1,11 +1,17 @@
 // SPDX-License-Identifier: MIT
 // HeadCommands over the wire to a running RemoteDaemon with the sim head: a released dead-man and
 // a sample the station repeats as if new both hold the head where it is, read from the daemon's
-// --log-head rows; pressing again moves it on.
+// --log-head rows; pressing again moves it on. And a daemon that stops leaves its head holding.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -106,6 +112,102 @@ TEST(HeadDaemon, AReleasedDeadManAndARepeatedSampleHoldTheSimHead) {
   double lowest = 1.0;
   for (const LogRow& r : rows) lowest = std::min(lowest, r.yaw_rad);
   EXPECT_LT(lowest, 0.0);
+}
+
+// A lab's head controller (--head udp) that never moves: it answers every target with the same
+// measured pose. The remote's commands run ahead of it (rate-limited from the last command);
+// when the daemon stops, its last datagram must be the measured pose, so the head stays put.
+class StillController {
+ public:
+  explicit StillController(HeadAngles pose) : pose_(pose) {
+    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+    socklen_t n = sizeof a;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &n);
+    port_ = ntohs(a.sin_port);
+    timeval tv{0, 20'000};
+    ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    thread_ = std::thread([this] { serve(); });
+  }
+  ~StillController() {
+    stop_ = true;
+    thread_.join();
+    ::close(fd_);
+  }
+  std::uint16_t port() const { return port_; }
+  std::vector<HeadAngles> targets() {
+    std::lock_guard lock(mu_);
+    return targets_;
+  }
+
+ private:
+  void serve() {
+    std::uint32_t seq = 0;
+    while (!stop_) {
+      std::array<std::uint8_t, 64> buf{};
+      sockaddr_in from{};
+      socklen_t n = sizeof from;
+      const ssize_t got =
+          ::recvfrom(fd_, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from), &n);
+      if (got <= 0) continue;
+      const auto d = decode_head_datagram(std::span(buf.data(), static_cast<std::size_t>(got)));
+      if (!d) continue;
+      {
+        std::lock_guard lock(mu_);
+        targets_.push_back(d->joint_rad);
+      }
+      const auto reply = encode_head_datagram({seq++, 0, pose_});
+      ::sendto(fd_, reply.data(), reply.size(), 0, reinterpret_cast<sockaddr*>(&from), n);
+    }
+  }
+
+  HeadAngles pose_;
+  int fd_ = -1;
+  std::uint16_t port_ = 0;
+  std::atomic<bool> stop_{false};
+  std::mutex mu_;
+  std::vector<HeadAngles> targets_;
+  std::thread thread_;
+};
+
+TEST(HeadDaemon, StoppingLeavesTheHeadHoldingWhereItIs) {
+  const HeadAngles where{0.05, 0.0, 0.0};
+  StillController controller(where);
+  DaemonConfig cfg;
+  cfg.depth_source = "synthetic:plane";
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  cfg.server.port = 0;
+  cfg.stats_line = false;
+  cfg.realtime = false;
+  cfg.head = "udp:127.0.0.1:" + std::to_string(controller.port());
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient client(d.port(), /*udp=*/false);
+  ASSERT_TRUE(client.run_until([&] { return client.accept_.has_value(); }, 10s));
+  std::uint32_t id = 0;
+  for (int t = 0; t < 300; t += 5) {  // toward +1 rad while the controller stays at 0.05
+    proto::HeadCommand c;
+    c.joint_rad = {1.0f, 0.0f, 0.0f};
+    c.sample_id = ++id;
+    c.sample_age_us = 2000;
+    client.send(c);
+    std::this_thread::sleep_for(5ms);
+  }
+  d.stop();  // mid-move: the link is alive and the commands run ahead
+  client.close();
+  std::this_thread::sleep_for(100ms);  // the last datagram's way over loopback
+  const std::vector<HeadAngles> targets = controller.targets();
+  ASSERT_GT(targets.size(), 10u);
+  double ahead = 0;
+  for (const HeadAngles& t : targets) ahead = std::max(ahead, t[0]);
+  std::printf("udp head: %zu targets, up to %.4f rad while the head stayed at %.2f; last %.4f\n",
+              targets.size(), ahead, where[0], targets.back()[0]);
+  EXPECT_GT(ahead, 0.2);
+  EXPECT_EQ(targets.back(), where);
 }
 
 }  // namespace
