@@ -39,8 +39,12 @@ void validate(const DaemonConfig& c) {
   if (c.pipeline.tile_width < 8 || c.pipeline.tile_height < 8)
     throw std::invalid_argument("--tile must be at least 8x8 pixels");
   if (c.pipeline.stabilise_k_sigma < 0) throw std::invalid_argument("--stabilise must be >= 0");
-  (void)parse_head_spec(c.head);
+  const HeadSpec head = parse_head_spec(c.head);
   c.head_limits.validate();
+  if (!c.head_log_csv.empty() && head.kind == HeadSpec::Kind::None)
+    throw std::invalid_argument(
+        "--log-head logs the head loop, which runs only with a head: give "
+        "--head sim|dynamixel:DEV|udp:HOST:PORT");
 }
 
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
@@ -266,7 +270,7 @@ void RemoteDaemon::head_loop() {
     }
     if (command) head_->command(*command, now);
     if (head_log_.is_open()) {
-      // Buffered, flushed once a second: a row costs the loop no system call.
+      // Buffered, flushed once a second: at most one write a second from this loop.
       head_log_ << fmt::format("{},{},{:.6f},{:.6f},{:.6f},", now, measured.valid ? 1 : 0,
                                measured.joint_rad[0], measured.joint_rad[1], measured.joint_rad[2]);
       if (command)

@@ -210,5 +210,39 @@ TEST(HeadDaemon, StoppingLeavesTheHeadHoldingWhereItIs) {
   EXPECT_EQ(targets.back(), where);
 }
 
+TEST(HeadDaemon, AHeadLogWithoutAHeadOrAFolderIsAUsageError) {
+  DaemonConfig cfg;
+  cfg.depth_source = "synthetic:plane";
+  cfg.head_log_csv = "head.csv";
+  const auto message = [&] {
+    try {
+      validate(cfg);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_NE(message().find("--log-head logs the head loop, which runs only with a head"),
+            std::string::npos)
+      << message();
+  cfg.head = "sim";
+  EXPECT_EQ(message(), "(accepted)");
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  cfg.server.port = 0;
+  cfg.realtime = false;
+  cfg.head_log_csv = "/nonexistent/telex/head.csv";
+  RemoteDaemon d(cfg);
+  try {
+    d.start();
+    ADD_FAILURE() << "started with an unwritable --log-head";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("--log-head /nonexistent/telex/head.csv: cannot be written"),
+        std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace telex::remote
