@@ -93,9 +93,13 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
-    : config_(std::move(config)),
-      pipeline_(config_.pipeline),
-      head_control_({config_.head_limits, config_.head_link_timeout_s}) {
+    : config_(std::move(config)), pipeline_(config_.pipeline), head_control_([this] {
+        HeadControllerConfig c;
+        c.limits = config_.head_limits;
+        c.link_timeout_s = config_.head_link_timeout_s;
+        c.require_deadman = config_.require_deadman;
+        return c;
+      }()) {
   static_assert(static_cast<int>(Deadman::Released) ==
                 static_cast<int>(proto::DeadmanState::Released));
   validate(config_);

@@ -64,7 +64,9 @@ std::int64_t HeadController::sample_age_ns(std::int64_t now_ns) const {
 
 HeadHold HeadController::why_hold(std::int64_t now_ns) const {
   if (!target_ || now_ns - target_ns_ > to_ns(config_.link_timeout_s)) return HeadHold::Link;
-  if (target_->deadman == Deadman::Released) return HeadHold::Deadman;
+  if (target_->deadman == Deadman::Released ||
+      (config_.require_deadman && target_->deadman != Deadman::Pressed))
+    return HeadHold::Deadman;
   if (sample_age_ns(now_ns) > to_ns(config_.max_sample_age_s)) return HeadHold::Stale;
   // Repeats are counted between arrivals: a silent link is the stale and link rules' to catch.
   if (target_ns_ - sample_first_ns_ > to_ns(config_.max_sample_repeat_s)) return HeadHold::Repeat;

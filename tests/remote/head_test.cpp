@@ -455,6 +455,22 @@ TEST(HeadController, AReleasedDeadmanHolds) {
     EXPECT_FALSE(c.holding()) << static_cast<int>(d);
     EXPECT_GT((*cmd)[0], 0.0) << static_cast<int>(d);
   }
+  // A lab that requires a dead-man (--require-deadman): a station without one holds the head.
+  HeadControllerConfig required;
+  required.require_deadman = true;
+  for (const Deadman d : {Deadman::NotUsed, Deadman::Released, Deadman::Pressed}) {
+    HeadController c(required);
+    HeadTarget t = fresh({0.5, 0.0, 0.0});
+    t.deadman = d;
+    c.set_target(t, 0);
+    c.update(at_zero, 0);
+    c.set_target(t, 10 * kMs);
+    const auto cmd = c.update(at_zero, 10 * kMs);
+    const bool moves = d == Deadman::Pressed;
+    EXPECT_EQ(c.holding(), !moves) << static_cast<int>(d);
+    EXPECT_EQ(c.hold_reason(), moves ? HeadHold::None : HeadHold::Deadman) << static_cast<int>(d);
+    EXPECT_EQ((*cmd)[0] > 0.0, moves) << static_cast<int>(d);
+  }
 }
 
 // The operator yaws at 60 deg/s; at 1 s the link goes silent. 100 ms on, the newest sample is

@@ -42,6 +42,8 @@ struct DaemonConfig {
   RobotHead robot_head;
   double head_rate_hz = 100.0;       // the head loop: measure, then command
   double head_link_timeout_s = 0.2;  // no operator head pose this long: the head holds still
+  // --require-deadman: the head moves only while the station reports its dead-man pressed.
+  bool require_deadman = false;
   // --log-head: one CSV row per head loop: t_ns (the remote's steady clock), the measured pose,
   // the command, the target's tracking sample (id, its time on the station's clock, its age),
   // the dead-man state and why the head holds (docs/PROTOCOL.md 2.6); empty = none.

@@ -133,6 +133,9 @@ struct HeadControllerConfig {
   // the network's jitter. Longer, the station is resending a sample that stopped changing, whatever
   // age it claims, and the head holds still.
   double max_sample_repeat_s = 0.05;
+  // The lab requires a dead-man (telex-remote --require-deadman): a station without one ("not
+  // used") holds the head as a released one does.
+  bool require_deadman = false;
   // Throws std::invalid_argument naming the bad value.
   void validate() const;
 };
