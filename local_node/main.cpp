@@ -104,6 +104,11 @@ int main(int argc, char** argv) {
   app.add_option("--head-rate", cfg.head_rate_hz, "head poses sent per second")
       ->check(CLI::Range(1.0, 1000.0))
       ->capture_default_str();
+  app.add_option("--deadman", cfg.deadman_spec,
+                 "dead-man key or pedal that must be held for the robot head to move: "
+                 "evdev:/dev/input/eventN[,key=KEY_SPACE] (a keyboard or a pedal that acts as "
+                 "one) | hid:VID:PID[,byte=N][,mask=M] (a HID report's bits); its state goes with "
+                 "every head pose, released or a failed device holds the head");
   app.add_flag("--left-hand", cfg.tracker.use_left_hand,
                "the haptic fingertips are the left hand's (the right hand is drawn)");
   app.add_option("--other-glove", cfg.tracker.other_glove_spec,
@@ -415,6 +420,8 @@ int main(int argc, char** argv) {
           {"repairs_useless", s.repairs_useless},
           {"key_frame_requests", s.key_frame_requests},
           {"head_commands", s.head_commands},
+          {"head_samples_stale", s.head_samples_stale},
+          {"head_deadman_released", s.head_deadman_released},
           {"tile_age_watched_samples", s.tile_age_watched_samples},
           {"tile_age_watched_median_frames", s.tile_age_watched_median},
           {"tile_age_watched_p99_frames", s.tile_age_watched_p99},

@@ -190,6 +190,13 @@ int main(int argc, char** argv) {
                  "Robot head driver: none | sim[,tau_ms=80] (first-order servos) | "
                  "dynamixel:DEV[,ids=1,2,3][,baud=57600] (Protocol 2.0 servos yaw, pitch, roll) | "
                  "udp:HOST:PORT (a lab's own head controller; docs/PROTOCOL.md)");
+  app.add_flag("--require-deadman", cfg.require_deadman,
+               "Move the head only while the station reports its dead-man input pressed "
+               "(telex-local --deadman); a station without one holds the head still");
+  app.add_option("--log-head", cfg.head_log_csv,
+                 "CSV of the head loop, one row per loop: measured pose, command, the operator "
+                 "sample's id and age, the dead-man state and why the head holds (docs/PROTOCOL.md "
+                 "2.6)");
   app.add_option("--psk", psk_file,
                  "Pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
                  "(EC)DHE on TCP, sealed datagrams on UDP; the station needs the same key");

@@ -311,7 +311,9 @@ void read_robot_head(Node& n, RobotHead& head) {
       if (jn.has("min_deg")) j.min_rad = jn.at("min_deg").number(-180.0, 180.0) * kDeg;
       if (jn.has("max_deg")) j.max_rad = jn.at("max_deg").number(-180.0, 180.0) * kDeg;
       if (jn.has("max_rate_deg_s"))
-        j.max_rate_rad_s = jn.at("max_rate_deg_s").number(1.0, 3600.0) * kDeg;
+        j.max_rate_rad_s = jn.at("max_rate_deg_s").number(1.0, kMaxHeadRateDegS) * kDeg;
+      if (jn.has("max_accel_deg_s2"))
+        j.max_accel_rad_s2 = jn.at("max_accel_deg_s2").number(1.0, kMaxHeadAccelDegS2) * kDeg;
       if (jn.has("servo_id")) j.servo_id = jn.at("servo_id").integer(-1, 252);
       jn.done();
       if (!(j.max_rad > j.min_rad)) jn.fail("max_deg must be above min_deg");
@@ -356,9 +358,12 @@ std::array<RobotHeadJoint, 3> RobotHead::default_joints() {
   // The head base's frame is the right eye camera's at zero angles (x right, y down, z forward):
   // yaw turns about up (-y, positive to the left), pitch about x (positive up), roll about z.
   // Limits of a typical 3-DOF servo head (the paper's head does not publish its own).
-  RobotHeadJoint yaw{"yaw", {0.0, -1.0, 0.0}, -90.0 * kDeg, 90.0 * kDeg, 180.0 * kDeg, 1};
-  RobotHeadJoint pitch{"pitch", {1.0, 0.0, 0.0}, -45.0 * kDeg, 45.0 * kDeg, 180.0 * kDeg, 2};
-  RobotHeadJoint roll{"roll", {0.0, 0.0, 1.0}, -30.0 * kDeg, 30.0 * kDeg, 180.0 * kDeg, 3};
+  // 1800 deg/s^2 reaches the 180 deg/s in 0.1 s (9 deg of travel): brisk, without the jerk of
+  // an unlimited start or stop.
+  constexpr double kRate = 180.0 * kDeg, kAccel = 1800.0 * kDeg;
+  RobotHeadJoint yaw{"yaw", {0.0, -1.0, 0.0}, -90.0 * kDeg, 90.0 * kDeg, kRate, 1, kAccel};
+  RobotHeadJoint pitch{"pitch", {1.0, 0.0, 0.0}, -45.0 * kDeg, 45.0 * kDeg, kRate, 2, kAccel};
+  RobotHeadJoint roll{"roll", {0.0, 0.0, 1.0}, -30.0 * kDeg, 30.0 * kDeg, kRate, 3, kAccel};
   return {yaw, pitch, roll};
 }
 
@@ -466,6 +471,7 @@ nlohmann::json rig_to_json(const Rig& rig) {
                       {"min_deg", rj.min_rad / kDeg},
                       {"max_deg", rj.max_rad / kDeg},
                       {"max_rate_deg_s", rj.max_rate_rad_s / kDeg},
+                      {"max_accel_deg_s2", rj.max_accel_rad_s2 / kDeg},
                       {"servo_id", rj.servo_id}});
   j["robot_head"] = {{"joints", joints},
                      {"right_eye_mount", transform_json(rig.robot_head.X_LinkRightEye)}};

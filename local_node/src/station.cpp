@@ -32,6 +32,7 @@
 #include "telex/base/triple_buffer.h"
 #include "telex/common/head_kinematics.h"
 #include "telex/common/opencv_workers.h"
+#include "telex/local/deadman.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/operator_view.h"
 #include "telex/local/stereo_view.h"
@@ -103,6 +104,12 @@ Station::Station(StationConfig config) : cfg_(std::move(config)) {
   if (cfg_.head_teleop) check_head_axes(cfg_.robot_head);
   if (!(cfg_.head_rate_hz >= 1.0 && cfg_.head_rate_hz <= 1000.0))
     throw std::invalid_argument("--head-rate must be within 1..1000 Hz");
+  if (!cfg_.deadman_spec.empty()) {
+    (void)parse_deadman_spec(cfg_.deadman_spec);
+    if (!cfg_.head_teleop)
+      throw std::invalid_argument(
+          "--deadman gates head teleoperation, which --no-head turns off: drop one of them");
+  }
 }
 
 Station::~Station() = default;
@@ -143,7 +150,8 @@ class Station::Run {
                                           frame.head.joint_rad[2]}),
                       hand);
   }
-  // The operator's head to the remote as joint targets, at most head_rate_hz (main thread).
+  // The operator's head to the remote as joint targets, at most head_rate_hz (main thread), with
+  // the tracking sample's id and true age and the dead-man's state.
   void send_head(std::int64_t now_ns);
   std::int64_t next_head_ns_ = 0;
   StationSummary summarize();
@@ -177,6 +185,8 @@ class Station::Run {
   // --view window | hmd: GLFW's window, used on this (the main) thread only; opened before
   // anything connects, so a missing display or an unknown monitor stops the start.
   std::unique_ptr<ViewWindow> window_;
+  // --deadman: opened here too, so a missing device stops the start; read by the main thread.
+  std::unique_ptr<DeadmanInput> deadman_;
 
   // ---- network thread (inside SurfaceClient): tiles -> frames ----
   FrameAssembler assembler_;
@@ -195,13 +205,16 @@ class Station::Run {
   // ---- surface thread -> haptic thread and view ----
   TripleBuffer<std::shared_ptr<const Surface>> surfaces_;
   TripleBuffer<HandState> hand_for_surface_, hand_for_view_;
-  // The operator's head (haptic thread -> main thread's head sender).
+  // The operator's head (haptic thread -> main thread's head sender): one per tracker frame that
+  // held the head body, numbered, stamped when the tracker delivered it.
   struct HeadSample {
     std::int64_t time_ns = 0;
+    std::uint32_t id = 0;
     glm::dmat3 R_BaseCamera{1.0};
   };
   TripleBuffer<HeadSample> head_for_main_;
-  HeadSample head_sample_;  // main thread
+  std::uint32_t head_samples_ = 0;  // haptic thread
+  HeadSample head_sample_;          // main thread
   std::atomic<std::uint64_t> surfaces_built_{0};
   std::atomic<double> first_centre_depth_m_{0.0};
   std::atomic<double> build_ms_{0.0};
@@ -309,11 +322,17 @@ Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
       recorder_(open_recorder(cfg)),
       view_(ViewSpec::parse(cfg.view_spec)),
       window_(view_.on_screen() ? std::make_unique<ViewWindow>(view_) : nullptr),
+      deadman_(cfg.deadman_spec.empty() || !cfg.head_teleop
+                   ? nullptr
+                   : open_deadman(parse_deadman_spec(cfg.deadman_spec))),
       assembler_(static_cast<std::int64_t>(cfg.max_tile_age_s * 1e9)),
       model_(cfg.haptic, kFingerCount),
       samples_(1 << 14),
       tracking_(tracking_csv_.is_open() || recorder_ ? 1024 : 1) {
   if (view_.kind == ViewSpec::Kind::Png) std::filesystem::create_directories(view_.dir);
+  if (deadman_)
+    std::fprintf(stderr, "telex-local: dead-man %s: the robot head moves only while it is held\n",
+                 deadman_->name().c_str());
   if (window_) {
     const MonitorInfo& m = window_->monitor();
     std::fprintf(stderr, "telex-local: view %s on monitor '%s' (%dx%d at %d,%d), %s\n",
@@ -637,7 +656,10 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     if (tracker_->poll(now, hand)) {
       hand_for_surface_.publish(hand);
       hand_for_view_.publish(hand);
-      if (hand.head_valid) head_for_main_.publish({hand.time_ns, hand.R_BaseCamera});
+      // A new sample only from a new tracker frame that held the head: a glove's update or a
+      // frame without the head body repeats the last one, which then ages (PROTOCOL.md 2.6).
+      if (hand.head_valid && hand.bodies_fresh)
+        head_for_main_.publish({hand.time_ns, ++head_samples_, hand.R_BaseCamera});
       if (hand.bodies_fresh && hand.body_count > 0) tracking_.push(hand);
     }
     surfaces_.take(newest);
@@ -771,8 +793,15 @@ void Station::Run::send_head(std::int64_t now_ns) {
   proto::HeadCommand c;
   c.operator_ns = static_cast<std::uint64_t>(head_sample_.time_ns);
   for (std::size_t j = 0; j < 3; ++j) c.joint_rad[j] = static_cast<float>(q[j]);
+  // The sample as it is: when tracking stops, the same id with a growing age, never restamped.
+  c.sample_id = head_sample_.id;
+  const std::int64_t age_us = std::max<std::int64_t>(0, now_ns - head_sample_.time_ns) / 1000;
+  c.sample_age_us = static_cast<std::uint32_t>(std::min<std::int64_t>(age_us, 0xFFFFFFFF));
+  c.deadman = deadman_ ? deadman_->poll() : proto::DeadmanState::NotUsed;
   client_->send_head(c);
   ++summary_.head_commands;
+  if (age_us > 100'000) ++summary_.head_samples_stale;
+  if (c.deadman == proto::DeadmanState::Released) ++summary_.head_deadman_released;
 }
 
 // Orderly end: the haptic thread first (it zeroes the display), then what it logged, then the

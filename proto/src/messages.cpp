@@ -130,6 +130,11 @@ void put_payload(Writer& w, const HeadCommand& m) {
     require(std::isfinite(a) && std::abs(a) <= kPiF, "HeadCommand angle not finite or beyond pi");
     w.f32(a);
   }
+  require(static_cast<std::uint8_t>(m.deadman) <= kMaxDeadmanState,
+          "HeadCommand dead-man state not 0, 1 or 2");
+  w.u32(m.sample_id);
+  w.u32(m.sample_age_us);
+  w.u8(static_cast<std::uint8_t>(m.deadman));
 }
 
 void put_payload(Writer& w, const TileNack& m) {
@@ -326,10 +331,15 @@ PayloadResult get_head_command(Reader& r) {
   HeadCommand m;
   m.operator_ns = r.u64();
   for (float& a : m.joint_rad) a = r.f32();
+  m.sample_id = r.u32();
+  m.sample_age_us = r.u32();
+  const std::uint8_t deadman = r.u8();
   if (!r.ok()) return truncated("HeadCommand fields");
   for (float a : m.joint_rad)
     if (!std::isfinite(a) || std::abs(a) > kPiF)
       return bad("HeadCommand angle not finite or beyond pi");
+  if (deadman > kMaxDeadmanState) return bad("HeadCommand dead-man state not 0, 1 or 2");
+  m.deadman = static_cast<DeadmanState>(deadman);
   return m;
 }
 PayloadResult get_video(Reader& r) {

@@ -39,8 +39,12 @@ void validate(const DaemonConfig& c) {
   if (c.pipeline.tile_width < 8 || c.pipeline.tile_height < 8)
     throw std::invalid_argument("--tile must be at least 8x8 pixels");
   if (c.pipeline.stabilise_k_sigma < 0) throw std::invalid_argument("--stabilise must be >= 0");
-  (void)parse_head_spec(c.head);
+  const HeadSpec head = parse_head_spec(c.head);
   c.head_limits.validate();
+  if (!c.head_log_csv.empty() && head.kind == HeadSpec::Kind::None)
+    throw std::invalid_argument(
+        "--log-head logs the head loop, which runs only with a head: give "
+        "--head sim|dynamixel:DEV|udp:HOST:PORT");
 }
 
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
@@ -60,7 +64,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "errors {} malformed {} | auth-failed {} unsealed {} replayed {} udp-ignored {} | "
       "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
       "over-queue {} control-dropped {} | frames-sent {} | head-in {} "
-      "clamped {} rate-limited {} link-lost {}{} head-errors {} | realtime {}/{}",
+      "clamped {} rate-limited {} accel-limited {} link-lost {} stale-held {} repeat-held {} "
+      "deadman-held {}{} head-errors {} | realtime {}/{}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -81,17 +86,24 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
       now.repair_unavailable, now.repair_duplicates, now.repair_over_budget, now.repair_over_queue,
       now.control_dropped, now.frames_sent, now.head_commands_in, now.head_control.clamped,
-      now.head_control.rate_limited, now.head_control.link_losses,
-      now.head_holding ? " holding" : "",
+      now.head_control.rate_limited, now.head_control.accel_limited, now.head_control.link_losses,
+      now.head_control.stale_holds, now.head_control.repeat_holds, now.head_control.deadman_holds,
+      now.head_holding ? std::string(" holding (") + head_hold_name(now.head_hold) + ")" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
           now.head.hardware_errors + now.head.io_errors,
       now.realtime_threads, now.path_threads);
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
-    : config_(std::move(config)),
-      pipeline_(config_.pipeline),
-      head_control_({config_.head_limits, config_.head_link_timeout_s}) {
+    : config_(std::move(config)), pipeline_(config_.pipeline), head_control_([this] {
+        HeadControllerConfig c;
+        c.limits = config_.head_limits;
+        c.link_timeout_s = config_.head_link_timeout_s;
+        c.require_deadman = config_.require_deadman;
+        return c;
+      }()) {
+  static_assert(static_cast<int>(Deadman::Released) ==
+                static_cast<int>(proto::DeadmanState::Released));
   validate(config_);
   head_driven_ = parse_head_spec(config_.head).kind != HeadSpec::Kind::None;
   if (head_driven_) {
@@ -106,7 +118,13 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
     // The operator's head, from the network thread; the head loop commands it.
     config_.server.on_head_command = [this](const proto::HeadCommand& c, std::int64_t now_ns) {
       std::lock_guard lock(head_mu_);
-      head_control_.set_target({c.joint_rad[0], c.joint_rad[1], c.joint_rad[2]}, now_ns);
+      HeadTarget t;
+      t.joint_rad = {c.joint_rad[0], c.joint_rad[1], c.joint_rad[2]};
+      t.sample_id = c.sample_id;
+      t.sample_age_ns = static_cast<std::int64_t>(c.sample_age_us) * 1000;
+      t.deadman = static_cast<Deadman>(c.deadman);  // the same values (PROTOCOL.md 2.3)
+      t.sample_ns = static_cast<std::int64_t>(c.operator_ns);
+      head_control_.set_target(t, now_ns);
     };
   }
   depth_ = make_depth_source(config_.depth_source, config_.source_options);
@@ -125,6 +143,14 @@ void RemoteDaemon::start() {
   if (running_) return;
   // First, so a missing or silent head fails the start before anything else opens.
   if (!head_) head_ = make_head_driver(config_.head, config_.head_limits);
+  if (head_driven_ && !config_.head_log_csv.empty() && !head_log_.is_open()) {
+    head_log_.open(config_.head_log_csv);
+    if (!head_log_)
+      throw std::invalid_argument("--log-head " + config_.head_log_csv.string() +
+                                  ": cannot be written (check the folder exists and is writable)");
+    head_log_ << "t_ns,measured_valid,yaw_rad,pitch_rad,roll_rad,cmd_yaw_rad,cmd_pitch_rad,"
+                 "cmd_roll_rad,sample_id,sample_ns,sample_age_ms,deadman,hold\n";
+  }
   start_opencv_workers();  // from this thread, so they never inherit the depth path's priority
   depth_->start();
   if (stereo_) stereo_->start();
@@ -168,6 +194,7 @@ void RemoteDaemon::stop() {
   for (auto* t :
        {&capture_thread_, &stereo_thread_, &process_thread_, &video_thread_, &head_thread_})
     if (t->joinable()) t->join();
+  if (head_log_.is_open()) head_log_.flush();
   server_->stop();
   depth_->stop();
   if (stereo_) stereo_->stop();
@@ -217,6 +244,7 @@ DaemonStats RemoteDaemon::stats() const {
     std::lock_guard lock(head_mu_);
     s.head_control = head_control_.stats();
     s.head_holding = head_control_.holding();
+    s.head_hold = head_control_.hold_reason();
     s.head = head_stats_;  // the head loop's copy: drivers are used from that thread only
   }
   return s;
@@ -228,10 +256,15 @@ void RemoteDaemon::head_loop() {
   const auto period =
       std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / config_.head_rate_hz));
   auto next = std::chrono::steady_clock::now();
+  std::int64_t log_flushed_ns = steady_now_ns();
   while (running_) {
     const std::int64_t now = steady_now_ns();
     const HeadPose measured = head_->measured(now);
     std::optional<HeadAngles> command;
+    std::uint32_t sample_id = 0;
+    std::int64_t sample_age_ns = -1, sample_ns = 0;
+    Deadman deadman = Deadman::NotUsed;
+    HeadHold hold = HeadHold::None;
     {
       std::lock_guard lock(head_mu_);
       if (measured.valid) {
@@ -239,8 +272,30 @@ void RemoteDaemon::head_loop() {
         if (head_history_.size() > 256) head_history_.pop_front();
       }
       command = head_control_.update(measured, now);
+      sample_id = head_control_.sample_id();
+      sample_age_ns = head_control_.sample_age_ns(now);
+      sample_ns = head_control_.sample_ns();
+      deadman = head_control_.deadman();
+      hold = head_control_.hold_reason();
     }
     if (command) head_->command(*command, now);
+    if (head_log_.is_open()) {
+      // Buffered, flushed once a second: at most one write a second from this loop.
+      head_log_ << fmt::format("{},{},{:.6f},{:.6f},{:.6f},", now, measured.valid ? 1 : 0,
+                               measured.joint_rad[0], measured.joint_rad[1], measured.joint_rad[2]);
+      if (command)
+        head_log_ << fmt::format("{:.6f},{:.6f},{:.6f},", (*command)[0], (*command)[1],
+                                 (*command)[2]);
+      else
+        head_log_ << ",,,";
+      head_log_ << fmt::format("{},{},{:.3f},{},{}\n", sample_id, sample_ns,
+                               sample_age_ns < 0 ? -1.0 : static_cast<double>(sample_age_ns) * 1e-6,
+                               static_cast<int>(deadman), head_hold_name(hold));
+      if (now - log_flushed_ns >= 1'000'000'000) {
+        head_log_.flush();
+        log_flushed_ns = now;
+      }
+    }
     {
       std::lock_guard lock(head_mu_);
       head_stats_ = head_->stats();
@@ -250,6 +305,12 @@ void RemoteDaemon::head_loop() {
     if (next < wake) next = wake;  // a slow bus: no burst to catch up
     std::this_thread::sleep_until(next);
   }
+  // Leaving: the head holds where it is, whatever the driver. The last command may be ahead of the
+  // head (it lags), and a lab's controller (--head udp) keeps the last target it was sent.
+  const HeadPose last = head_->measured(steady_now_ns());
+  if (last.valid) head_->command(last.joint_rad, last.time_ns);
+  std::lock_guard lock(head_mu_);
+  head_stats_ = head_->stats();
 }
 
 HeadPose RemoteDaemon::head_pose_at(std::int64_t t) const {

@@ -23,7 +23,8 @@ void HeadLimits::validate() const {
   for (std::size_t j = 0; j < kHeadJoints; ++j) {
     const HeadJointLimits& l = joint[j];
     const std::string name = std::string("head ") + head_joint_name(j);
-    if (!std::isfinite(l.min_rad) || !std::isfinite(l.max_rad) || !std::isfinite(l.max_rate_rad_s))
+    if (!std::isfinite(l.min_rad) || !std::isfinite(l.max_rad) ||
+        !std::isfinite(l.max_rate_rad_s) || !std::isfinite(l.max_accel_rad_s2))
       throw std::invalid_argument(name + ": limits must be finite numbers");
     if (!(l.min_rad < l.max_rad))
       throw std::invalid_argument(name + ": min_rad " + std::to_string(l.min_rad) +
@@ -35,6 +36,9 @@ void HeadLimits::validate() const {
     if (!(l.max_rate_rad_s > 0))
       throw std::invalid_argument(name + ": max_rate_rad_s " + std::to_string(l.max_rate_rad_s) +
                                   " must be above 0");
+    if (!(l.max_accel_rad_s2 > 0))
+      throw std::invalid_argument(name + ": max_accel_rad_s2 " +
+                                  std::to_string(l.max_accel_rad_s2) + " must be above 0");
   }
 }
 
@@ -246,7 +250,8 @@ std::optional<HeadDatagram> decode_head_datagram(std::span<const std::uint8_t> b
 HeadLimits head_limits_from(const RobotHead& head) {
   HeadLimits l;
   for (std::size_t j = 0; j < kHeadJoints; ++j)
-    l.joint[j] = {head.joints[j].min_rad, head.joints[j].max_rad, head.joints[j].max_rate_rad_s};
+    l.joint[j] = {head.joints[j].min_rad, head.joints[j].max_rad, head.joints[j].max_rate_rad_s,
+                  head.joints[j].max_accel_rad_s2};
   return l;
 }
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// HeadController: the operator's target clamped, rate-limited, and held still when the link is
-// lost.
+// HeadController: the operator's target clamped, rate- and acceleration-limited, and held still
+// when the link is lost, the tracking sample is stale or repeats, or the dead-man is released.
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -16,76 +16,161 @@ bool all_finite(const HeadAngles& a) {
   return std::all_of(a.begin(), a.end(), [](double v) { return std::isfinite(v); });
 }
 
+std::int64_t to_ns(double s) { return static_cast<std::int64_t>(s * 1e9); }
+
+void check_positive(double v, const char* what) {
+  if (!std::isfinite(v) || !(v > 0))
+    throw std::invalid_argument(std::string(what) + " " + std::to_string(v) + " s must be above 0");
+}
+
 }  // namespace
+
+const char* head_hold_name(HeadHold h) {
+  static constexpr const char* kNames[kHeadHoldCount] = {"none", "link", "stale", "repeat",
+                                                         "deadman"};
+  const auto i = static_cast<std::size_t>(h);
+  return i < kHeadHoldCount ? kNames[i] : "?";
+}
 
 void HeadControllerConfig::validate() const {
   limits.validate();
-  if (!std::isfinite(link_timeout_s) || !(link_timeout_s > 0))
-    throw std::invalid_argument("head link timeout " + std::to_string(link_timeout_s) +
-                                " s must be above 0");
+  check_positive(link_timeout_s, "head link timeout");
+  check_positive(max_sample_age_s, "head max sample age");
+  check_positive(max_sample_repeat_s, "head max sample repeat");
 }
 
 HeadController::HeadController(HeadControllerConfig config) : config_(config) {
   config_.validate();
 }
 
-void HeadController::set_target(const HeadAngles& target_rad, std::int64_t now_ns) {
-  if (!all_finite(target_rad)) {
+void HeadController::set_target(const HeadTarget& target, std::int64_t now_ns) {
+  if (!all_finite(target.joint_rad)) {
     ++stats_.rejected_targets;
     return;
   }
-  HeadAngles t = target_rad;
-  stats_.clamped += clamp_to_limits(t, config_.limits);
+  HeadTarget t = target;
+  t.sample_age_ns = std::max<std::int64_t>(0, t.sample_age_ns);
+  stats_.clamped += clamp_to_limits(t.joint_rad, config_.limits);
+  if (!target_ || target_->sample_id != t.sample_id) sample_first_ns_ = now_ns;
   target_ = t;
   target_ns_ = now_ns;
   ++stats_.targets;
 }
 
+std::int64_t HeadController::sample_age_ns(std::int64_t now_ns) const {
+  if (!target_) return -1;
+  return target_->sample_age_ns + std::max<std::int64_t>(0, now_ns - target_ns_);
+}
+
+HeadHold HeadController::why_hold(std::int64_t now_ns) const {
+  if (!target_ || now_ns - target_ns_ > to_ns(config_.link_timeout_s)) return HeadHold::Link;
+  if (target_->deadman == Deadman::Released ||
+      (config_.require_deadman && target_->deadman != Deadman::Pressed))
+    return HeadHold::Deadman;
+  if (sample_age_ns(now_ns) > to_ns(config_.max_sample_age_s)) return HeadHold::Stale;
+  // Repeats are counted between arrivals: a silent link is the stale and link rules' to catch.
+  if (target_ns_ - sample_first_ns_ > to_ns(config_.max_sample_repeat_s)) return HeadHold::Repeat;
+  return HeadHold::None;
+}
+
+void HeadController::hold_at(std::int64_t now_ns) {
+  if (!hold_) {
+    // Latched once, so a drifting or noisy reading does not move the head while it holds.
+    const std::optional<HeadAngles>& from = last_measured_ ? last_measured_ : last_command_;
+    if (!from) return;
+    HeadAngles h = *from;
+    clamp_to_limits(h, config_.limits);
+    hold_ = h;
+  }
+  last_command_ = hold_;
+  velocity_rad_s_ = {};
+  last_update_ns_ = now_ns;
+}
+
 std::optional<HeadAngles> HeadController::update(const HeadPose& measured, std::int64_t now_ns) {
   if (measured.valid && all_finite(measured.joint_rad)) last_measured_ = measured.joint_rad;
-  const auto timeout_ns = static_cast<std::int64_t>(config_.link_timeout_s * 1e9);
-  const bool link = target_.has_value() && now_ns - target_ns_ <= timeout_ns;
-  if (!link) {
-    if (!holding_) {
-      holding_ = true;
-      ++stats_.link_losses;
-      hold_.reset();
+  const HeadHold why = why_hold(now_ns);
+  if (why != HeadHold::None) {
+    if (hold_reason_ == HeadHold::None) hold_.reset();
+    // Counted as each reason begins: a link that goes silent is first a stale sample (100 ms),
+    // then a lost link (200 ms), and both are counted.
+    if (why != hold_reason_) {
+      switch (why) {
+        case HeadHold::Link:
+          ++stats_.link_losses;
+          break;
+        case HeadHold::Stale:
+          ++stats_.stale_holds;
+          break;
+        case HeadHold::Repeat:
+          ++stats_.repeat_holds;
+          break;
+        case HeadHold::Deadman:
+          ++stats_.deadman_holds;
+          break;
+        case HeadHold::None:
+          break;
+      }
     }
-    if (!hold_) {
-      // Latched once, so a drifting or noisy reading does not move the head while it holds.
-      const std::optional<HeadAngles>& from = last_measured_ ? last_measured_ : last_command_;
-      if (!from) return std::nullopt;
-      HeadAngles h = *from;
-      clamp_to_limits(h, config_.limits);
-      hold_ = h;
-    }
-    last_command_ = hold_;
-    last_update_ns_ = now_ns;
+    hold_reason_ = why;
+    hold_at(now_ns);
     return hold_;
   }
-  holding_ = false;
+  hold_reason_ = HeadHold::None;
   hold_.reset();
   if (!last_command_) {
     HeadAngles start = last_measured_ ? *last_measured_ : HeadAngles{};
     clamp_to_limits(start, config_.limits);
     last_command_ = start;
+    velocity_rad_s_ = {};
     last_update_ns_ = now_ns;
   }
   const double dt_s =
       static_cast<double>(std::max<std::int64_t>(0, now_ns - last_update_ns_)) * 1e-9;
-  HeadAngles cmd = *last_command_;
-  for (std::size_t j = 0; j < kHeadJoints; ++j) {
-    const double step = config_.limits.joint[j].max_rate_rad_s * dt_s;
-    const double delta = (*target_)[j] - cmd[j];
-    if (std::abs(delta) > step) {
-      cmd[j] += std::copysign(step, delta);
-      ++stats_.rate_limited;
-    } else {
-      cmd[j] = (*target_)[j];
-    }
-  }
-  last_command_ = cmd;
+  if (dt_s > 0) last_command_ = step(*last_command_, dt_s);
   last_update_ns_ = std::max(last_update_ns_, now_ns);
+  return last_command_;
+}
+
+// One joint's move toward the target over dt. The speed it may have now is the lesser of max_rate
+// and the speed from which it can still stop at the target: moving at v for this dt and braking
+// at max_accel after must fit the distance, v dt + v^2 / 2a <= d. Then braking by max_accel * dt'
+// at every later step, whatever its dt', keeps that true, so the joint stops on the target without
+// ever braking harder than max_accel (the head loop's period wanders). The speed changes toward
+// that by at most max_accel * dt. Near the target the steps shrink quadratically; within 1e-9 rad
+// the joint lands on it.
+HeadAngles HeadController::step(const HeadAngles& from, double dt_s) {
+  constexpr double kLandRad = 1e-9;
+  HeadAngles cmd = from;
+  for (std::size_t j = 0; j < kHeadJoints; ++j) {
+    const HeadJointLimits& lim = config_.limits.joint[j];
+    const double a = lim.max_accel_rad_s2;
+    const double dv_max = a * dt_s;
+    const double d = target_->joint_rad[j] - from[j];
+    double& v = velocity_rad_s_[j];
+    if (std::abs(d) <= kLandRad && std::abs(v) <= dv_max) {
+      cmd[j] = target_->joint_rad[j];
+      v = d / dt_s;
+      continue;
+    }
+    const auto brake = [&](double distance) {
+      return std::sqrt(dv_max * dv_max + 2.0 * a * std::max(0.0, distance)) - dv_max;
+    };
+    const double v_brake = brake(std::abs(d));
+    if (v_brake > lim.max_rate_rad_s) ++stats_.rate_limited;
+    double v_want = std::copysign(std::min(lim.max_rate_rad_s, v_brake), d);
+    // A target that jumps back toward a joint moving fast is overshot and come back to; a joint
+    // limit is not: the speed toward the limit ahead stays one the joint can stop from in time.
+    if (v_want > 0) v_want = std::min(v_want, brake(lim.max_rad - from[j]));
+    if (v_want < 0) v_want = std::max(v_want, -brake(from[j] - lim.min_rad));
+    const double dv = std::clamp(v_want - v, -dv_max, dv_max);
+    if (dv != v_want - v) ++stats_.accel_limited;
+    v += dv;
+    cmd[j] = from[j] + v * dt_s;
+  }
+  // Only rounding can take a command past a joint limit now; the limit wins.
+  if (clamp_to_limits(cmd, config_.limits) > 0)
+    for (std::size_t j = 0; j < kHeadJoints; ++j) velocity_rad_s_[j] = (cmd[j] - from[j]) / dt_s;
   return cmd;
 }
 

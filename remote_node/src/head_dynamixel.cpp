@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// --head dynamixel:DEV: three X-series servos over Protocol 2.0: pinged and torqued at start,
-// SYNC_WRITE of goal positions, SYNC_READ of present positions.
+// --head dynamixel:DEV: three X-series servos over Protocol 2.0: pinged, checked for position
+// mode, given the rig's limits (their own Min/Max Position Limit, Profile Velocity and
+// Acceleration) and torqued at start; SYNC_WRITE of goal positions, SYNC_READ of present positions.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -32,9 +33,14 @@ class DynamixelHead final : public HeadDriver {
         who_("--head dynamixel:" + spec.device) {
     ping_all();
     check_operating_modes();
+    program_position_limits();
     for (std::size_t j = 0; j < kHeadJoints; ++j) {
-      // The servo's own profile keeps it within the rate limit even between our commands.
-      const std::uint32_t pv = xs::profile_velocity_from_rad_s(limits_.joint[j].max_rate_rad_s);
+      // The servo's own profile keeps it within the rate and acceleration limits even between our
+      // commands, and when it brakes to a hold.
+      const HeadJointLimits& l = limits_.joint[j];
+      const std::uint32_t pa = xs::profile_acceleration_from_rad_s2(l.max_accel_rad_s2);
+      write_checked(j, xs::kProfileAcceleration, dxl::le_bytes(pa, 4), "Profile Acceleration");
+      const std::uint32_t pv = xs::profile_velocity_from_rad_s(l.max_rate_rad_s);
       write_checked(j, xs::kProfileVelocity, dxl::le_bytes(pv, 4), "Profile Velocity");
     }
     const HeadPose first = measured(steady_now_ns());
@@ -43,8 +49,12 @@ class DynamixelHead final : public HeadDriver {
                                ": the servos answered a ping but not a SYNC_READ of their "
                                "positions: " +
                                stats_.last_error);
-    // The goal where the head is, so torque comes on without a jump to a stale goal.
-    send_goal(first.joint_rad);
+    // The goal where the head is, so torque comes on without a jump to a stale goal (within the
+    // limits just programmed: a servo refuses a goal beyond them; from outside, it moves in at its
+    // profile's speed).
+    HeadAngles goal = first.joint_rad;
+    clamp_to_limits(goal, limits_);
+    send_goal(goal);
     for (std::size_t j = 0; j < kHeadJoints; ++j)
       write_checked(j, xs::kTorqueEnable, {1}, "Torque Enable");
   }
@@ -265,12 +275,43 @@ class DynamixelHead final : public HeadDriver {
                         "Operating Mode: {}",
                         who_, servo(j), stats_.last_error));
       const std::uint8_t mode = a[0]->params[0];
-      if (mode != xs::kPositionMode && mode != xs::kExtendedPositionMode &&
-          mode != xs::kCurrentBasedPositionMode)
-        throw std::runtime_error(fmt::format(
-            "{}: {} is in Operating Mode {}, which ignores Goal Position; set it to 3 (position "
-            "control) with DYNAMIXEL Wizard 2.0 (torque off)",
-            who_, servo(j), mode));
+      if (mode == xs::kPositionMode) continue;
+      const char* why =
+          mode == xs::kExtendedPositionMode
+              ? "Extended Position (multi-turn), which ignores the Min/Max Position Limits that "
+                "keep the head within the rig's joint limits"
+          : mode == xs::kCurrentBasedPositionMode
+              ? "Current-based Position (multi-turn), which ignores the Min/Max Position Limits "
+                "that keep the head within the rig's joint limits"
+              : "a mode that ignores Goal Position";
+      throw std::runtime_error(
+          fmt::format("{}: {} is in Operating Mode {}: {}; set it to 3 (Position Control Mode) "
+                      "with DYNAMIXEL Wizard 2.0 (torque off)",
+                      who_, servo(j), mode, why));
+    }
+  }
+
+  // The rig's joint limits into each servo's own Min/Max Position Limit, so the servo refuses a
+  // goal beyond them whatever sends it. They are EEPROM, written only with torque off: a servo
+  // whose limits already match (a restart) is left as it is, so a head holding with torque on
+  // does not drop; one whose limits differ has torque turned off for the writes (it comes back on
+  // at the end of the start).
+  void program_position_limits() {
+    for (std::size_t j = 0; j < kHeadJoints; ++j) {
+      const std::uint32_t want_max = xs::position_limit_counts(limits_.joint[j].max_rad);
+      const std::uint32_t want_min = xs::position_limit_counts(limits_.joint[j].min_rad);
+      const std::uint8_t id[] = {spec_.ids[j]};
+      const auto a = transact(dxl::read_packet(id[0], xs::kMaxPositionLimit, 8), id, 8);
+      if (!a[0])
+        throw std::runtime_error(
+            fmt::format("{}: {} answered a ping but not a READ of its Min/Max Position Limit: {}",
+                        who_, servo(j), stats_.last_error));
+      const auto have = std::span<const std::uint8_t>(a[0]->params);
+      if (dxl::le_value(have.first(4)) == want_max && dxl::le_value(have.subspan(4, 4)) == want_min)
+        continue;
+      write_checked(j, xs::kTorqueEnable, {0}, "Torque Enable (off, to write the limits)");
+      write_checked(j, xs::kMaxPositionLimit, dxl::le_bytes(want_max, 4), "Max Position Limit");
+      write_checked(j, xs::kMinPositionLimit, dxl::le_bytes(want_min, 4), "Min Position Limit");
     }
   }
 

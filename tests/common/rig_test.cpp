@@ -53,6 +53,7 @@ TEST(Rig, WhatItWritesItReadsBack) {
   rig.skin_rgb = {90, 60, 40};
   rig.gravity_grabber = {{"max_pressure_N", 2.5}};
   rig.robot_head.joints[0].min_rad = -1.2;
+  rig.robot_head.joints[2].max_accel_rad_s2 = 5.0;
 
   const Rig back = parse_rig(rig_to_json(rig).dump(), "round trip");
   ASSERT_TRUE(back.depth && back.eye[0] && back.eye[1]);
@@ -73,6 +74,7 @@ TEST(Rig, WhatItWritesItReadsBack) {
   EXPECT_EQ(back.skin_rgb, rig.skin_rgb);
   EXPECT_EQ(back.gravity_grabber, rig.gravity_grabber);
   EXPECT_NEAR(back.robot_head.joints[0].min_rad, -1.2, 1e-12);
+  EXPECT_NEAR(back.robot_head.joints[2].max_accel_rad_s2, 5.0, 1e-12);
   EXPECT_EQ(back.R_CameraHead, rig.R_CameraHead);
 }
 
@@ -106,6 +108,11 @@ TEST(Rig, EveryErrorNamesTheKeyAndWhatIsWrong) {
       {R"({"robot_head":{"joints":[{},{},{"min_deg":10,"max_deg":5}]}})",
        "robot_head.joints[2]: max_deg must be above min_deg"},
       {R"({"robot_head":{"joints":[{}]}})", "robot_head.joints: must be an array of 3"},
+      // Issue 27: a head beside people turns no faster than a person's head.
+      {R"({"robot_head":{"joints":[{"max_rate_deg_s":3600},{},{}]}})",
+       "robot_head.joints[0].max_rate_deg_s: must be within [1, 360], got 3600"},
+      {R"({"robot_head":{"joints":[{},{"max_accel_deg_s2":0},{}]}})",
+       "robot_head.joints[1].max_accel_deg_s2: must be within [1, 7200], got 0"},
       {R"({"operator":{"gloves":{"right":{"min":[0,0,0,0,0],"max":[1,1,0,1,1]}}}})",
        "operator.gloves.right: sensor 2 has max <= min"},
       {R"({"operator":{"gloves":{"right":{"min":[0,0,0,0,0,0],"max":[1,1,1,1,1,1]}}}})",

@@ -112,7 +112,7 @@ std::vector<telex::proto::Message> messages() {
   m.push_back(RoiRequest{{{10, 20, 80, 60, 3}}});
   m.push_back(Stats{{{"key_frame_request", 1}}});
   m.push_back(TileNack{41, {9, 10, 17}});
-  m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}});
+  m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}, 77, 4500, DeadmanState::Pressed});
   return m;
 }
 

@@ -241,17 +241,51 @@ TEST(Messages, TileNackRejectsEmptyUnorderedAndShortLists) {
 }
 
 TEST(Messages, HeadCommandAndTheManifestsHeadJointsAreCheckedAngles) {
-  // The layout: u64 operator time, then yaw, pitch, roll as f32.
-  const auto bytes = encode({}, HeadCommand{0x0102030405060708ull, {0.5f, -0.25f, 1.0f}});
-  ASSERT_EQ(bytes.size(), kHeaderSize + 20);
+  // The layout: u64 operator time, yaw, pitch, roll as f32, u32 sample id, u32 sample age in us,
+  // u8 dead-man state.
+  const HeadCommand sent{0x0102030405060708ull,
+                         {0.5f, -0.25f, 1.0f},
+                         0x0A0B0C0Du,
+                         0x00012345u,
+                         DeadmanState::Released};
+  const auto bytes = encode({}, sent);
+  ASSERT_EQ(bytes.size(), kHeaderSize + 29);
   EXPECT_EQ(bytes[kHeaderSize], 0x08);
   EXPECT_EQ(bytes[kHeaderSize + 7], 0x01);
   float yaw = 0.0f;
   std::memcpy(&yaw, bytes.data() + kHeaderSize + 8, 4);
   EXPECT_EQ(yaw, 0.5f);
+  // The example of PROTOCOL.md 2.3, byte by byte.
+  EXPECT_EQ(std::vector<std::uint8_t>(bytes.begin() + kHeaderSize, bytes.end()),
+            (std::vector<std::uint8_t>{8,    7,    6,    5,    4,    3,    2,    1,    0,    0,
+                                       0,    0x3F, 0,    0,    0x80, 0xBE, 0,    0,    0x80, 0x3F,
+                                       0x0D, 0x0C, 0x0B, 0x0A, 0x45, 0x23, 0x01, 0x00, 2}));
   const Result ok = decode(bytes);
   ASSERT_TRUE(ok.ok());
-  EXPECT_EQ(std::get<HeadCommand>(ok.envelope->message).joint_rad[2], 1.0f);
+  EXPECT_EQ(std::get<HeadCommand>(ok.envelope->message), sent);
+  // The dead-man byte takes 0 (not used), 1 (pressed) and 2 (released) only.
+  for (const std::uint8_t state : {0, 1, 2, 3, 0x80, 0xFF}) {
+    auto b = bytes;
+    b[kHeaderSize + 28] = state;
+    reseal(b);
+    const Result r = decode(b);
+    if (state <= 2) {
+      ASSERT_TRUE(r.ok()) << int{state};
+      EXPECT_EQ(static_cast<int>(std::get<HeadCommand>(r.envelope->message).deadman), state);
+    } else {
+      EXPECT_EQ(r.error, ErrorReason::BadPayload) << int{state};
+    }
+  }
+  EXPECT_THROW(encode({}, HeadCommand{0, {}, 0, 0, static_cast<DeadmanState>(3)}),
+               std::invalid_argument);
+  // A version-3 command (20 bytes, no sample or dead-man) is short, not a command.
+  {
+    auto b = bytes;
+    b.resize(kHeaderSize + 20);
+    put_u32(b, 28, 20);
+    reseal(b);
+    EXPECT_EQ(decode(b).error, ErrorReason::Truncated);
+  }
   // A NaN or an angle beyond pi on the wire is a bad payload, not a command.
   for (const float bad : {std::numeric_limits<float>::quiet_NaN(), 3.5f, -4.0f,
                           std::numeric_limits<float>::infinity()}) {
@@ -262,7 +296,8 @@ TEST(Messages, HeadCommandAndTheManifestsHeadJointsAreCheckedAngles) {
     EXPECT_FALSE(r.ok()) << bad;
     EXPECT_EQ(r.error, ErrorReason::BadPayload) << bad;
   }
-  EXPECT_THROW(encode({}, HeadCommand{0, {0.0f, 4.0f, 0.0f}}), std::invalid_argument);
+  EXPECT_THROW(encode({}, HeadCommand{0, {0.0f, 4.0f, 0.0f}, 1, 0, DeadmanState::NotUsed}),
+               std::invalid_argument);
   // The manifest's head: a flag byte and three angles after the tile list; angles without the
   // flag are refused (a sender bug shows instead of being read as a pose).
   auto m = encode({}, FrameManifest{7, 64, true, {}, {true, {0.1f, 0.2f, -0.3f}}});

@@ -26,7 +26,7 @@ inline std::vector<Message> sample_messages() {
   m.push_back(RoiRequest{{{10, 20, 80, 60, 3}, {0, 0, 640, 480, 0}}});
   m.push_back(Stats{{{"tiles_sent", 123456789}, {"drops.crc", 0}}});
   m.push_back(TileNack{41, {9, 10, 17}});
-  m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}});
+  m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}, 77, 4500, DeadmanState::Pressed});
   return m;
 }
 

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <thread>
@@ -126,7 +127,7 @@ TEST(HeadDynamixel, IdsAndBaudFromTheSpec) {
 TEST(HeadDynamixel, GoalsStayWithinOneTurn) {
   sim::DynamixelPtyServer servos({1, 2, 3});
   HeadLimits limits = kDefaultHeadLimits;
-  limits.joint[0] = {-kPi, kPi, kPi};
+  limits.joint[0] = {-kPi, kPi, kPi, 10 * kPi};
   auto head = make_head_driver("dynamixel:" + servos.device(), limits);
   head->command({kPi, 0.0, 0.0}, steady_now_ns());
   EXPECT_EQ(goal_after_write(servos.bus(), 1, 4095), 4095);  // not 4096, which a servo refuses
@@ -188,6 +189,120 @@ TEST(HeadDynamixel, AServoNotInPositionModeIsRefused) {
   servos.bus().set_operating_mode(2, 1);  // velocity control
   expect_contains(message_of([&] { make_head_driver("dynamixel:" + servos.device()); }),
                   "servo id 2 (pitch) is in Operating Mode 1");
+}
+
+// Multi-turn modes ignore the servo's own position limits: refused, naming the servo and the mode.
+TEST(HeadDynamixel, ExtendedPositionModeIsRefusedNamingTheServoAndTheMode) {
+  for (const auto& [mode, name] : {std::pair<std::uint8_t, const char*>{4, "Extended Position"},
+                                   {5, "Current-based Position"}}) {
+    sim::DynamixelPtyServer servos({1, 2, 3});
+    servos.bus().set_operating_mode(3, mode);
+    const std::string m = message_of([&] { make_head_driver("dynamixel:" + servos.device()); });
+    std::printf("mode %d: %s\n", int{mode}, m.c_str());
+    expect_contains(m,
+                    "servo id 3 (roll) is in Operating Mode " + std::to_string(mode) + ": " + name);
+    expect_contains(m, "ignores the Min/Max Position Limits");
+    expect_contains(m, "set it to 3 (Position Control Mode)");
+    EXPECT_FALSE(servos.bus().torque_enabled(3));  // refused before anything was written
+    EXPECT_EQ(servos.bus().register_value(3, xs::kProfileVelocity, 4), 0u);
+  }
+}
+
+// At start the rig's limits go into the servos' own registers, read back from the emulator: the
+// joint limits as Min/Max Position Limit, the rate as Profile Velocity, the acceleration as
+// Profile Acceleration. A goal beyond them is then refused by the servo itself, as a real one
+// refuses it, whoever sends it.
+TEST(HeadDynamixel, TheRigsLimitsAndProfileAreProgrammedIntoTheServos) {
+  sim::DynamixelPtyServer servos({1, 2, 3});
+  HeadLimits limits;
+  limits.joint[0] = {-60 * kPi / 180, 60 * kPi / 180, 90 * kPi / 180, 900 * kPi / 180};
+  limits.joint[1] = {-30 * kPi / 180, 20 * kPi / 180, 45 * kPi / 180, 450 * kPi / 180};
+  limits.joint[2] = {-15 * kPi / 180, 15 * kPi / 180, 30 * kPi / 180, 300 * kPi / 180};
+  auto head = make_head_driver("dynamixel:" + servos.device(), limits);
+  sim::DynamixelBus& bus = servos.bus();
+  // 60 deg = 682.67 counts, so 2048 +- 683; 20 deg = 227.6 -> 2276; -30 deg = -341.3 -> 1707.
+  const std::uint32_t expect_max[] = {2731, 2276, 2219}, expect_min[] = {1365, 1707, 1877};
+  // 90 deg/s = 15 rev/min = 65.5 units -> 66; 900 deg/s^2 = 9000 rev/min^2 = 41.9 units -> 41
+  // (rounded down: never harder than asked).
+  const std::uint32_t expect_pv[] = {66, 33, 22}, expect_pa[] = {41, 20, 13};
+  for (std::uint8_t id = 1; id <= 3; ++id) {
+    const std::size_t j = id - 1u;
+    std::printf("servo %d: Min/Max Position Limit %u..%u, Profile Velocity %u, Acceleration %u\n",
+                int{id}, bus.register_value(id, xs::kMinPositionLimit, 4),
+                bus.register_value(id, xs::kMaxPositionLimit, 4),
+                bus.register_value(id, xs::kProfileVelocity, 4),
+                bus.register_value(id, xs::kProfileAcceleration, 4));
+    EXPECT_EQ(bus.register_value(id, xs::kMaxPositionLimit, 4), expect_max[j]) << int{id};
+    EXPECT_EQ(bus.register_value(id, xs::kMinPositionLimit, 4), expect_min[j]) << int{id};
+    EXPECT_EQ(bus.register_value(id, xs::kProfileVelocity, 4), expect_pv[j]) << int{id};
+    EXPECT_EQ(bus.register_value(id, xs::kProfileAcceleration, 4), expect_pa[j]) << int{id};
+    EXPECT_TRUE(bus.torque_enabled(id));
+  }
+  // The driver's own goals stay inside (clamped), so the servos take them.
+  head->command({2.0, -2.0, 0.1}, steady_now_ns());
+  EXPECT_EQ(goal_after_write(bus, 1, 2731), 2731);
+  EXPECT_EQ(goal_after_write(bus, 2, 1707), 1707);
+  EXPECT_EQ(bus.counters().goals_refused, 0u);
+  // A goal beyond a programmed limit from anyone else on the bus: Data Limit Error, not taken.
+  const std::int32_t before = bus.goal_counts(1);
+  const std::vector<std::uint8_t> answer =
+      bus.handle(dynamixel::write_packet(1, xs::kGoalPosition, dynamixel::le_bytes(2731 + 1, 4)),
+                 steady_now_ns());
+  dynamixel::PacketParser parser(dynamixel::PacketKind::Status);
+  ASSERT_EQ(parser.feed(answer), answer.size());
+  const auto status = parser.next();
+  ASSERT_TRUE(status && status->error == dynamixel::ParseError::None);
+  EXPECT_EQ(status->packet.error, static_cast<std::uint8_t>(dynamixel::ErrorNumber::DataLimit));
+  EXPECT_EQ(bus.goal_counts(1), before);
+  EXPECT_EQ(bus.counters().goals_refused, 1u);
+  // The limits are EEPROM: locked while torque is on.
+  const std::vector<std::uint8_t> locked =
+      bus.handle(dynamixel::write_packet(1, xs::kMaxPositionLimit, dynamixel::le_bytes(4095, 4)),
+                 steady_now_ns());
+  ASSERT_EQ(parser.feed(locked), locked.size());
+  const auto refused = parser.next();
+  ASSERT_TRUE(refused && refused->error == dynamixel::ParseError::None);
+  EXPECT_EQ(refused->packet.error, static_cast<std::uint8_t>(dynamixel::ErrorNumber::Access));
+  EXPECT_EQ(bus.register_value(1, xs::kMaxPositionLimit, 4), 2731u);
+  // A restart finds the limits already there and leaves torque on throughout: the head does not
+  // drop while the remote restarts.
+  head.reset();
+  auto again = make_head_driver("dynamixel:" + servos.device(), limits);
+  EXPECT_TRUE(bus.torque_enabled(1));
+  EXPECT_EQ(bus.register_value(1, xs::kMaxPositionLimit, 4), 2731u);
+}
+
+// The emulator's trapezoid: from rest, a servo's speed grows at its Profile Acceleration; a
+// 0.5 rad move at 180 deg/s and 1800 deg/s^2 (the rig's defaults) takes 0.26 s, not the 0.16 s
+// of the velocity alone, and its speed changes by at most the acceleration's 203 counts/s per
+// 10 ms (+-200 for the whole counts the position is read in). Checked on the emulator's clock (its
+// now_ns argument), not the wall's.
+TEST(HeadDynamixel, TheEmulatedServosAccelerateAtTheirProfileAcceleration) {
+  sim::DynamixelBus bus({1});
+  const auto write = [&](std::uint16_t address, std::uint32_t v, std::size_t n, std::int64_t t) {
+    bus.handle(dynamixel::write_packet(1, address, dynamixel::le_bytes(v, n)), t);
+  };
+  write(xs::kProfileVelocity, xs::profile_velocity_from_rad_s(kPi), 4, 0);
+  write(xs::kProfileAcceleration, xs::profile_acceleration_from_rad_s2(10 * kPi), 4, 0);
+  write(xs::kTorqueEnable, 1, 1, 0);
+  write(xs::kGoalPosition, static_cast<std::uint32_t>(xs::counts_from_rad(0.5)), 4, 0);
+  const double a_counts = 83 * 214.577 / 3600.0 * 4096;  // 83 units, in counts/s^2
+  double prev = 2048, prev_v = 0;
+  std::int64_t t_arrived = -1;
+  for (std::int64_t ms = 10; ms <= 600; ms += 10) {
+    bus.handle({}, ms * 1'000'000);
+    const double x = bus.present_counts(1);
+    const double v = (x - prev) / 0.01;
+    EXPECT_LE(std::abs(v - prev_v), a_counts * 0.01 + 200.0) << ms;
+    prev = x;
+    prev_v = v;
+    if (t_arrived < 0 && bus.present_counts(1) == xs::counts_from_rad(0.5)) t_arrived = ms;
+  }
+  std::printf("0.5 rad at Profile Velocity %u, Acceleration %u: arrived after %lld ms\n",
+              bus.profile_velocity(1), bus.register_value(1, xs::kProfileAcceleration, 4),
+              static_cast<long long>(t_arrived));
+  EXPECT_GE(t_arrived, 240);
+  EXPECT_LE(t_arrived, 300);
 }
 
 TEST(HeadDynamixel, AHardwareErrorAtStartSaysToReboot) {

@@ -7,6 +7,9 @@
 
 #include <boost/asio.hpp>
 #include <cmath>
+#include <cstdio>
+#include <functional>
+#include <random>
 #include <thread>
 
 namespace telex::remote {
@@ -31,7 +34,10 @@ TEST(HeadLimits, DefaultsAreTheDocumentedOnesAndValid) {
   EXPECT_DOUBLE_EQ(kDefaultHeadLimits.joint[0].max_rad, kPi / 2);
   EXPECT_DOUBLE_EQ(kDefaultHeadLimits.joint[1].min_rad, -kPi / 4);
   EXPECT_DOUBLE_EQ(kDefaultHeadLimits.joint[2].max_rad, kPi / 6);
-  for (const auto& j : kDefaultHeadLimits.joint) EXPECT_DOUBLE_EQ(j.max_rate_rad_s, kPi);
+  for (const auto& j : kDefaultHeadLimits.joint) {
+    EXPECT_DOUBLE_EQ(j.max_rate_rad_s, kPi);
+    EXPECT_DOUBLE_EQ(j.max_accel_rad_s2, 10 * kPi);  // 1800 deg/s^2
+  }
 }
 
 TEST(HeadLimits, ABadJointIsNamed) {
@@ -190,24 +196,37 @@ TEST(HeadController, NothingToCommandUntilAPoseOrTarget) {
   EXPECT_EQ(*cmd, (HeadAngles{0.1, 0.0, 0.0}));  // holds where the head is
 }
 
+// A fresh sample from the operator's head: a new id each call, 2 ms old, no dead-man.
+HeadTarget fresh(const HeadAngles& joint_rad) {
+  static std::uint32_t id = 0;
+  return {joint_rad, ++id, 2 * kMs, Deadman::NotUsed};
+}
+
+// The limits with an acceleration too high to matter, for the tests of the rate limit alone.
+HeadControllerConfig rate_only() {
+  HeadControllerConfig cfg;
+  for (auto& j : cfg.limits.joint) j.max_accel_rad_s2 = 1e9;
+  return cfg;
+}
+
 TEST(HeadController, ClampsAndRateLimitsFromThePreviousCommand) {
-  HeadController c;
+  HeadController c(rate_only());
   const HeadPose at_zero{{0, 0, 0}, 0, true};
-  c.set_target({1.0, 2.0, -0.1}, 0);  // pitch beyond +45 deg
+  c.set_target(fresh({1.0, 2.0, -0.1}), 0);  // pitch beyond +45 deg
   EXPECT_EQ(c.stats().clamped, 1u);
   auto cmd = c.update(at_zero, 0);
   ASSERT_TRUE(cmd);
   EXPECT_EQ(*cmd, (HeadAngles{0, 0, 0}));  // dt = 0: no motion yet
   for (int ms = 10; ms <= 100; ms += 10) {
-    c.set_target({1.0, 2.0, -0.1}, ms * kMs);
+    c.set_target(fresh({1.0, 2.0, -0.1}), ms * kMs);
     cmd = c.update(at_zero, ms * kMs);
   }
   // 100 ms at pi rad/s: 0.314 rad for yaw and pitch; roll reached -0.1 within its first 40 ms.
-  EXPECT_NEAR((*cmd)[0], kPi * 0.1, 1e-12);
-  EXPECT_NEAR((*cmd)[1], kPi * 0.1, 1e-12);
-  EXPECT_DOUBLE_EQ((*cmd)[2], -0.1);
+  EXPECT_NEAR((*cmd)[0], kPi * 0.1, 1e-9);
+  EXPECT_NEAR((*cmd)[1], kPi * 0.1, 1e-9);
+  EXPECT_NEAR((*cmd)[2], -0.1, 1e-12);
   for (int ms = 110; ms <= 1000; ms += 10) {
-    c.set_target({1.0, 2.0, -0.1}, ms * kMs);
+    c.set_target(fresh({1.0, 2.0, -0.1}), ms * kMs);
     cmd = c.update(at_zero, ms * kMs);
   }
   EXPECT_DOUBLE_EQ((*cmd)[0], 1.0);
@@ -216,10 +235,70 @@ TEST(HeadController, ClampsAndRateLimitsFromThePreviousCommand) {
   EXPECT_FALSE(c.holding());
 }
 
+// Targets that jump about (steps of up to a radian, reversals, a target at a joint limit) at a
+// head loop whose period wanders between 7 and 13 ms: the commands' own speed (their difference
+// over the loop's dt) never exceeds max_rate and changes by at most max_accel * dt per loop, and a
+// target held long enough is reached exactly.
+TEST(HeadController, AccelerationAndRateLimitsAreRespected) {
+  HeadControllerConfig cfg;                    // the rig's defaults: 180 deg/s, 1800 deg/s^2
+  cfg.limits.joint[1].max_accel_rad_s2 = 5.0;  // pitch: a slow one
+  HeadController c(cfg);
+  std::mt19937 rng(27);
+  std::uniform_real_distribution<double> yaw(-1.8, 1.8), pitch(-0.9, 0.9), roll(-0.6, 0.6);
+  std::uniform_int_distribution<int> period_ms(7, 13);
+  std::int64_t t = 0;
+  HeadAngles prev{}, prev_v{};
+  HeadAngles goal{0.0, 0.0, 0.0};
+  double worst_rate = 0, worst_accel = 0;  // as fractions of the limits
+  int loops = 0;
+  for (int phase = 0; phase < 40; ++phase) {
+    goal = {yaw(rng), pitch(rng), roll(rng)};  // beyond the limits at times: clamped
+    const int steps = phase % 5 == 4 ? 600 : 40;
+    for (int i = 0; i < steps; ++i) {
+      const std::int64_t dt = period_ms(rng) * kMs;
+      t += dt;
+      c.set_target(fresh(goal), t);
+      const auto cmd = c.update(HeadPose{prev, t, true}, t);
+      ASSERT_TRUE(cmd);
+      ASSERT_FALSE(c.holding());
+      if (loops++ > 0) {
+        for (std::size_t j = 0; j < kHeadJoints; ++j) {
+          const HeadJointLimits& l = cfg.limits.joint[j];
+          const double dt_s = static_cast<double>(dt) * 1e-9;
+          const double v = ((*cmd)[j] - prev[j]) / dt_s;
+          worst_rate = std::max(worst_rate, std::abs(v) / l.max_rate_rad_s);
+          const double accel = std::abs(v - prev_v[j]) / dt_s / l.max_accel_rad_s2;
+          EXPECT_LE(accel, 1.0 + 1e-6)
+              << "joint " << j << " loop " << loops << ": from " << prev[j] << " at " << prev_v[j]
+              << " rad/s to " << (*cmd)[j] << " at " << v << " rad/s toward " << goal[j];
+          worst_accel = std::max(worst_accel, accel);
+          prev_v[j] = v;
+        }
+      }
+      prev = *cmd;
+    }
+    if (steps == 600) {  // 6 s or more: long enough to arrive anywhere
+      HeadAngles want = goal;
+      clamp_to_limits(want, cfg.limits);
+      EXPECT_EQ(prev, want) << "phase " << phase;
+    }
+  }
+  std::printf(
+      "HeadController: %d loops, worst speed %.6f x max_rate, worst speed change %.6f x "
+      "max_accel * dt; %llu loops accel-limited, %llu rate-limited\n",
+      loops, worst_rate, worst_accel, static_cast<unsigned long long>(c.stats().accel_limited),
+      static_cast<unsigned long long>(c.stats().rate_limited));
+  EXPECT_LE(worst_rate, 1.0 + 1e-9);
+  EXPECT_LE(worst_accel, 1.0 + 1e-6);
+  EXPECT_GT(worst_accel, 0.99);  // the limit was reached: the test exercised it
+  EXPECT_GT(c.stats().accel_limited, 0u);
+  EXPECT_GT(c.stats().rate_limited, 0u);
+}
+
 TEST(HeadController, NonFiniteTargetsAreDropped) {
   HeadController c;
-  c.set_target({std::nan(""), 0, 0}, 0);
-  c.set_target({0, std::numeric_limits<double>::infinity(), 0}, 0);
+  c.set_target(fresh({std::nan(""), 0, 0}), 0);
+  c.set_target(fresh({0, std::numeric_limits<double>::infinity(), 0}), 0);
   EXPECT_EQ(c.stats().rejected_targets, 2u);
   EXPECT_EQ(c.stats().targets, 0u);
 }
@@ -231,35 +310,195 @@ TEST(HeadController, RejectsBadConfig) {
   cfg = {};
   cfg.limits.joint[0].max_rate_rad_s = -1;
   EXPECT_THROW(HeadController{cfg}, std::invalid_argument);
+  cfg = {};
+  cfg.limits.joint[2].max_accel_rad_s2 = 0;
+  EXPECT_NE(message_of([&] { HeadController{cfg}; }).find("head roll: max_accel"),
+            std::string::npos);
+  cfg = {};
+  cfg.max_sample_age_s = std::nan("");
+  EXPECT_THROW(HeadController{cfg}, std::invalid_argument);
+  cfg = {};
+  cfg.max_sample_repeat_s = -0.05;
+  EXPECT_THROW(HeadController{cfg}, std::invalid_argument);
 }
 
-// The operator yaws at 60 deg/s; at 1 s the link goes silent. After the timeout the command is the
-// measured pose at that moment and the sim head stays exactly there; a new target moves it again,
-// rate-limited from where it held.
+// The sim head driven by the controller at the remote's 100 Hz, toward a yaw of 1 rad far ahead
+// of it (the head lags at its rate and acceleration limits) until `stop_ms`; from there on each
+// loop gets the target `after(t)` gives (or none) and the hold must come by `hold_by_ms`. Returns
+// the measured yaw at each loop from stop_ms on.
+struct HoldRun {
+  std::vector<double> yaw_after;  // measured at every loop from stop_ms
+  double yaw_before = 0;          // measured 50 ms before stop_ms
+  double yaw_at_stop = 0;
+  HeadHold reason = HeadHold::None;
+  std::int64_t held_at_ns = -1;
+  HeadControlStats stats;
+};
+using AfterStop = std::function<std::optional<HeadTarget>(std::int64_t, const HeadTarget& last)>;
+HoldRun run_until_hold(int stop_ms, int end_ms, const AfterStop& after) {
+  HeadController c;
+  auto head = make_head_driver("sim");
+  HoldRun r;
+  HeadTarget last;
+  for (std::int64_t t = 0; t <= end_ms * kMs; t += 10 * kMs) {
+    const HeadPose p = head->measured(t);
+    if (t == (stop_ms - 50) * kMs) r.yaw_before = p.joint_rad[0];
+    if (t < stop_ms * kMs) {
+      last = fresh({1.0, 0.0, 0.0});
+      c.set_target(last, t);
+    } else {
+      if (r.yaw_after.empty()) r.yaw_at_stop = p.joint_rad[0];
+      r.yaw_after.push_back(p.joint_rad[0]);
+      if (const auto target = after(t, last)) c.set_target(*target, t);
+    }
+    const auto cmd = c.update(p, t);
+    EXPECT_TRUE(cmd);
+    if (c.holding() && r.held_at_ns < 0 && t >= stop_ms * kMs) {
+      r.held_at_ns = t;
+      r.reason = c.hold_reason();
+      EXPECT_EQ(*cmd, p.joint_rad) << "the hold is the pose measured then";
+    }
+    head->command(*cmd, t);
+  }
+  r.stats = c.stats();
+  return r;
+}
+
+// Once held, the sim head stays exactly where the hold caught it.
+void expect_still_after(const HoldRun& r, int stop_ms, const char* what) {
+  ASSERT_GE(r.held_at_ns, 0) << what << ": never held";
+  const auto first = static_cast<std::size_t>((r.held_at_ns - stop_ms * kMs) / (10 * kMs)) + 1;
+  ASSERT_LT(first, r.yaw_after.size());
+  for (std::size_t i = first; i < r.yaw_after.size(); ++i)
+    EXPECT_EQ(r.yaw_after[i], r.yaw_after[first]) << what << ": moved while holding, loop " << i;
+  // And the head was moving when the samples stopped, and stopped short of the target.
+  EXPECT_GT(r.yaw_at_stop - r.yaw_before, 0.05) << what;
+  EXPECT_LT(r.yaw_after.back(), 0.9) << what;
+}
+
+// The station goes on sending, but its sample stops changing and ages (tracking lost: the
+// tracker stopped or lost the head body): held as the sample turns 100 ms old at the latest.
+// Here the station says so honestly, with a growing age and the same id, so the repeat rule
+// (50 ms on the remote's clock) holds first.
+TEST(HeadController, AStaleSampleHoldsTheSimHeadWithinATenthOfASecond) {
+  const int stop_ms = 200;
+  const HoldRun r = run_until_hold(stop_ms, 1500, [&](std::int64_t t, const HeadTarget& last) {
+    HeadTarget again = last;
+    again.sample_age_ns = t - (stop_ms - 10) * kMs + 2 * kMs;
+    return std::optional<HeadTarget>(again);
+  });
+  std::printf("stale: held %.0f ms after the last fresh sample (%s), yaw %.4f -> %.4f rad\n",
+              static_cast<double>(r.held_at_ns - (stop_ms - 10) * kMs) * 1e-6,
+              head_hold_name(r.reason), r.yaw_at_stop, r.yaw_after.back());
+  EXPECT_LE(r.held_at_ns - (stop_ms - 10) * kMs, 100 * kMs);
+  expect_still_after(r, stop_ms, "stale");
+  // Each new sample older than 100 ms (a tracker 150 ms late) holds by the stale rule itself.
+  std::uint32_t id = 1000;
+  const HoldRun late = run_until_hold(stop_ms, 1500, [&](std::int64_t, const HeadTarget&) {
+    return std::optional<HeadTarget>(HeadTarget{{1.0, 0.0, 0.0}, ++id, 150 * kMs});
+  });
+  EXPECT_EQ(late.reason, HeadHold::Stale);
+  EXPECT_EQ(late.held_at_ns, stop_ms * kMs);
+  EXPECT_EQ(late.stats.stale_holds, 1u);
+  expect_still_after(late, stop_ms, "late samples");
+}
+
+// The old station's bug: the same sample resent every 5 ms as if it were new (age 0). The repeat
+// rule holds once it has been the newest for more than 50 ms on the remote's clock, while a
+// sample repeated for 30 ms (a 33 Hz tracker between two frames) keeps the head moving.
+TEST(HeadController, ASampleRepeatedTooLongHolds) {
+  const int stop_ms = 200;
+  const HoldRun r = run_until_hold(stop_ms, 1500, [&](std::int64_t, const HeadTarget& last) {
+    HeadTarget again = last;
+    again.sample_age_ns = 0;
+    return std::optional<HeadTarget>(again);
+  });
+  EXPECT_EQ(r.reason, HeadHold::Repeat);
+  EXPECT_EQ(r.stats.repeat_holds, 1u);
+  // First carried at stop_ms - 10; held at the first loop more than 50 ms later.
+  EXPECT_EQ(r.held_at_ns, (stop_ms - 10 + 60) * kMs);
+  expect_still_after(r, stop_ms, "repeat");
+
+  HeadController c;
+  std::uint32_t id = 5000;
+  for (std::int64_t t = 0; t <= 2000 * kMs; t += 5 * kMs) {
+    if (t % (30 * kMs) == 0) ++id;  // a new sample every 30 ms, resent every 5 ms
+    c.set_target({{0.5, 0.0, 0.0}, id, 0, Deadman::NotUsed}, t);
+    c.update(HeadPose{{0, 0, 0}, t, true}, t);
+    ASSERT_FALSE(c.holding()) << "at " << t * 1e-6 << " ms";
+  }
+}
+
+// The operator lets go of the dead-man: held at the next loop; pressed again, the head moves on
+// from rest. A station without one (not used) moves the head.
+TEST(HeadController, AReleasedDeadmanHolds) {
+  const int stop_ms = 200;
+  const HoldRun r = run_until_hold(stop_ms, 1500, [&](std::int64_t, const HeadTarget&) {
+    HeadTarget t = fresh({1.0, 0.0, 0.0});
+    t.deadman = Deadman::Released;
+    return std::optional<HeadTarget>(t);
+  });
+  EXPECT_EQ(r.reason, HeadHold::Deadman);
+  EXPECT_EQ(r.held_at_ns, stop_ms * kMs);
+  EXPECT_EQ(r.stats.deadman_holds, 1u);
+  expect_still_after(r, stop_ms, "dead-man");
+
+  const HeadPose at_zero{{0, 0, 0}, 0, true};
+  for (const Deadman d : {Deadman::Pressed, Deadman::NotUsed}) {
+    HeadController c;
+    HeadTarget t = fresh({0.5, 0.0, 0.0});
+    t.deadman = d;
+    c.set_target(t, 0);
+    c.update(at_zero, 0);
+    c.set_target(t, 10 * kMs);
+    const auto cmd = c.update(at_zero, 10 * kMs);
+    EXPECT_FALSE(c.holding()) << static_cast<int>(d);
+    EXPECT_GT((*cmd)[0], 0.0) << static_cast<int>(d);
+  }
+  // A lab that requires a dead-man (--require-deadman): a station without one holds the head.
+  HeadControllerConfig required;
+  required.require_deadman = true;
+  for (const Deadman d : {Deadman::NotUsed, Deadman::Released, Deadman::Pressed}) {
+    HeadController c(required);
+    HeadTarget t = fresh({0.5, 0.0, 0.0});
+    t.deadman = d;
+    c.set_target(t, 0);
+    c.update(at_zero, 0);
+    c.set_target(t, 10 * kMs);
+    const auto cmd = c.update(at_zero, 10 * kMs);
+    const bool moves = d == Deadman::Pressed;
+    EXPECT_EQ(c.holding(), !moves) << static_cast<int>(d);
+    EXPECT_EQ(c.hold_reason(), moves ? HeadHold::None : HeadHold::Deadman) << static_cast<int>(d);
+    EXPECT_EQ((*cmd)[0] > 0.0, moves) << static_cast<int>(d);
+  }
+}
+
+// The operator yaws at 60 deg/s; at 1 s the link goes silent. 100 ms on, the newest sample is
+// stale and the command becomes the measured pose at that moment; the sim head stays exactly
+// there; at 200 ms the link counts as lost. A new target moves it again from rest.
 TEST(HeadController, LinkLostHoldsTheSimHeadStill) {
   HeadController c;
   auto head = make_head_driver("sim");
   const double yaw_rate = 60.0 * kPi / 180.0;
   std::int64_t t = 0;
   for (; t <= 1000 * kMs; t += 10 * kMs) {
-    c.set_target({yaw_rate * t * 1e-9, 0.1, 0}, t);
+    c.set_target(fresh({yaw_rate * t * 1e-9, 0.1, 0}), t);
     const auto cmd = c.update(head->measured(t), t);
     ASSERT_TRUE(cmd);
     head->command(*cmd, t);
   }
-  // Still within the timeout: commands keep following the last target.
-  for (; t <= 1190 * kMs; t += 10 * kMs) {
+  // Within 100 ms of the last sample: commands keep following the last target.
+  for (; t <= 1090 * kMs; t += 10 * kMs) {
     const auto cmd = c.update(head->measured(t), t);
     head->command(*cmd, t);
     EXPECT_FALSE(c.holding());
   }
-  // The sim lags its command; the first update past 200 ms latches the measured pose.
-  t = 1210 * kMs;
+  // The sample was 2 ms old when it came at 1000 ms: past 100 ms at 1100 ms (92 ms after it).
+  t = 1100 * kMs;
   const HeadPose at_loss = head->measured(t);
   auto cmd = c.update(at_loss, t);
   ASSERT_TRUE(cmd);
-  EXPECT_TRUE(c.holding());
-  EXPECT_EQ(c.stats().link_losses, 1u);
+  EXPECT_EQ(c.hold_reason(), HeadHold::Stale);
   EXPECT_EQ(*cmd, at_loss.joint_rad);
   head->command(*cmd, t);
   for (t += 10 * kMs; t <= 3000 * kMs; t += 10 * kMs) {
@@ -269,12 +508,16 @@ TEST(HeadController, LinkLostHoldsTheSimHeadStill) {
     EXPECT_EQ(*cmd, at_loss.joint_rad);
     head->command(*cmd, t);
   }
-  // The link returns with a target 0.5 rad away: the command moves from the held pose at max rate.
+  EXPECT_EQ(c.hold_reason(), HeadHold::Link);
+  EXPECT_EQ(c.stats().stale_holds, 1u);
+  EXPECT_EQ(c.stats().link_losses, 1u);
+  // The link returns with a target 0.5 rad away: the command starts from the held pose at rest,
+  // 1800 deg/s^2 (10 pi rad/s^2) * (10 ms)^2 in the first loop, three times that in the second.
   for (int step = 1; step <= 2; ++step, t += 10 * kMs) {
-    c.set_target({at_loss.joint_rad[0] + 0.5, 0.1, 0}, t);
+    c.set_target(fresh({at_loss.joint_rad[0] + 0.5, 0.1, 0}), t);
     cmd = c.update(head->measured(t), t);
     EXPECT_FALSE(c.holding());
-    EXPECT_NEAR((*cmd)[0], at_loss.joint_rad[0] + kPi * 0.01 * step, 1e-12);
+    EXPECT_NEAR((*cmd)[0], at_loss.joint_rad[0] + 10.0 * kPi * 1e-4 * (step == 1 ? 1 : 3), 1e-12);
   }
 }
 

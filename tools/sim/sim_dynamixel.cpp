@@ -15,7 +15,13 @@ int main(int argc, char** argv) {
       "pseudo-terminal; prints the device to give telex-remote --head dynamixel:DEV"};
   std::string ids_text = "1,2,3";
   double duration_s = 0.0;
+  int mode = telex::dynamixel::xseries::kPositionMode;
   app.add_option("--ids", ids_text, "servo ids, comma-separated")->capture_default_str();
+  app.add_option("--operating-mode", mode,
+                 "the servos' Operating Mode at start (3 position; 4 extended position, which "
+                 "telex-remote refuses)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 16));
   app.add_option("--duration", duration_s, "seconds to run (0 = until SIGINT/SIGTERM)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 86400.0));
@@ -45,6 +51,8 @@ int main(int argc, char** argv) {
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     telex::sim::DynamixelPtyServer server(ids);
+    for (const std::uint8_t id : ids)
+      server.bus().set_operating_mode(id, static_cast<std::uint8_t>(mode));
     std::cout << "telex-sim-dynamixel: servos " << ids_text << " on " << server.device()
               << "\n  telex-remote --head dynamixel:" << server.device() << ",ids=" << ids_text
               << std::endl;
@@ -53,7 +61,19 @@ int main(int argc, char** argv) {
       if (sigtimedwait(&stop_signals, nullptr, &tick) > 0) break;
     const auto c = server.bus().counters();
     std::cerr << "telex-sim-dynamixel: " << c.instructions << " instructions, " << c.answers
-              << " answers, " << c.crc_errors << " CRC errors, " << c.malformed << " malformed\n";
+              << " answers, " << c.crc_errors << " CRC errors, " << c.malformed << " malformed, "
+              << c.goals_refused << " goals beyond the position limits refused\n";
+    // What a driver programmed: the limits and the profile each servo ended with.
+    namespace xs = telex::dynamixel::xseries;
+    for (const std::uint8_t id : ids) {
+      const auto& bus = server.bus();
+      std::cerr << "  servo " << int{id} << ": position limits "
+                << bus.register_value(id, xs::kMinPositionLimit, 4) << ".."
+                << bus.register_value(id, xs::kMaxPositionLimit, 4) << ", profile velocity "
+                << bus.register_value(id, xs::kProfileVelocity, 4) << ", acceleration "
+                << bus.register_value(id, xs::kProfileAcceleration, 4) << ", torque "
+                << (bus.torque_enabled(id) ? "on" : "off") << "\n";
+    }
     return 0;
   } catch (const std::invalid_argument& e) {
     std::cerr << "telex-sim-dynamixel: " << e.what() << "\n";

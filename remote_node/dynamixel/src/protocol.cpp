@@ -71,6 +71,17 @@ std::uint32_t profile_velocity_from_rad_s(double rate_rad_s) {
   return static_cast<std::uint32_t>(std::clamp(units, 1.0, 32767.0));
 }
 
+std::uint32_t profile_acceleration_from_rad_s2(double accel_rad_s2) {
+  const double rev_per_min2 = accel_rad_s2 * 3600.0 / (2.0 * std::numbers::pi);
+  const double units = std::floor(rev_per_min2 / kProfileAccelerationRpmPerMinPerUnit);
+  // 32767 is the register's maximum in the velocity-based profile.
+  return static_cast<std::uint32_t>(std::clamp(units, 1.0, 32767.0));
+}
+
+std::uint32_t position_limit_counts(double angle_rad) {
+  return static_cast<std::uint32_t>(std::clamp(counts_from_rad(angle_rad), 0, kCountsPerTurn - 1));
+}
+
 }  // namespace xseries
 
 std::uint16_t crc16(std::span<const std::uint8_t> bytes, std::uint16_t crc) {

@@ -27,10 +27,7 @@ namespace {
 
 // Control table addresses the emulator gives meaning to, beyond protocol.h's.
 constexpr std::uint16_t kReturnDelayTime = 9;
-constexpr std::uint16_t kMaxPositionLimit = 48;  // 4 bytes
-constexpr std::uint16_t kMinPositionLimit = 52;  // 4 bytes
-constexpr std::uint16_t kEepromEnd = 64;         // EEPROM below: written only with torque off
-constexpr std::uint16_t kReadOnlyStart = 120;    // Realtime Tick and everything after it
+constexpr std::uint16_t kReadOnlyStart = 120;  // Realtime Tick and everything after it
 constexpr std::uint16_t kModelXm430W210 = 1030;
 constexpr std::uint8_t kFirmware = 38;
 
@@ -61,8 +58,8 @@ DynamixelBus::DynamixelBus(std::vector<std::uint8_t> ids) {
     s.table[xs::kBaudRate] = 1;  // 57600
     s.table[kReturnDelayTime] = 250;
     s.table[xs::kOperatingMode] = xs::kPositionMode;
-    put_le(s.table, kMaxPositionLimit, 4095, 4);
-    put_le(s.table, kMinPositionLimit, 0, 4);
+    put_le(s.table, xs::kMaxPositionLimit, 4095, 4);
+    put_le(s.table, xs::kMinPositionLimit, 0, 4);
     put_le(s.table, xs::kGoalPosition, xs::kCentreCounts, 4);
     put_le(s.table, xs::kPresentPosition, xs::kCentreCounts, 4);
     servos_.push_back(s);
@@ -102,18 +99,43 @@ void DynamixelBus::move_to(std::int64_t now_ns) {
   const double dt_s = static_cast<double>(std::max<std::int64_t>(0, now_ns - last_ns_)) * 1e-9;
   last_ns_ = std::max(last_ns_, now_ns);
   for (Servo& s : servos_) {
-    if (s.table[xs::kTorqueEnable] != 0) {
+    if (s.table[xs::kTorqueEnable] == 0) {
+      s.velocity_counts_s = 0;
+    } else {
       const auto goal =
           static_cast<double>(static_cast<std::int32_t>(get_le(s.table, xs::kGoalPosition, 4)));
       const std::uint32_t pv = get_le(s.table, xs::kProfileVelocity, 4);
+      const std::uint32_t pa = get_le(s.table, xs::kProfileAcceleration, 4);
       if (pv == 0) {
         s.position_counts = goal;
+        s.velocity_counts_s = 0;
       } else {
-        const double counts_per_s = pv * xs::kProfileVelocityRpmPerUnit / 60.0 * xs::kCountsPerTurn;
-        const double step = counts_per_s * dt_s;
-        const double delta = goal - s.position_counts;
-        s.position_counts =
-            std::abs(delta) <= step ? goal : s.position_counts + std::copysign(step, delta);
+        const double v_max = pv * xs::kProfileVelocityRpmPerUnit / 60.0 * xs::kCountsPerTurn;
+        // Profile Acceleration 0: no ramp, the profile velocity at once.
+        const double a =
+            pa == 0 ? 0.0
+                    : pa * xs::kProfileAccelerationRpmPerMinPerUnit / 3600.0 * xs::kCountsPerTurn;
+        // A trapezoid, in steps of at most 1 ms: speed up at `a` to the profile velocity, brake
+        // at `a` to stop at the goal.
+        for (double left = dt_s; left > 0;) {
+          const double h = std::min(left, 1e-3);
+          left -= h;
+          const double d = goal - s.position_counts;
+          if (a == 0) {
+            s.position_counts =
+                std::abs(d) <= v_max * h ? goal : s.position_counts + std::copysign(v_max * h, d);
+            continue;
+          }
+          const double want = std::copysign(std::min(v_max, std::sqrt(2.0 * a * std::abs(d))), d);
+          s.velocity_counts_s += std::clamp(want - s.velocity_counts_s, -a * h, a * h);
+          const double step = s.velocity_counts_s * h;
+          if (std::abs(d) <= std::abs(step) && std::abs(s.velocity_counts_s) <= a * h + 1e-9) {
+            s.position_counts = goal;
+            s.velocity_counts_s = 0;
+          } else {
+            s.position_counts += step;
+          }
+        }
       }
     }
     put_le(s.table, xs::kPresentPosition,
@@ -151,17 +173,23 @@ ErrorNumber DynamixelBus::write(Servo& s, std::uint16_t address,
                                 std::span<const std::uint8_t> data) {
   const std::size_t end = static_cast<std::size_t>(address) + data.size();
   if (data.empty() || end > kReadOnlyStart) return ErrorNumber::Access;
-  if (address < kEepromEnd && s.table[xs::kTorqueEnable] != 0) return ErrorNumber::Access;
+  if (address < xs::kEepromEnd && s.table[xs::kTorqueEnable] != 0) return ErrorNumber::Access;
   // A 4-byte item written in part.
-  for (const std::uint16_t item : {xs::kProfileVelocity, xs::kGoalPosition})
+  for (const std::uint16_t item :
+       {xs::kMaxPositionLimit, xs::kMinPositionLimit, xs::kProfileAcceleration,
+        xs::kProfileVelocity, xs::kGoalPosition})
     if (address < item + 4 && end > item && (address > item || end < item + 4u))
       return ErrorNumber::DataLength;
   if (address <= xs::kGoalPosition && end >= xs::kGoalPosition + 4u) {
     const auto goal =
         static_cast<std::int32_t>(dxl::le_value(data.subspan(xs::kGoalPosition - address, 4)));
-    const auto lo = static_cast<std::int32_t>(get_le(s.table, kMinPositionLimit, 4));
-    const auto hi = static_cast<std::int32_t>(get_le(s.table, kMaxPositionLimit, 4));
-    if (goal < lo || goal > hi) return ErrorNumber::DataLimit;
+    const auto lo = static_cast<std::int32_t>(get_le(s.table, xs::kMinPositionLimit, 4));
+    const auto hi = static_cast<std::int32_t>(get_le(s.table, xs::kMaxPositionLimit, 4));
+    if (goal < lo || goal > hi) {
+      // As an X series servo does: the goal is not taken (an answer says Data Limit Error).
+      ++counters_.goals_refused;
+      return ErrorNumber::DataLimit;
+    }
   }
   if (address <= xs::kTorqueEnable && end > xs::kTorqueEnable &&
       data[xs::kTorqueEnable - address] != 0 && s.table[xs::kHardwareErrorStatus] != 0)
@@ -269,10 +297,16 @@ bool DynamixelBus::torque_enabled(std::uint8_t id) const {
 }
 
 std::uint32_t DynamixelBus::profile_velocity(std::uint8_t id) const {
+  return register_value(id, xs::kProfileVelocity, 4);
+}
+
+std::uint32_t DynamixelBus::register_value(std::uint8_t id, std::uint16_t address,
+                                           std::size_t bytes) const {
   std::lock_guard lock(mu_);
   const Servo* s = find(id);
   TELEX_DEMAND(s != nullptr);
-  return get_le(s->table, xs::kProfileVelocity, 4);
+  TELEX_DEMAND(bytes >= 1 && bytes <= 4 && address + bytes <= s->table.size());
+  return get_le(s->table, address, bytes);
 }
 
 void DynamixelBus::set_present_counts(std::uint8_t id, std::int32_t counts) {

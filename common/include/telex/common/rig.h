@@ -41,7 +41,14 @@ struct RobotHeadJoint {
   double min_rad = -1.0, max_rad = 1.0;
   double max_rate_rad_s = 3.14159265358979323846;
   int servo_id = -1;  // Dynamixel id; -1 = none given
+  // The controller's (and the servos' Profile Acceleration's) bound on the joint's acceleration.
+  double max_accel_rad_s2 = 10.0 * 3.14159265358979323846;
 };
+
+// The rig's bounds on a head joint's speed and acceleration (docs/RIG.md): a head turning faster
+// than a person's head does is a hazard beside people, whatever its servos could do.
+inline constexpr double kMaxHeadRateDegS = 360.0;
+inline constexpr double kMaxHeadAccelDegS2 = 7200.0;
 
 struct RobotHead {
   std::array<RobotHeadJoint, 3> joints = default_joints();

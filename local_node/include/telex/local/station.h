@@ -87,6 +87,9 @@ struct StationConfig {
   // reports its head's pose at capture (the naive transform, for comparison).
   bool head_captured_pose = true;
   double head_rate_hz = 200.0;
+  // --deadman SPEC (deadman.h): a key or pedal that must be held for the robot head to move; its
+  // state goes in every HeadCommand. Empty: none (the commands say "not used").
+  std::string deadman_spec;
   // The haptic display channel each finger drives (thumb first), by the haptic hand's Side.
   std::array<std::array<int, kFingerCount>, 2> display_channel{{{0, 1, 2, 3, 4}, {0, 1, 2, 3, 4}}};
   double print_forces_hz = 0.0;  // live force lines on stdout (0 = off)
@@ -145,6 +148,9 @@ struct StationSummary {
                 repairs_useless = 0;
   std::uint64_t key_frame_requests = 0;
   std::uint64_t head_commands = 0;  // head poses sent to the remote (head teleoperation)
+  // ... of them, sent with a tracking sample older than 100 ms (tracking lost: the remote holds),
+  // and with the dead-man released.
+  std::uint64_t head_samples_stale = 0, head_deadman_released = 0;
   std::uint64_t tile_age_samples = 0, tile_age_watched_samples = 0;
   double tile_age_watched_median = 0, tile_age_watched_p99 = 0, tile_age_watched_max = 0;
   double tile_age_all_median = 0, tile_age_all_p99 = 0, tile_age_all_max = 0;

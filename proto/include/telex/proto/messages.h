@@ -227,11 +227,24 @@ struct TileNack {
   bool operator==(const TileNack&) const = default;
 };
 
+// The operator's dead-man input (PROTOCOL.md 2.6): wire values, anything else is BadPayload.
+enum class DeadmanState : std::uint8_t {
+  NotUsed = 0,   // the station has no dead-man input
+  Pressed = 1,   // held: the head may move
+  Released = 2,  // let go, or the device failed: the head holds still
+};
+inline constexpr std::uint8_t kMaxDeadmanState = 2;
+
 // The operator's head as robot head joint targets (station -> remote, at 100 Hz or more): the
-// remote clamps them to its limits, rate-limits them and drives the head (PROTOCOL.md 2.6).
+// remote clamps them to its limits, rate- and acceleration-limits them and drives the head, and
+// holds the head still when the tracking sample is stale or repeats, or the dead-man is released
+// (PROTOCOL.md 2.6).
 struct HeadCommand {
   std::uint64_t operator_ns = 0;  // when the operator's head was at this pose (client clock)
   std::array<float, 3> joint_rad{0.0f, 0.0f, 0.0f};  // yaw, pitch, roll; finite, |angle| <= pi
+  std::uint32_t sample_id = 0;      // the client's count of tracking samples: a repeat is the same
+  std::uint32_t sample_age_us = 0;  // the sample's age when sent, us (saturates at 2^32 - 1)
+  DeadmanState deadman = DeadmanState::NotUsed;
   bool operator==(const HeadCommand&) const = default;
 };
 

@@ -5,6 +5,8 @@
 #include <array>
 #include <atomic>
 #include <deque>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -40,6 +42,12 @@ struct DaemonConfig {
   RobotHead robot_head;
   double head_rate_hz = 100.0;       // the head loop: measure, then command
   double head_link_timeout_s = 0.2;  // no operator head pose this long: the head holds still
+  // --require-deadman: the head moves only while the station reports its dead-man pressed.
+  bool require_deadman = false;
+  // --log-head: one CSV row per head loop: t_ns (the remote's steady clock), the measured pose,
+  // the command, the target's tracking sample (id, its time on the station's clock, its age),
+  // the dead-man state and why the head holds (docs/PROTOCOL.md 2.6); empty = none.
+  std::filesystem::path head_log_csv;
   // SCHED_FIFO for the threads from capture to the network (kRemotePathPriority) and the head loop
   // (kHeadLoopPriority); --no-realtime turns it off. Video and the stats line stay below them.
   bool realtime = true;
@@ -75,6 +83,7 @@ struct DaemonStats {
   std::uint64_t head_commands_in = 0;
   HeadControlStats head_control;
   bool head_holding = true;
+  HeadHold head_hold = HeadHold::Link;  // why it holds
   HeadStats head;
   std::uint64_t clients_accepted = 0, clients_rejected = 0, client_timeouts = 0;
   std::array<std::uint64_t, kSessionEndCount> sessions_ended{};  // by SessionEnd
@@ -143,6 +152,7 @@ class RemoteDaemon {
   HeadController head_control_;
   std::deque<HeadPose> head_history_;  // the last readings, oldest first
   HeadStats head_stats_;               // the driver's counts, copied by the head loop
+  std::ofstream head_log_;             // --log-head, written by the head loop
   std::function<void(const ProcessedFrame&)> observer_;
   mutable std::mutex stats_mu_;
   DaemonStats stats_;

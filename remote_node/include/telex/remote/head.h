@@ -26,18 +26,19 @@ using HeadAngles = std::array<double, kHeadJoints>;
 const char* head_joint_name(std::size_t joint);  // "yaw", "pitch", "roll"
 
 struct HeadJointLimits {
-  double min_rad = 0, max_rad = 0, max_rate_rad_s = 0;
+  double min_rad = 0, max_rad = 0, max_rate_rad_s = 0, max_accel_rad_s2 = 0;
 };
 
 struct HeadLimits {
   std::array<HeadJointLimits, kHeadJoints> joint{};
   // Throws std::invalid_argument naming the joint and the value: limits must be finite,
-  // -pi <= min < max <= pi (one servo turn), 0 < max_rate.
+  // -pi <= min < max <= pi (one servo turn), 0 < max_rate, 0 < max_accel.
   void validate() const;
 };
 
 // The head's limits from the rig's robot_head.joints (telex/common/rig.h): the defaults live
-// there, in one place (yaw +-90 deg, pitch +-45 deg, roll +-30 deg, each at most 180 deg/s).
+// there, in one place (yaw +-90 deg, pitch +-45 deg, roll +-30 deg, each at most 180 deg/s and
+// 1800 deg/s^2).
 HeadLimits head_limits_from(const RobotHead& head);
 inline const HeadLimits kDefaultHeadLimits = head_limits_from(RobotHead{});
 
@@ -122,49 +123,113 @@ struct HeadControllerConfig {
   HeadLimits limits = kDefaultHeadLimits;
   // No operator target for longer than this: the link is lost and the head holds still.
   double link_timeout_s = 0.2;
+  // A target whose tracking sample is older than this (its age as the station sent it plus the
+  // time since it arrived) is stale: the head holds still (docs/PROTOCOL.md 2.6).
+  double max_sample_age_s = 0.1;
+  // One tracking sample may arrive in several targets (the station sends at 200 Hz, a tracker
+  // may stream slower), but not for longer than this on the remote's own clock, from the first
+  // target that carried it: NatNet streams at 30 Hz or more (Motive's lowest rate), so a sample
+  // legitimately repeats for 33 ms at most, and 50 ms leaves the station's 5 ms send period and
+  // the network's jitter. Longer, the station is resending a sample that stopped changing, whatever
+  // age it claims, and the head holds still.
+  double max_sample_repeat_s = 0.05;
+  // The lab requires a dead-man (telex-remote --require-deadman): a station without one ("not
+  // used") holds the head as a released one does.
+  bool require_deadman = false;
   // Throws std::invalid_argument naming the bad value.
   void validate() const;
 };
+
+// The operator's dead-man input as the station reports it (HeadCommand.deadman).
+enum class Deadman : std::uint8_t {
+  NotUsed = 0,   // the station has none (no --deadman): it does not gate the head
+  Pressed = 1,   // held down: the head may move
+  Released = 2,  // let go (or the device failed): the head holds still
+};
+
+// One operator target: the robot head's joints from one tracking sample of the operator's head,
+// with what says whether it may move the head.
+struct HeadTarget {
+  HeadAngles joint_rad{};
+  std::uint32_t sample_id = 0;     // the station's count of tracking samples: a repeat is the same
+  std::int64_t sample_age_ns = 0;  // the sample's age when the station sent it (>= 0)
+  Deadman deadman = Deadman::NotUsed;
+  // When the sample was taken on the station's clock (HeadCommand.operator_ns): logged, never
+  // compared with the remote's clock (another machine's).
+  std::int64_t sample_ns = 0;
+};
+
+// Why the head holds still (HeadController::hold_reason).
+enum class HeadHold : std::uint8_t {
+  None = 0,  // moving toward the operator's target
+  Link,      // no target yet, or none for link_timeout_s
+  Stale,     // the target's tracking sample is older than max_sample_age_s
+  Repeat,    // the same tracking sample for longer than max_sample_repeat_s
+  Deadman,   // the operator's dead-man input is released
+};
+inline constexpr std::size_t kHeadHoldCount = 5;
+const char* head_hold_name(HeadHold h);  // "none", "link", "stale", "repeat", "deadman"
 
 struct HeadControlStats {
   std::uint64_t targets = 0;           // operator targets taken
   std::uint64_t rejected_targets = 0;  // non-finite targets, dropped
   std::uint64_t clamped = 0;           // joint targets clamped to the limits
   std::uint64_t rate_limited = 0;      // joint commands held back by max_rate
+  std::uint64_t accel_limited = 0;     // joint commands held back by max_accel
   std::uint64_t link_losses = 0;       // times the link went silent for link_timeout_s
+  std::uint64_t stale_holds = 0;       // times the head held because the sample was too old
+  std::uint64_t repeat_holds = 0;      // ... because one sample repeated too long
+  std::uint64_t deadman_holds = 0;     // ... because the dead-man input was released
 };
 
 // What the remote commands the head, whatever the driver (pure: time is passed in). Each update
-// moves the previous command toward the operator's newest target, clamped to the joint limits, by
-// at most max_rate_rad_s * dt. Without a target for more than link_timeout_s (or before the
-// first), the head holds still: the command becomes the pose measured when the link was lost and
-// stays there until a new target arrives (that pose is where the head already is, so the jump to
-// it is not rate-limited; from there the rate limit applies again). The first command starts
-// from the first valid measured pose; a head that never reported one is taken to be at zero.
+// moves the previous command toward the operator's newest target, clamped to the joint limits,
+// with each joint's speed at most max_rate_rad_s and its speed changing by at most
+// max_accel_rad_s2 * dt (it slows down in time to stop at the target). The head holds still when
+// there is no target for more than link_timeout_s (or before the first), when the target's
+// tracking sample is too old or has repeated too long, or when the dead-man input is released:
+// the command becomes the pose measured at that moment and stays there until a target may move
+// the head again (that pose is where the head already is, so the jump to it is not rate-limited:
+// stopping at once is the safe side, and a servo's own Profile Acceleration bounds how hard it
+// brakes; from there the command starts at rest). The first command starts from the first valid
+// measured pose; a head that never reported one is taken to be at zero.
 class HeadController {
  public:
   explicit HeadController(HeadControllerConfig config = {});  // validates (throws)
 
-  // A target from the operator's head (the station's head-pose message) that arrived at now_ns.
-  void set_target(const HeadAngles& target_rad, std::int64_t now_ns);
+  // A target from the operator's head (the station's HeadCommand) that arrived at now_ns.
+  void set_target(const HeadTarget& target, std::int64_t now_ns);
   // The command for now_ns given the newest measured pose; nullopt while there is nothing to
   // command (no target yet and no pose known).
   std::optional<HeadAngles> update(const HeadPose& measured, std::int64_t now_ns);
 
-  bool holding() const { return holding_; }
+  bool holding() const { return hold_reason_ != HeadHold::None; }
+  HeadHold hold_reason() const { return hold_reason_; }
+  // The newest target's tracking sample: its id and its age at `now_ns` (the age it was sent
+  // with plus the time since it arrived); age -1 without a target.
+  std::uint32_t sample_id() const { return target_ ? target_->sample_id : 0; }
+  std::int64_t sample_age_ns(std::int64_t now_ns) const;
+  std::int64_t sample_ns() const { return target_ ? target_->sample_ns : 0; }
+  Deadman deadman() const { return target_ ? target_->deadman : Deadman::NotUsed; }
   const HeadControlStats& stats() const { return stats_; }
   const HeadControllerConfig& config() const { return config_; }
 
  private:
+  HeadHold why_hold(std::int64_t now_ns) const;
+  void hold_at(std::int64_t now_ns);
+  HeadAngles step(const HeadAngles& from, double dt_s);
+
   HeadControllerConfig config_;
   HeadControlStats stats_;
-  std::optional<HeadAngles> target_;
-  std::int64_t target_ns_ = 0;
+  std::optional<HeadTarget> target_;  // clamped to the limits
+  std::int64_t target_ns_ = 0;        // when it arrived
+  std::int64_t sample_first_ns_ = 0;  // when its sample first arrived (repeats keep it)
   std::optional<HeadAngles> last_command_;
+  HeadAngles velocity_rad_s_{};  // of the last command (zero while holding)
   std::int64_t last_update_ns_ = 0;
   std::optional<HeadAngles> last_measured_;
-  std::optional<HeadAngles> hold_;  // the pose held while the link is lost
-  bool holding_ = true;
+  std::optional<HeadAngles> hold_;  // the pose held
+  HeadHold hold_reason_ = HeadHold::Link;
 };
 
 // --head udp: the datagram both ways (docs/PROTOCOL.md, "Head controller datagrams"): 40 bytes,

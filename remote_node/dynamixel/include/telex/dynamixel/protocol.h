@@ -49,29 +49,41 @@ std::string describe_error(std::uint8_t error_byte);
 
 // The X series' control table (XL430, XC430, XM430, XM540, XH430, ...: e-manual control tables).
 namespace xseries {
-inline constexpr std::uint16_t kModelNumber = 0;           // 2 bytes
-inline constexpr std::uint16_t kFirmwareVersion = 6;       // 1 byte
-inline constexpr std::uint16_t kId = 7;                    // 1 byte
-inline constexpr std::uint16_t kBaudRate = 8;              // 1 byte (1 = 57600)
-inline constexpr std::uint16_t kOperatingMode = 11;        // 1 byte
-inline constexpr std::uint16_t kTorqueEnable = 64;         // 1 byte; EEPROM locks while 1
-inline constexpr std::uint16_t kHardwareErrorStatus = 70;  // 1 byte
-inline constexpr std::uint16_t kProfileVelocity = 112;     // 4 bytes, 0 = no limit
-inline constexpr std::uint16_t kGoalPosition = 116;        // 4 bytes
-inline constexpr std::uint16_t kPresentPosition = 132;     // 4 bytes, signed
-inline constexpr std::uint16_t kControlTableBytes = 147;   // through Present Temperature (146)
+inline constexpr std::uint16_t kModelNumber = 0;            // 2 bytes
+inline constexpr std::uint16_t kFirmwareVersion = 6;        // 1 byte
+inline constexpr std::uint16_t kId = 7;                     // 1 byte
+inline constexpr std::uint16_t kBaudRate = 8;               // 1 byte (1 = 57600)
+inline constexpr std::uint16_t kOperatingMode = 11;         // 1 byte
+inline constexpr std::uint16_t kMaxPositionLimit = 48;      // 4 bytes, EEPROM (position mode)
+inline constexpr std::uint16_t kMinPositionLimit = 52;      // 4 bytes, EEPROM (position mode)
+inline constexpr std::uint16_t kEepromEnd = 64;             // EEPROM below: writable torque off
+inline constexpr std::uint16_t kTorqueEnable = 64;          // 1 byte; EEPROM locks while 1
+inline constexpr std::uint16_t kHardwareErrorStatus = 70;   // 1 byte
+inline constexpr std::uint16_t kProfileAcceleration = 108;  // 4 bytes, 0 = no limit
+inline constexpr std::uint16_t kProfileVelocity = 112;      // 4 bytes, 0 = no limit
+inline constexpr std::uint16_t kGoalPosition = 116;         // 4 bytes
+inline constexpr std::uint16_t kPresentPosition = 132;      // 4 bytes, signed
+inline constexpr std::uint16_t kControlTableBytes = 147;    // through Present Temperature (146)
 // Operating modes that take Goal Position: position, extended position, current-based position.
+// Only position mode (3) keeps a goal within Min/Max Position Limit; the other two are multi-turn
+// and ignore those limits.
 inline constexpr std::uint8_t kPositionMode = 3;
 inline constexpr std::uint8_t kExtendedPositionMode = 4;
 inline constexpr std::uint8_t kCurrentBasedPositionMode = 5;
 inline constexpr std::int32_t kCountsPerTurn = 4096;
 inline constexpr std::int32_t kCentreCounts = 2048;  // 0 rad
 inline constexpr double kProfileVelocityRpmPerUnit = 0.229;
+inline constexpr double kProfileAccelerationRpmPerMinPerUnit = 214.577;  // rev/min^2
 // Position counts <-> joint angle (2048 = 0 rad, 4096 counts a turn); counts are rounded.
 std::int32_t counts_from_rad(double angle_rad);
 double rad_from_counts(std::int32_t counts);
 // Profile Velocity units (0.229 rev/min) for a joint rate, at least 1 (0 would mean no limit).
 std::uint32_t profile_velocity_from_rad_s(double rate_rad_s);
+// Profile Acceleration units (214.577 rev/min^2) for a joint acceleration, rounded down so the
+// servo never accelerates harder than asked, at least 1 (0 would mean no limit).
+std::uint32_t profile_acceleration_from_rad_s2(double accel_rad_s2);
+// A joint limit as a Min/Max Position Limit: the counts of the angle, within 0..4095.
+std::uint32_t position_limit_counts(double angle_rad);
 }  // namespace xseries
 
 // CRC-16 of Protocol 2.0 (polynomial 0x8005, initial value `crc`, not reflected: the

@@ -22,19 +22,24 @@ struct DynamixelBusCounters {
   std::uint64_t answers = 0;       // status packets sent
   std::uint64_t crc_errors = 0;    // instruction packets with a bad CRC (not answered)
   std::uint64_t bad_headers = 0;
-  std::uint64_t malformed = 0;  // parameters that do not fit the instruction
+  std::uint64_t malformed = 0;      // parameters that do not fit the instruction
+  std::uint64_t goals_refused = 0;  // Goal Positions beyond Min/Max Position Limit, not taken
 };
 
 // The bus: bytes from the controller in, the servos' answers out (pure apart from the lock that
 // lets a test inspect it while a pty thread serves it). Each servo starts at position 2048 (0 rad),
-// torque off, profile velocity 0 (no limit), model 1030 (XM430-W210), firmware 38, position mode.
+// torque off, profile velocity and acceleration 0 (no limit), position limits 0..4095, model 1030
+// (XM430-W210), firmware 38, position mode. As a real X series servo: EEPROM (below address 64,
+// the limits and the operating mode among it) is written only with torque off, and a Goal Position
+// beyond Min/Max Position Limit is refused (Data Limit Error; counted in goals_refused).
 class DynamixelBus {
  public:
   explicit DynamixelBus(std::vector<std::uint8_t> ids);
 
   // Takes the controller's bytes (any split), returns what the servos send back, in order. Servos
-  // move to now_ns first: at their Profile Velocity (0.229 rev/min units; 0 = at once) toward
-  // Goal Position while torque is on.
+  // move to now_ns first: toward Goal Position while torque is on, in a trapezoid of their Profile
+  // Acceleration (214.577 rev/min^2 units; 0 = no ramp) and Profile Velocity (0.229 rev/min
+  // units; 0 = at once).
   std::vector<std::uint8_t> handle(std::span<const std::uint8_t> bytes, std::int64_t now_ns);
 
   // Inspection and faults, by servo id (a missing id is a test's bug: TELEX_DEMAND).
@@ -42,6 +47,8 @@ class DynamixelBus {
   std::int32_t present_counts(std::uint8_t id) const;
   bool torque_enabled(std::uint8_t id) const;
   std::uint32_t profile_velocity(std::uint8_t id) const;
+  // Any control table item, as the servo holds it (little endian, 1..4 bytes).
+  std::uint32_t register_value(std::uint8_t id, std::uint16_t address, std::size_t bytes) const;
   void set_present_counts(std::uint8_t id, std::int32_t counts);
   void set_operating_mode(std::uint8_t id, std::uint8_t mode);
   // A non-zero Hardware Error Status: every answer carries the alert bit and torque goes off.
@@ -56,6 +63,7 @@ class DynamixelBus {
     std::uint8_t id = 0;
     std::array<std::uint8_t, dynamixel::xseries::kControlTableBytes> table{};
     double position_counts = dynamixel::xseries::kCentreCounts;
+    double velocity_counts_s = 0;
     bool silent = false;
   };
   Servo* find(std::uint8_t id);
