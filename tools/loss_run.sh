@@ -38,4 +38,12 @@ sleep 1
   --duration "$seconds" --haptics sim --json-summary --quiet "$@" 2>"$log/local.err" | tail -1
 sleep 1.5  # the remote's next stats line
 grep -o 'key-requests.*' "$log/remote.err" | tail -1 >&2 || true
+# The remote's CPU so far (user + system, all threads) and the frames it sent: CPU per frame.
+if [[ -r /proc/$remote/stat ]]; then
+  ticks="$(awk '{print $14 + $15}' "/proc/$remote/stat")"
+  frames="$(grep -o 'frames-sent [0-9]*' "$log/remote.err" | tail -1 | awk '{print $2}')"
+  awk -v t="$ticks" -v hz="$(getconf CLK_TCK)" -v f="${frames:-0}" 'BEGIN {
+    printf "loss_run: remote CPU %.2f s for %d frames sent: %.3f ms per frame\n", t / hz, f,
+      f > 0 ? 1000 * t / hz / f : 0 }' >&2
+fi
 echo "loss_run: logs in $log" >&2

@@ -128,7 +128,8 @@ TEST(BenchTool, QuickRunWritesFiniteCsvMarkdownAndPlots) {
 TEST(BenchTool, QuickRunOnRealDeskFramesAndARecordedSessionReportsFillRate) {
   TELEX_REQUIRE_REAL_DATA();
   const fs::path desk = telex::test::real_data_dir() / "desk";
-  const fs::path session = ::telex::test::scratch_dir("bench_desk") / "session.bag";
+  const fs::path session =
+      ::telex::test::scratch_dir("bench_desk") / "telex_bench_desk_session.bag";
   {
     telex::local::RecorderConfig rc;
     rc.path = session.string();

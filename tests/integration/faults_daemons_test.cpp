@@ -58,16 +58,6 @@ std::vector<std::string> local_argv(std::uint16_t port, std::vector<std::string>
   return a;
 }
 
-// The last value of `name N` in the remote's once-a-second stats lines (-1 when absent).
-long last_counter(const std::string& text, const std::string& name) {
-  const std::regex re(name + " ([0-9]+)");
-  long v = -1;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
-       ++it)
-    v = std::stol((*it)[1]);
-  return v;
-}
-
 class LossThroughProxy : public ::testing::TestWithParam<double> {};
 
 // The depth stream through telex-sim-impair at a loss rate p. The station publishes a frame when

@@ -3,15 +3,16 @@
 // station that never reads leave the remote's memory bounded, and what bounded it is counted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <fstream>
-#include <optional>
-#include <regex>
 #include <string>
 
 #include "daemons.h"
 #include "process.h"
 #include "test_client.h"
+#include "test_support.h"
 
 namespace telex::test {
 namespace {
@@ -25,17 +26,6 @@ long vm_rss_kib(pid_t pid) {
   while (std::getline(f, line))
     if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
   return -1;
-}
-
-// The value after `key ` in the remote's newest stats line (it prints one a second).
-std::optional<std::uint64_t> stat_of(const Process& remote, const std::string& key) {
-  const std::string text = remote.stdout_text() + remote.stderr_text();
-  const std::regex re("[ |]" + key + " ([0-9]+)");
-  std::optional<std::uint64_t> last;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
-       ++it)
-    last = std::stoull((*it)[1].str());
-  return last;
 }
 
 TEST(HostilePeer, HeartbeatFloodAndNackStormFromAPeerThatNeverReadsKeepTheRemoteBounded) {
@@ -68,16 +58,20 @@ TEST(HostilePeer, HeartbeatFloodAndNackStormFromAPeerThatNeverReadsKeepTheRemote
   for (int i = 0; i < kProbes; ++i)
     client.send(proto::Heartbeat{static_cast<std::uint64_t>(i + 1), 0, 0, 0});
   for (int i = 0; i < kNacks; ++i) client.send(every_tile);
-  ASSERT_TRUE(eventually(30s, [&] { return stat_of(remote.proc, "nacks").value_or(0) >= kNacks; }))
-      << "the remote's stats line never counted the NACKs: " << remote.proc.stdout_text();
+  ASSERT_TRUE(
+      eventually(30s, [&] { return last_counter(remote.proc.stderr_text(), "nacks") >= kNacks; }))
+      << "the remote's stats line never counted the NACKs: " << remote.proc.stderr_text();
   const long rss_after = vm_rss_kib(remote.proc.pid());
   ASSERT_TRUE(remote.proc.running()) << remote.proc.stderr_text();
 
-  const auto dropped = stat_of(remote.proc, "control-dropped").value_or(0);
-  const auto dup = stat_of(remote.proc, "repair-dup").value_or(0);
-  const auto budget = stat_of(remote.proc, "over-budget").value_or(0);
-  const auto queue = stat_of(remote.proc, "over-queue").value_or(0);
-  const auto repaired = stat_of(remote.proc, "repaired").value_or(0);
+  const auto counter = [&](const char* key) {
+    return static_cast<std::uint64_t>(std::max(0L, last_counter(remote.proc.stderr_text(), key)));
+  };
+  const auto dropped = counter("control-dropped");
+  const auto dup = counter("repair-dup");
+  const auto budget = counter("over-budget");
+  const auto queue = counter("over-queue");
+  const auto repaired = counter("repaired");
   std::printf(
       "remote RSS %ld -> %ld KiB (+%ld KiB) after %d probes and %d NACKs of %zu tiles; "
       "control-dropped %llu, repaired %llu, repair-dup %llu, over-budget %llu, over-queue %llu\n",

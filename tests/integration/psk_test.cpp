@@ -100,16 +100,6 @@ double pressure_at(const std::vector<std::pair<double, double>>& curve, double t
   return it == curve.begin() ? 0.0 : std::prev(it)->second;
 }
 
-// The last value of `name N` in the remote's once-a-second stats lines (-1 when absent).
-long last_counter(const std::string& stderr_text, const std::string& name) {
-  const std::regex re(name + " ([0-9]+)");
-  long v = -1;
-  for (auto it = std::sregex_iterator(stderr_text.begin(), stderr_text.end(), re);
-       it != std::sregex_iterator(); ++it)
-    v = std::stol((*it)[1]);
-  return v;
-}
-
 class SameKey : public ::testing::TestWithParam<std::string> {};
 
 // The press of Loopback.PressOnPlane..., keyed and then unkeyed on the same transport: the keyed

@@ -49,16 +49,6 @@ std::filesystem::path write_key(const std::filesystem::path& dir, const std::str
   return p;
 }
 
-// The last value of `name N` in the remote's once-a-second stats lines (-1 when absent).
-long last_counter(const std::string& text, const std::string& name) {
-  const std::regex re(name + " ([0-9]+)");
-  long v = -1;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
-       ++it)
-    v = std::stol((*it)[1]);
-  return v;
-}
-
 int bound_socket(int type, std::uint16_t& port) {
   const int fd = ::socket(AF_INET, type, 0);
   sockaddr_in a{};

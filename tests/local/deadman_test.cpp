@@ -12,23 +12,13 @@
 #include <vector>
 
 #include "process.h"
+#include "test_support.h"
 
 namespace telex::local {
 namespace {
 
-template <typename F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
-
-void expect_contains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << part << "' not in: " << text;
-}
+using ::telex::test::expect_contains;
+using ::telex::test::message_of;
 
 TEST(DeadmanSpec, EvdevAndHidForms) {
   DeadmanSpec s = parse_deadman_spec("evdev:/dev/input/event3");

@@ -23,23 +23,12 @@
 namespace telex::remote {
 namespace {
 
+using ::telex::test::expect_contains;
+using ::telex::test::message_of;
+
 using namespace std::chrono_literals;
 namespace xs = telex::dynamixel::xseries;
 constexpr double kPi = std::numbers::pi;
-
-template <typename F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
-
-void expect_contains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << part << "' not in: " << text;
-}
 
 // SYNC_WRITE has no answer, so the emulator applies it after command() returns: the goal once it
 // is there (polled for at most 2 s, a bound on a hung test, not a measurement).

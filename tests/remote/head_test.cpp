@@ -12,22 +12,17 @@
 #include <random>
 #include <thread>
 
+#include "test_support.h"
+
 namespace telex::remote {
 namespace {
+
+using ::telex::test::expect_contains;
+using ::telex::test::message_of;
 
 using namespace std::chrono_literals;
 constexpr double kPi = std::numbers::pi;
 constexpr std::int64_t kMs = 1'000'000;
-
-template <typename F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
 
 TEST(HeadLimits, DefaultsAreTheDocumentedOnesAndValid) {
   EXPECT_NO_THROW(kDefaultHeadLimits.validate());

@@ -2,9 +2,11 @@
 // Test helpers: where the shared real frames are, and where built binaries live.
 #include "test_support.h"
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <regex>
 
 namespace telex::test {
 
@@ -37,6 +39,19 @@ std::string missing_binaries(std::initializer_list<const char*> names) {
     if (!std::filesystem::exists(built_binary(n)))
       missing += (missing.empty() ? "" : ", ") + std::string(n);
   return missing;
+}
+
+long last_counter(const std::string& log_text, const std::string& name) {
+  const std::regex re("(?:^|[^A-Za-z0-9_-])" + name + " ([0-9]+)");
+  long v = -1;
+  for (auto it = std::sregex_iterator(log_text.begin(), log_text.end(), re);
+       it != std::sregex_iterator(); ++it)
+    v = std::stol((*it)[1]);
+  return v;
+}
+
+void expect_contains(const std::string& text, const std::string& part) {
+  EXPECT_NE(text.find(part), std::string::npos) << "'" << part << "' not in: " << text;
 }
 
 }  // namespace telex::test

@@ -2,6 +2,7 @@
 // Test helpers: where the shared real frames are, and where built binaries live.
 #pragma once
 
+#include <exception>
 #include <filesystem>
 #include <initializer_list>
 #include <string>
@@ -30,6 +31,25 @@ inline constexpr double kSanitizerSlowdown = 4.0;
 #else
 inline constexpr double kSanitizerSlowdown = 1.0;
 #endif
+
+// The last value of `name N` in a daemon's log (telex-remote's once-a-second stats lines print
+// cumulative counters so), -1 when absent. `name` must stand as a word: "repaired" does not match
+// inside "tiles-repaired".
+long last_counter(const std::string& log_text, const std::string& name);
+
+// What `f` throws, as its what(), or "(no exception)".
+template <typename F>
+std::string message_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+// A gtest expectation that `text` contains `part`, printing both when it does not.
+void expect_contains(const std::string& text, const std::string& part);
 
 // Whether skipping is forbidden: TELEX_NO_SKIPS=1 in the environment (.ci/run sets it, since CI
 // has everything a test needs, so a skip there hides a broken setup).
