@@ -44,6 +44,6 @@ if [[ -r /proc/$remote/stat ]]; then
   frames="$(grep -o 'frames-sent [0-9]*' "$log/remote.err" | tail -1 | awk '{print $2}')"
   awk -v t="$ticks" -v hz="$(getconf CLK_TCK)" -v f="${frames:-0}" 'BEGIN {
     printf "loss_run: remote CPU %.2f s for %d frames sent: %.3f ms per frame\n", t / hz, f,
-      f > 0 ? 1000 * t / hz / f : 0 }' >&2
+      (f > 0 ? 1000 * t / hz / f : 0) }' >&2
 fi
 echo "loss_run: logs in $log" >&2
