@@ -2,6 +2,7 @@
 // Field-by-field little-endian encoding and validating decoding of every wire message.
 #include "telex/proto/messages.h"
 
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -322,8 +323,12 @@ PayloadResult get_manifest(Reader& r) {
   for (float a : m.head.joint_rad)
     if (!std::isfinite(a) || std::abs(a) > kPiF)
       return bad("FrameManifest head joint not finite or beyond pi");
-  if (!m.head.valid && m.head.joint_rad != std::array<float, 3>{})
-    return bad("FrameManifest head joints set without the valid flag");
+  // Without the valid flag the joints are all-zero bytes: -0.0 compares equal to 0 but would not
+  // re-encode to the same bytes (found by datagram_fuzz).
+  if (!m.head.valid)
+    for (float a : m.head.joint_rad)
+      if (std::bit_cast<std::uint32_t>(a) != 0u)
+        return bad("FrameManifest head joints set without the valid flag");
   return m;
 }
 

@@ -312,6 +312,13 @@ TEST(Messages, HeadCommandAndTheManifestsHeadJointsAreCheckedAngles) {
   m[kHeaderSize + 9] = 2;
   reseal(m);
   EXPECT_EQ(decode(m).error, ErrorReason::BadPayload);
+  // Without the flag every angle byte is zero: -0.0 equals 0 but re-encodes as +0.0 (datagram_fuzz
+  // found a manifest that decoded and did not re-encode to its own bytes).
+  auto z = encode({}, FrameManifest{7, 64, true, {}, {}});
+  ASSERT_TRUE(decode(z).ok());
+  z[kHeaderSize + 9 + 1 + 3] = 0x80;  // the yaw angle's sign bit: -0.0f
+  reseal(z);
+  EXPECT_EQ(decode(z).error, ErrorReason::BadPayload);
   m.resize(m.size() - 1);
   put_u32(m, 28, static_cast<std::uint32_t>(m.size() - kHeaderSize));
   reseal(m);
