@@ -28,4 +28,10 @@ std::size_t count_holes(const cv::Mat1w& depth_mm) {
   return depth_mm.total() - static_cast<std::size_t>(cv::countNonZero(depth_mm));
 }
 
+cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm) {
+  cv::Mat1f out;
+  depth_mm.convertTo(out, CV_32F, 1e-3);
+  return out;
+}
+
 }  // namespace telex

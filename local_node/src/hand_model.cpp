@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// The head-to-camera mapping of the hand (its kinematics: telex/common/hand_kinematics.h).
+// The head-to-camera mapping of the hand (its kinematics: telex/haptics/hand_kinematics.h).
 #include "telex/local/hand_model.h"
 
 #include <algorithm>

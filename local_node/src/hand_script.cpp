@@ -11,7 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "telex/common/hand_kinematics.h"
+#include "telex/haptics/hand_kinematics.h"
 
 namespace telex::local {
 

@@ -13,7 +13,7 @@
 
 #include "telex/common/bilateral.h"
 #include "telex/common/colorize.h"
-#include "telex/common/haptic_surface.h"
+#include "telex/common/depth_image.h"
 #include "telex/common/synthetic.h"
 
 namespace telex {

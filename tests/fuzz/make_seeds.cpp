@@ -18,7 +18,7 @@
 #include "telex/bag/bag.h"
 #include "telex/dynamixel/protocol.h"
 #include "telex/local/glove.h"
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/fragment.h"
 #include "telex/proto/messages.h"

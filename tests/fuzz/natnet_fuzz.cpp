@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <span>
 
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace telex::local::natnet;

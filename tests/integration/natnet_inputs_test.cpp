@@ -14,7 +14,7 @@
 
 #include "daemons.h"
 #include "process.h"
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 #include "test_support.h"
 
 namespace telex::test {

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <vector>
 
-#include "telex/common/body.h"
+#include "telex/haptics/body.h"
 
 namespace telex {
 namespace {

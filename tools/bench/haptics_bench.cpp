@@ -6,7 +6,7 @@
 #include <glm/geometric.hpp>
 #include <memory>
 
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 
 namespace {
 

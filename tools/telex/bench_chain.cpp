@@ -11,7 +11,7 @@
 #include <string>
 
 #include "bench.h"
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 #include "telex/common/stage_clock.h"
 
 namespace telex::tool::bench {

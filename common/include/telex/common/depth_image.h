@@ -39,4 +39,7 @@ struct DepthImage {
 // Count of hole pixels (value 0).
 std::size_t count_holes(const cv::Mat1w& depth_mm);
 
+// Millimetre depth image (0 = hole) to metres (0 = hole).
+cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm);
+
 }  // namespace telex

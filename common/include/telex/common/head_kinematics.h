@@ -7,7 +7,7 @@
 #include <array>
 #include <glm/glm.hpp>
 
-#include "telex/common/hand_kinematics.h"
+#include "telex/common/body_dims.h"
 #include "telex/common/rig.h"
 
 namespace telex {

@@ -22,7 +22,7 @@ struct NormalOptions {
   bool allow_simd = true;
 };
 
-// Millimetre images convert with depth_m_from_mm (haptic_surface.h).
+// Millimetre images convert with depth_m_from_mm (depth_image.h).
 // Unit normals (x, y, z in the camera frame: x right, y down, z forward) facing the camera (n.z < 0
 // for a surface seen head-on). Invalid normals are the zero vector (0, 0, 0): at holes (0 or NaN
 // depth) and where no derivative exists on one side of a discontinuity in either direction.

@@ -16,7 +16,7 @@
 #include <string_view>
 #include <vector>
 
-#include "telex/common/body.h"
+#include "telex/common/body_dims.h"
 #include "telex/common/depth_image.h"
 #include "telex/common/registration.h"
 

@@ -14,7 +14,7 @@
 
 #include "telex/base/thread_fault.h"
 #include "telex/base/triple_buffer.h"
-#include "telex/common/hand_kinematics.h"
+#include "telex/haptics/hand_kinematics.h"
 #include "telex/common/rig.h"
 
 namespace telex::local {

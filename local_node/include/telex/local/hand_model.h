@@ -9,7 +9,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <span>
 
-#include "telex/common/hand_kinematics.h"
+#include "telex/haptics/hand_kinematics.h"
 #include "telex/common/rig.h"
 
 namespace telex::local {
@@ -22,7 +22,7 @@ using telex::HandPoints;
 using telex::JointBends;
 using telex::Pose;
 
-// The hand's geometry (telex/common/hand_kinematics.h) and where the camera sits on the head.
+// The hand's geometry (telex/haptics/hand_kinematics.h) and where the camera sits on the head.
 struct HandModelConfig : HandGeometry {
   // Camera centre in the head rigid body's frame, and the rotation head -> camera. The default
   // head frame is Motive's (x right, y up, z backward), which a camera with y down, z forward sees

@@ -17,7 +17,7 @@
 #include "telex/base/thread_fault.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/local/hand_model.h"
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 
 namespace telex::local {
 

@@ -6,7 +6,7 @@
 #include <array>
 #include <string>
 
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 #include "telex/local/tracker.h"
 
 namespace telex::local {

@@ -16,7 +16,7 @@
 
 #include "telex/base/spsc_ring.h"
 #include "telex/base/thread_fault.h"
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 #include "telex/local/surface_builder.h"
 #include "telex/local/tracker.h"
 

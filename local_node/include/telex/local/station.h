@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 #include "telex/common/rig.h"
 #include "telex/local/haptic_display.h"
 #include "telex/local/recorder.h"

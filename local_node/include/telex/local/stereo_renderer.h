@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "telex/common/body.h"
+#include "telex/haptics/body.h"
 #include "telex/common/depth_image.h"
 
 namespace telex::local {

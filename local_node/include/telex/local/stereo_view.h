@@ -12,8 +12,8 @@
 #include <span>
 #include <string>
 
-#include "telex/common/body.h"
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/body.h"
+#include "telex/haptics/haptic_model.h"
 #include "telex/common/rig.h"
 #include "telex/local/stereo_renderer.h"
 #include "telex/local/tracker.h"

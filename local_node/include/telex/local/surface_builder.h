@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "telex/common/bilateral.h"
-#include "telex/common/haptic_surface.h"
+#include "telex/haptics/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
 #include "telex/common/stage_clock.h"

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "telex/base/thread_fault.h"
-#include "telex/common/body.h"
+#include "telex/haptics/body.h"
 #include "telex/common/rig.h"
 #include "telex/local/hand_model.h"
 
@@ -63,7 +63,7 @@ struct HandState {
   glm::dvec3 shoulder_camera{0.0};  // valid when shoulder_valid (NatNet with a shoulder body)
   bool skeleton_valid = false;
   bool shoulder_valid = false;
-  // Both arms by Side (telex/common/body.h: 0 left, 1 right), NatNet only; the haptic hand's arm
+  // Both arms by Side (telex/haptics/body.h: 0 left, 1 right), NatNet only; the haptic hand's arm
   // repeats wrist_camera and shoulder_camera with the wrist's orientation and an elbow marker.
   std::array<ArmTrack, 2> arms{};
   // The operator's head as the robot camera's orientation in the head base's frame

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `telex body --check`: the virtual body's arm solve against arms generated forward from joint
 // angles (known elbows), plus the singular and hostile inputs. Lives with the tools, like the
-// haptic stability suite: it tests common/'s body.
+// haptic stability suite: it tests the haptics target's body.
 #pragma once
 
 #include <cstdint>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "telex/common/body.h"
+#include "telex/haptics/body.h"
 
 namespace telex {
 

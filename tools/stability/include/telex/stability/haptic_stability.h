@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 
 namespace telex {
 

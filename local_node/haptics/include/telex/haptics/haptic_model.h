@@ -11,7 +11,7 @@
 #include <span>
 #include <string>
 
-#include "telex/common/haptic_surface.h"
+#include "telex/haptics/haptic_surface.h"
 
 namespace telex {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 
 namespace telex::local::natnet {
 namespace {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // God-point proxy, stick/slip friction and the safety stages (ramps, clamp, rate limit, observer).
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // NatNet packet parsing and building: bounds-checked little-endian cursor over one datagram.
-#include "telex/local/natnet.h"
+#include "telex/natnet/natnet.h"
 
 #include <charconv>
 #include <cstring>

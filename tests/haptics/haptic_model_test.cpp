@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Force model: Hooke's law, friction, stick/slip, pop-through, ramps, clamps, rate limits,
 // staleness.
-#include "telex/common/haptic_model.h"
+#include "telex/haptics/haptic_model.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Surface snapshot construction, normals from depth and the per-point queries of the haptic loop.
-#include "telex/common/haptic_surface.h"
+#include "telex/haptics/haptic_surface.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,12 +36,6 @@ bool axis_tangent(const Intrinsics& k, double z0, const glm::dvec3& p0, bool has
 }
 
 }  // namespace
-
-cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm) {
-  cv::Mat1f out;
-  depth_mm.convertTo(out, CV_32F, 1e-3);
-  return out;
-}
 
 cv::Mat3f normals_from_depth(const cv::Mat1f& depth_m, const Intrinsics& k,
                              const StepTolerance& steps, int radius_px) {

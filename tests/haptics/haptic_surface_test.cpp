@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Surface snapshot queries: bilinear depth refusing holes, nearer-wins edges, normals and
 // fallbacks.
-#include "telex/common/haptic_surface.h"
+#include "telex/haptics/haptic_surface.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The operator's virtual body: eyes from the head body, arms by an analytic two-bone solve, hands
 // by forward kinematics; missing inputs held for a while, then hidden.
-#include "telex/common/body.h"
+#include "telex/haptics/body.h"
 
 #include <algorithm>
 #include <cmath>
@@ -30,10 +30,6 @@ glm::dvec3 any_perpendicular(const glm::dvec3& n) {
   return glm::normalize(glm::cross(n, other));
 }
 
-void require(bool ok, const char* field, const char* what) {
-  if (!ok) throw std::invalid_argument(std::string("body: ") + field + " " + what);
-}
-
 }  // namespace
 
 const char* elbow_from_name(ElbowFrom from) {
@@ -48,25 +44,6 @@ const char* elbow_from_name(ElbowFrom from) {
       break;
   }
   return "straight";
-}
-
-void BodyDims::validate() const {
-  const auto length = [](double v) { return std::isfinite(v) && v > 0.0 && v < 5.0; };
-  require(length(upper_arm_m), "upper_arm_m", "must be a length in (0, 5) m");
-  require(length(forearm_m), "forearm_m", "must be a length in (0, 5) m");
-  require(finite(p_HeadEyes), "p_HeadEyes", "must be finite");
-  require(std::isfinite(ipd_m) && ipd_m >= 0.0 && ipd_m < 0.2, "ipd_m", "must be in [0, 0.2) m");
-  require(finite(forearm_axis_wrist) && glm::length(forearm_axis_wrist) > 1e-9,
-          "forearm_axis_wrist", "must be a finite non-zero direction");
-  require(finite(up_world) && glm::length(up_world) > 1e-9, "up_world",
-          "must be a finite non-zero direction");
-  require(std::isfinite(elbow_out_weight) && elbow_out_weight >= 0.0, "elbow_out_weight",
-          "must be finite and not negative");
-  require(std::isfinite(elbow_back_weight) && elbow_back_weight >= 0.0, "elbow_back_weight",
-          "must be finite and not negative");
-  require(std::isfinite(hold_s) && hold_s >= 0.0, "hold_s", "must be finite and not negative");
-  require(std::isfinite(swivel_rate_rad_s) && swivel_rate_rad_s > 0.0, "swivel_rate_rad_s",
-          "must be finite and positive");
 }
 
 ArmSolution solve_arm(double upper_arm_m, double forearm_m, const ArmSolveInput& in) {

@@ -1,30 +1,11 @@
 // SPDX-License-Identifier: MIT
 // Hand forward kinematics: finger chains bent about per-finger axes.
-#include "telex/common/hand_kinematics.h"
+#include "telex/haptics/hand_kinematics.h"
 
 #include <algorithm>
 #include <cmath>
 
 namespace telex {
-
-std::array<FingerGeometry, 5> HandGeometry::default_fingers() {
-  // Adult hand proportions (Buryanov & Kotiuk 2010, rounded); knuckles spread across z.
-  std::array<FingerGeometry, 5> f{};
-  f[0].base_hand_m = {0.025, -0.015, -0.030};
-  f[0].dir_hand = glm::normalize(glm::dvec3{0.6, -0.2, -0.75});
-  f[0].curl_toward_hand = glm::normalize(glm::dvec3{0.3, -0.6, 0.7});
-  f[0].segment_m = {0.045, 0.032, 0.027};
-  f[0].max_angle_rad = {0.87, 1.05, 1.22};
-  f[1].base_hand_m = {0.085, 0.0, -0.025};
-  f[1].segment_m = {0.044, 0.025, 0.022};
-  f[2].base_hand_m = {0.088, 0.0, -0.005};
-  f[2].segment_m = {0.048, 0.030, 0.024};
-  f[3].base_hand_m = {0.083, 0.0, 0.015};
-  f[3].segment_m = {0.045, 0.028, 0.023};
-  f[4].base_hand_m = {0.075, 0.0, 0.033};
-  f[4].segment_m = {0.036, 0.020, 0.020};
-  return f;
-}
 
 namespace {
 glm::dvec3 mirror(const glm::dvec3& v, bool left) { return left ? glm::dvec3{v.x, v.y, -v.z} : v; }

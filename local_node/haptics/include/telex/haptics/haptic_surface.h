@@ -57,9 +57,6 @@ Surface make_surface(cv::Mat1f depth_m, const Intrinsics& intrinsics, std::int64
                      const StepTolerance& steps = {},
                      int normal_radius_px = kSurfaceNormalRadiusPx);
 
-// Millimetre depth image (0 = hole) to metres (0 = hole).
-cv::Mat1f depth_m_from_mm(const cv::Mat1w& depth_mm);
-
 // Normals from the depth itself: cross product of the back-projected derivatives along x and y,
 // taken between neighbours `radius_px` pixels away (a wider baseline is less sensitive to
 // millimetre quantisation). Each derivative uses the central difference, or the one-sided
