@@ -244,11 +244,34 @@ TEST_F(CalibrateErrors, FlagsExitTwoNamingTheFlag) {
   EXPECT_EQ(read_text(other), "{\"not_a_rig_key\": 1}\n");
 }
 
-TEST_F(CalibrateErrors, TooFewViewsAndMixedSizesExitOne) {
+TEST_F(CalibrateErrors, TooFewFilesExitTwoBeforeDetectionAndMixedSizesExitOne) {
   TELEX_REQUIRE_BINARIES("telex");
+  // Three files for five views is known before any image is read: a usage error at once.
   const CommandRun few = stereo("few", good_flags());
-  EXPECT_EQ(few.rc, 1) << few.err;
-  EXPECT_NE(few.err.find("only 3 of 3 views; at least 5 are needed"), std::string::npos) << few.err;
+  EXPECT_EQ(few.rc, 2) << few.err;
+  EXPECT_NE(few.err.find("--left matches 3 file(s) but at least 5 views are needed"),
+            std::string::npos)
+      << few.err;
+  EXPECT_EQ(few.err.find("finding the board"), std::string::npos) << "no detection ran";
+  // Five files, the board in three: found out by detection, exit 1 naming the views.
+  const fs::path blanks = dir_ / "blank";
+  fs::create_directories(blanks);
+  const auto view = [](const std::string& eye, int v) {
+    return eye + "_0" + std::to_string(v) + ".png";
+  };
+  for (const char* eye : {"left", "right"}) {
+    for (int v = 0; v < 3; ++v) fs::copy_file(dir_ / "img" / view(eye, v), blanks / view(eye, v));
+    const cv::Mat first = cv::imread((blanks / view(eye, 0)).string());
+    for (int v = 3; v < 5; ++v)
+      cv::imwrite((blanks / view(eye, v)).string(),
+                  cv::Mat(first.size(), first.type(), cv::Scalar::all(128)));
+  }
+  const CommandRun unfound = stereo(
+      "unfound", {"--left", glob(blanks, "left"), "--right", glob(blanks, "right"), "--board",
+                  "9x6", "--square-mm", "30", "--out", (dir_ / "rig.json").string()});
+  EXPECT_EQ(unfound.rc, 1) << unfound.err;
+  EXPECT_NE(unfound.err.find("only 3 of 5 views; at least 5 are needed"), std::string::npos)
+      << unfound.err;
   const CommandRun fewer = stereo("min_views", [&] {
     auto f = good_flags();
     f.insert(f.end(), {"--min-views", "3"});
@@ -262,7 +285,11 @@ TEST_F(CalibrateErrors, TooFewViewsAndMixedSizesExitOne) {
   cv::Mat small;
   cv::resize(cv::imread(one.string(), cv::IMREAD_GRAYSCALE), small, cv::Size(320, 240));
   cv::imwrite(one.string(), small);
-  const CommandRun mixed = stereo("mixed", good_flags());
+  const CommandRun mixed = stereo("mixed", [&] {
+    auto f = good_flags();
+    f.insert(f.end(), {"--min-views", "3"});
+    return f;
+  }());
   EXPECT_EQ(mixed.rc, 1) << mixed.err;
   EXPECT_NE(mixed.err.find("mixed image sizes"), std::string::npos) << mixed.err;
   EXPECT_NE(mixed.err.find("left_01.png is 320x240"), std::string::npos) << mixed.err;
@@ -306,9 +333,10 @@ TEST_F(CalibrateErrors, DepthEyeNeedsTheRightEyeAndDepthIntrinsics) {
   EXPECT_NE(bad_intr.err.find("FX,FY,CX,CY,W,H"), std::string::npos) << bad_intr.err;
 
   // IR images of another size than the depth intrinsics say: a data error.
-  const CommandRun size = telex_calibrate(
-      dir_, "ir_size",
-      with({"--rig", rig.string(), "--depth-intrinsics", "570,570,319.5,239.5,320,240"}));
+  const CommandRun size =
+      telex_calibrate(dir_, "ir_size",
+                      with({"--rig", rig.string(), "--depth-intrinsics",
+                            "570,570,319.5,239.5,320,240", "--min-views", "3"}));
   EXPECT_EQ(size.rc, 1) << size.err;
   EXPECT_NE(size.err.find("is 640x480 but --depth-intrinsics is 320x240"), std::string::npos)
       << size.err;
@@ -316,8 +344,9 @@ TEST_F(CalibrateErrors, DepthEyeNeedsTheRightEyeAndDepthIntrinsics) {
   const CommandRun few = telex_calibrate(
       dir_, "few",
       with({"--rig", rig.string(), "--depth-intrinsics", "570,570,319.5,239.5,640,480"}));
-  EXPECT_EQ(few.rc, 1) << few.err;
-  EXPECT_NE(few.err.find("at least 5"), std::string::npos) << few.err;
+  EXPECT_EQ(few.rc, 2) << "three files for five views is known before detection: " << few.err;
+  EXPECT_NE(few.err.find("--ir matches 3 file(s) but at least 5 views"), std::string::npos)
+      << few.err;
   EXPECT_FALSE(load_rig(rig).X_RightEyeDepth) << "nothing written on failure";
 }
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -225,6 +226,7 @@ TEST(Capture, BadSpecEarlyEndAndUnwritableDirectoryAreNamed) {
   EXPECT_EQ(r.rc, 1);
   EXPECT_NE(r.err.find("ended after 2 frames (2 kept of 5 asked)"), std::string::npos) << r.err;
   EXPECT_TRUE(fs::exists(dir / "c" / "depth_000001_mm.png")) << "what was read is kept";
+  EXPECT_EQ(capture_json(dir / "c")["frames"], 2) << "and listed in capture.json";
 
   std::ofstream(dir / "file") << "x";
   r = capture(dir, {"--source", "synthetic:plane", "--out", (dir / "file" / "sub").string()},
@@ -238,6 +240,32 @@ TEST(Capture, BadSpecEarlyEndAndUnwritableDirectoryAreNamed) {
               "missing");
   EXPECT_EQ(r.rc, 1);
   EXPECT_NE(r.err.find((dir / "none.bag").string()), std::string::npos) << r.err;
+}
+
+TEST(Capture, CtrlCKeepsACompleteCaptureJsonOfWhatWasWritten) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto dir = scratch_dir("capture_interrupted");
+  const auto out = dir / "out";
+  Process p({built_binary("telex").string(), "capture", "--source", "synthetic:plane", "--frames",
+             "1000000", "--out", out.string()},
+            dir / "run.out", dir / "run.err");
+  ASSERT_TRUE(eventually(30s, [&] { return fs::exists(out / "depth_000002_mm.png"); }))
+      << "no frames written";
+  p.signal(SIGINT);
+  const auto rc = p.wait(30s);
+  ASSERT_TRUE(rc.has_value()) << "telex capture did not stop on SIGINT";
+  EXPECT_EQ(*rc, 130) << p.stderr_text();
+  const auto j = capture_json(out);
+  EXPECT_FALSE(j["complete"].get<bool>());
+  EXPECT_EQ(j["ended_by"], "signal");
+  int pngs = 0;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.path().filename().string().starts_with("depth_")) ++pngs;
+  EXPECT_GE(j["frames"].get<int>(), 3);
+  EXPECT_EQ(j["frames"].get<int>(), pngs) << "every frame written is listed, and only those";
+  ASSERT_EQ(j["files"].size(), static_cast<std::size_t>(pngs));
+  for (const auto& row : j["files"]) EXPECT_TRUE(fs::exists(out / row["file"].get<std::string>()));
+  EXPECT_NE(p.stdout_text().find("interrupted"), std::string::npos) << p.stdout_text();
 }
 
 }  // namespace

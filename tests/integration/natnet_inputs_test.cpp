@@ -136,5 +136,42 @@ TEST(NatNetInputs, SpoofedSenderAndBadPosesAreDroppedAndCountedWhileTheStationRu
   EXPECT_EQ(bad_rows, 0u);
 }
 
+// The simulator's press with --reach reaches the surface at that depth: the station feels the
+// synthetic plane (0.8 m) through it, and without --reach (the fixed 0.25-0.55 m hand path) it
+// does not, which is the mistake --reach exists to fix.
+TEST(NatNetInputs, ThePressWithReachTouchesTheSurfaceAtThatDepth) {
+  TELEX_REQUIRE_BINARIES("telex-local", "telex-remote", "telex-sim-natnet");
+  const auto peak_pressure_N = [](const std::string& name, std::vector<std::string> reach) {
+    const auto dir = scratch_dir(name);
+    RemoteProcess remote(dir, {"--source", "synthetic:plane"});
+    const std::uint16_t cmd_port = free_port();
+    std::vector<std::string> sim_argv{built_binary("telex-sim-natnet").string(),
+                                      "--command-port",
+                                      std::to_string(cmd_port),
+                                      "--rate",
+                                      "120",
+                                      "--duration",
+                                      "60"};
+    sim_argv.insert(sim_argv.end(), reach.begin(), reach.end());
+    Process sim(sim_argv, dir / "sim.out", dir / "sim.err");
+    // Two press periods (4 s each) after the first surface.
+    Process local(local_args(remote.port, dir,
+                             {"--hand", "natnet:127.0.0.1,unicast,cmd=" + std::to_string(cmd_port),
+                              "--duration", "9"}),
+                  dir / "local.out", dir / "local.err");
+    const auto rc = local.wait(60s);
+    sim.signal(SIGINT);
+    EXPECT_EQ(rc.value_or(-1), 0) << local.stderr_text();
+    const nlohmann::json j = summary_of(local);
+    return j.value("peak_pressure_N", -1.0);
+  };
+  const double with_reach = peak_pressure_N("reach", {"--reach", "0.8"});
+  const double without = peak_pressure_N("no_reach", {});
+  std::printf("NatNetInputs: peak pressure %.2f N with --reach 0.8, %.2f N without\n", with_reach,
+              without);
+  EXPECT_GT(with_reach, 0.5) << "the press never reached the plane";
+  EXPECT_EQ(without, 0.0) << "the fixed path reaches 0.8 m after all: the control is wrong";
+}
+
 }  // namespace
 }  // namespace telex::test

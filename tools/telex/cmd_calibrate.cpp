@@ -6,6 +6,7 @@
 #include <glob.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -76,6 +77,14 @@ void same_count(const std::vector<std::string>& a, const char* flag_a,
         flag_a, a.size(), flag_b, b.size()));
 }
 
+// Fewer views than the calibration needs is known before any image is read: say so at once.
+void check_view_count(const std::vector<std::string>& files, const char* flag, int min_views) {
+  if (static_cast<int>(files.size()) >= min_views) return;
+  throw FlagError(fmt::format(
+      "{} matches {} file(s) but at least {} views are needed (--min-views {}); take more views",
+      flag, files.size(), min_views, min_views));
+}
+
 cv::Mat read_gray(const std::string& path) {
   cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (img.empty()) throw std::runtime_error("cannot read image " + path);
@@ -132,7 +141,15 @@ PairedCorners detect_views(const char* command, const std::vector<std::vector<st
   PairedCorners out;
   out.corners.resize(files.size());
   const std::size_t views = files[0].size();
+  // Detection takes seconds per view at full resolution: a progress line every two seconds.
+  auto last_progress = std::chrono::steady_clock::now();
   for (std::size_t v = 0; v < views; ++v) {
+    if (const auto now = std::chrono::steady_clock::now();
+        now - last_progress > std::chrono::seconds(2)) {
+      std::fprintf(stderr, "telex calibrate %s: finding the board: view %zu of %zu\n", command,
+                   v + 1, views);
+      last_progress = now;
+    }
     std::vector<std::vector<cv::Point2f>> found(files.size());
     bool all = true;
     for (std::size_t c = 0; c < files.size(); ++c) {
@@ -198,6 +215,7 @@ int run_stereo(const StereoOptions& o) {
   const auto right = expand(o.right, "--right");
   same_count(left, "--left", right, "--right");
   check_out(o.out);
+  check_view_count(left, "--left", o.min_views);
   std::vector<SizeCheck> sizes{{"left", std::nullopt, ""}, {"right", std::nullopt, ""}};
   const PairedCorners p = detect_views("stereo", {left, right}, {"left", "right"}, sizes, board);
   check_enough(p, left.size(), o.min_views);
@@ -323,6 +341,7 @@ int run_depth_eye(const DepthEyeOptions& o) {
       {"IR", cv::Size(depth.width, depth.height),
        o.depth_intrinsics.empty() ? "the rig's depth intrinsics" : "--depth-intrinsics"},
       {"right", cv::Size(right_eye.k.width, right_eye.k.height), "the rig's eyes.right"}};
+  check_view_count(ir, "--ir", o.min_views);
   const PairedCorners p = detect_views("depth-eye", {ir, right}, {"IR", "right"}, sizes, board);
   check_enough(p, ir.size(), o.min_views);
   std::vector<cv::Mat1w> maps;

@@ -5,7 +5,9 @@
 // make_eye_source), so a capture holds exactly what telex-remote would have read.
 #include <fmt/format.h>
 
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -56,6 +58,87 @@ void write_png(const fs::path& file, const cv::Mat& image) {
   if (!ok) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
 }
 
+// Ctrl-C and SIGTERM end a capture between frames: the frames written so far are listed in
+// capture.json, as after a full run.
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop = true; }
+
+// What one run wrote: the rows of capture.json and the counts its summary gives.
+struct CaptureLog {
+  nlohmann::json frames = nlohmann::json::array();
+  int read = 0, kept = 0, eye_frames = 0;
+};
+
+// Saves one depth frame (and its eye pair when there is one) and adds its row.
+void save_frame(const fs::path& out, const remote::DepthFrame& f, remote::StereoSource* eyes,
+                std::chrono::milliseconds timeout, CaptureLog& log) {
+  const std::string file = fmt::format("depth_{:06d}_mm.png", log.kept);
+  save_depth_png(out / file, f.image.depth_mm);
+  nlohmann::json row{{"file", file},
+                     {"frame_id", f.frame_id},
+                     {"capture_ns", f.capture_ns},
+                     {"scene_time_s", f.scene_time_s}};
+  if (eyes) {
+    auto e = eyes->read(timeout);
+    if (e.status == remote::ReadStatus::Error)
+      throw std::runtime_error(fmt::format("eye source {}: {}", eyes->describe(), e.error));
+    if (e.status == remote::ReadStatus::Frame) {
+      const std::string left = fmt::format("left_{:06d}.png", log.kept);
+      const std::string right = fmt::format("right_{:06d}.png", log.kept);
+      write_png(out / left, e.frame.left_bgr);
+      write_png(out / right, e.frame.right_bgr);
+      row["left"] = left;
+      row["right"] = right;
+      row["eye_capture_ns"] = e.frame.capture_ns;
+      ++log.eye_frames;
+    }
+  }
+  log.frames.push_back(std::move(row));
+  ++log.kept;
+}
+
+// Reads until `a.frames` are kept, the source fails, or a stop signal. Throws on a source error
+// (after which the caller still writes what was kept); returns false when stopped by a signal.
+bool capture_frames(const CaptureArgs& a, const fs::path& out, remote::DepthSource& depth,
+                    remote::StereoSource* eyes, const std::string& name, CaptureLog& log) {
+  const auto timeout = std::chrono::milliseconds(static_cast<long>(a.timeout_s * 1000.0));
+  const auto per_read = std::min(timeout, std::chrono::milliseconds(100));
+  auto waiting_since = std::chrono::steady_clock::now();
+  auto last_progress = waiting_since;
+  while (log.kept < a.frames) {
+    if (g_stop) return false;
+    auto r = depth.read(per_read);
+    if (r.status == remote::ReadStatus::Error)
+      throw std::runtime_error(fmt::format("source {}: {}", name, r.error));
+    if (r.status == remote::ReadStatus::EndOfStream)
+      throw std::runtime_error(fmt::format("source {} ended after {} frames ({} kept of {} asked)",
+                                           name, log.read, log.kept, a.frames));
+    const auto now = std::chrono::steady_clock::now();
+    if (r.status == remote::ReadStatus::Timeout) {
+      if (now - waiting_since > timeout)
+        throw std::runtime_error(
+            fmt::format("source {} gave no frame in {} s ({} kept of {} asked)", name, a.timeout_s,
+                        log.kept, a.frames));
+      continue;
+    }
+    waiting_since = now;
+    if (log.read++ % a.every != 0) continue;
+    save_frame(out, r.frame, eyes, timeout, log);
+    if (now - last_progress > std::chrono::seconds(2)) {
+      std::cerr << fmt::format("telex capture: {} of {} frames written\n", log.kept, a.frames);
+      last_progress = now;
+    }
+  }
+  return true;
+}
+
+void write_capture_json(const fs::path& out, const nlohmann::json& summary) {
+  std::ofstream os(out / "capture.json");
+  os << summary.dump(2) << "\n";
+  if (!os.flush())
+    throw std::runtime_error(fmt::format("cannot write {}", (out / "capture.json").string()));
+}
+
 int run_capture(const CaptureArgs& a) {
   const fs::path out = a.out;
   // A spec that does not parse is a usage error (exit 2); a source that cannot open is exit 1.
@@ -72,59 +155,31 @@ int run_capture(const CaptureArgs& a) {
   depth->start();
   if (eyes) eyes->start();
   const std::string name = depth->describe();
+  g_stop = false;
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
 
-  nlohmann::json frames = nlohmann::json::array();
-  const auto timeout = std::chrono::milliseconds(static_cast<long>(a.timeout_s * 1000.0));
-  const auto per_read = std::min(timeout, std::chrono::milliseconds(100));
-  int read = 0, kept = 0, eye_frames = 0;
-  auto waiting_since = std::chrono::steady_clock::now();
-  while (kept < a.frames) {
-    auto r = depth->read(per_read);
-    if (r.status == remote::ReadStatus::Error)
-      throw std::runtime_error(fmt::format("source {}: {}", name, r.error));
-    if (r.status == remote::ReadStatus::EndOfStream)
-      throw std::runtime_error(fmt::format("source {} ended after {} frames ({} kept of {} asked)",
-                                           name, read, kept, a.frames));
-    if (r.status == remote::ReadStatus::Timeout) {
-      if (std::chrono::steady_clock::now() - waiting_since > timeout)
-        throw std::runtime_error(
-            fmt::format("source {} gave no frame in {} s ({} kept of {} asked)", name, a.timeout_s,
-                        kept, a.frames));
-      continue;
-    }
-    waiting_since = std::chrono::steady_clock::now();
-    if (read++ % a.every != 0) continue;
-    const auto& f = r.frame;
-    const std::string file = fmt::format("depth_{:06d}_mm.png", kept);
-    save_depth_png(out / file, f.image.depth_mm);
-    nlohmann::json row{{"file", file},
-                       {"frame_id", f.frame_id},
-                       {"capture_ns", f.capture_ns},
-                       {"scene_time_s", f.scene_time_s}};
-    if (eyes) {
-      auto e = eyes->read(timeout);
-      if (e.status == remote::ReadStatus::Error)
-        throw std::runtime_error(fmt::format("eye source {}: {}", eyes->describe(), e.error));
-      if (e.status == remote::ReadStatus::Frame) {
-        const std::string left = fmt::format("left_{:06d}.png", kept);
-        const std::string right = fmt::format("right_{:06d}.png", kept);
-        write_png(out / left, e.frame.left_bgr);
-        write_png(out / right, e.frame.right_bgr);
-        row["left"] = left;
-        row["right"] = right;
-        row["eye_capture_ns"] = e.frame.capture_ns;
-        ++eye_frames;
-      }
-    }
-    frames.push_back(row);
-    ++kept;
+  CaptureLog log;
+  std::string error;
+  bool complete = false;
+  try {
+    complete = capture_frames(a, out, *depth, eyes.get(), name, log);
+  } catch (const std::exception& e) {
+    error = e.what();
   }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
   const Intrinsics k = depth->intrinsics();
   const nlohmann::json summary{{"source", name},
                                {"eye_source", eyes ? eyes->describe() : ""},
-                               {"frames", kept},
-                               {"frames_read", read},
-                               {"eye_frames", eye_frames},
+                               {"frames", log.kept},
+                               {"frames_asked", a.frames},
+                               {"complete", complete},
+                               {"ended_by", complete        ? "done"
+                                            : error.empty() ? "signal"
+                                                            : error},
+                               {"frames_read", log.read},
+                               {"eye_frames", log.eye_frames},
                                {"every", a.every},
                                {"out", out.string()},
                                {"intrinsics",
@@ -135,24 +190,22 @@ int run_capture(const CaptureArgs& a) {
                                  {"width", k.width},
                                  {"height", k.height}}},
                                {"nominal_fps", depth->nominal_fps()},
-                               {"files", frames}};
+                               {"files", log.frames}};
   depth->stop();
   if (eyes) eyes->stop();
-  {
-    std::ofstream os(out / "capture.json");
-    os << summary.dump(2) << "\n";
-    if (!os.flush())
-      throw std::runtime_error(fmt::format("cannot write {}", (out / "capture.json").string()));
-  }
+  write_capture_json(out, summary);
+  if (!error.empty()) throw std::runtime_error(error + "; capture.json lists the frames written");
   if (a.json) {
     nlohmann::json brief = summary;
     brief.erase("files");
     std::cout << brief.dump() << "\n";
   } else {
-    std::cout << fmt::format("{} depth frames ({} with eye images) from {} in {}\n", kept,
-                             eye_frames, name, out.string());
+    std::cout << fmt::format("{} depth frames ({} with eye images) from {} in {}{}\n", log.kept,
+                             log.eye_frames, name, out.string(),
+                             complete ? "" : " (interrupted; capture.json lists them)");
   }
-  return 0;
+  // Interrupted: the shell's convention for a run ended by SIGINT.
+  return complete ? 0 : 130;
 }
 
 const RegisterCommand kRegister{

@@ -17,6 +17,8 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "telex/haptics/hand_kinematics.h"
+
 namespace telex::sim {
 
 namespace asio = boost::asio;
@@ -37,14 +39,42 @@ natnet::RigidBody body(std::int32_t id, double x, double y, double z, double qx,
 }
 }  // namespace
 
-void natnet_press_motion(double t_s, natnet::Frame& frame) {
+namespace {
+// The press motion's fixed bodies and hand orientation: hand frame x (fingers) -> world -z, y (back
+// of the hand) -> world +y, 90 deg about +y.
+const double kPressS = std::sin(std::numbers::pi / 4), kPressC = std::cos(std::numbers::pi / 4);
+
+void press_frame(double hand_z_m, natnet::Frame& frame) {
   frame.rigid_bodies.clear();
   frame.rigid_bodies.push_back(body(kSimHeadId, 0.0, 1.6, 0.0, 0, 0, 0, 1));
-  // Hand frame x (fingers) -> world -z, y (back of hand) -> world +y: 90 deg about +y.
-  const double s = std::sin(std::numbers::pi / 4), c = std::cos(std::numbers::pi / 4);
-  const double reach_m = 0.25 + 0.15 * (1.0 - std::cos(2.0 * std::numbers::pi * t_s / 4.0));
-  frame.rigid_bodies.push_back(body(kSimRightHandId, 0.03, 1.5, -reach_m, 0, s, 0, c));
+  frame.rigid_bodies.push_back(body(kSimRightHandId, 0.03, 1.5, hand_z_m, 0, kPressS, 0, kPressC));
   frame.rigid_bodies.push_back(body(kSimRightShoulderId, 0.2, 1.45, 0.05, 0, 0, 0, 1));
+}
+}  // namespace
+
+void natnet_press_motion(double t_s, natnet::Frame& frame) {
+  const double reach_m = 0.25 + 0.15 * (1.0 - std::cos(2.0 * std::numbers::pi * t_s / 4.0));
+  press_frame(-reach_m, frame);
+}
+
+double press_index_tip_ahead_of_hand_m() {
+  const Pose X_WorldWrist{{0.0, 0.0, 0.0}, glm::dquat(kPressC, 0.0, kPressS, 0.0)};
+  const std::array<double, 5> straight{};
+  const HandPoints pts = hand_forward(HandGeometry{}, X_WorldWrist, std::span(straight));
+  return -pts.joints[1][3].z;  // the index tip, world -z being forward
+}
+
+NatNetMotion natnet_press_toward(double surface_depth_m) {
+  if (!std::isfinite(surface_depth_m) || surface_depth_m < 0.35 || surface_depth_m > 5.0)
+    throw std::invalid_argument("--reach must be in [0.35, 5] m (the surface's depth)");
+  const double tip_ahead_m = press_index_tip_ahead_of_hand_m();
+  return [surface_depth_m, tip_ahead_m](double t_s, natnet::Frame& frame) {
+    const double tip_depth_m = surface_depth_m - kPressTipStartM +
+                               0.5 * (kPressTipStartM + kPressTipPastM) *
+                                   (1.0 - std::cos(2.0 * std::numbers::pi * t_s / 4.0));
+    // The camera sits kPressEyesAheadOfHeadM in front of the head body (looking along -z).
+    press_frame(-(tip_depth_m + kPressEyesAheadOfHeadM) + tip_ahead_m, frame);
+  };
 }
 
 NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop) {

@@ -42,6 +42,17 @@ inline constexpr std::int32_t kSimRightShoulderId = 3;
 // the index points into the scene.
 void natnet_press_motion(double t_s, natnet::Frame& frame);
 
+// The same operator and hand, pressing into a surface `surface_depth_m` in front of the eyes (the
+// station's default camera, 8 cm in front of the head body): the index fingertip (default hand
+// geometry, straight) travels from kPressTipStartM short of the surface to kPressTipPastM beyond
+// it and back, period 4 s. Throws std::invalid_argument outside [0.35, 5] m.
+inline constexpr double kPressTipStartM = 0.30;
+inline constexpr double kPressTipPastM = 0.04;
+inline constexpr double kPressEyesAheadOfHeadM = 0.08;
+NatNetMotion natnet_press_toward(double surface_depth_m);
+// How far ahead of the hand body the straight index fingertip is in the press's hand orientation.
+double press_index_tip_ahead_of_hand_m();
+
 // A recorded motion: CSV with header "time_s,body_id,x,y,z,qx,qy,qz,qw", one body per line, lines
 // sorted by time; a frame plays every body whose newest line is at or before t (looping when
 // `loop`). Throws std::runtime_error naming the file and line on bad input.
