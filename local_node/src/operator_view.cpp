@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "telex/common/colorize.h"
+#include "telex/local/status_band.h"
 
 namespace telex::local {
 namespace {
@@ -99,10 +100,7 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
     // The fingertip last, so it stays visible on top of its arrow.
     cv::circle(img, *p, radius, force.contact ? tip_contact : tip_free, cv::FILLED, cv::LINE_AA);
   }
-  cv::rectangle(img, cv::Rect(0, img.rows - 22 * thick, img.cols, 22 * thick), {0, 0, 0},
-                cv::FILLED);
-  cv::putText(img, in.status, {6, img.rows - 7 * thick}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick,
-              {255, 255, 255}, thick, cv::LINE_AA);
+  draw_status_band(img, in.status, 0.45 * thick, thick);
   return img;
 }
 

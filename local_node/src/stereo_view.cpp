@@ -10,6 +10,7 @@
 
 #include "telex/common/colorize.h"
 #include "telex/common/registration.h"
+#include "telex/local/status_band.h"
 
 namespace telex::local {
 namespace {
@@ -28,7 +29,7 @@ cv::Vec3b pressure_bgr(double n) {
 }
 
 // The overlay: the normal-map inset (top right, a quarter of the width) and the status text,
-// shrunk until it fits the width.
+// wrapped to fit the width.
 void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
   if (in.surface != nullptr && !in.surface->normals.empty()) {
     const cv::Mat3b inset = colorize_normals(in.surface->normals);
@@ -39,18 +40,7 @@ void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
       small.copyTo(img(cv::Rect(img.cols - w - 4, 4, w, h)));
     }
   }
-  if (in.status.empty()) return;
-  double scale = 0.45;
-  int base = 0;
-  cv::Size text = cv::getTextSize(in.status, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
-  if (text.width > img.cols - 12) {
-    scale *= static_cast<double>(img.cols - 12) / text.width;
-    text = cv::getTextSize(in.status, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
-  }
-  const cv::Rect band(0, img.rows - text.height - base - 8, img.cols, text.height + base + 8);
-  img(band) *= 0.4;
-  cv::putText(img, in.status, {6, img.rows - base - 4}, cv::FONT_HERSHEY_SIMPLEX, scale,
-              {255, 255, 255}, 1, cv::LINE_AA);
+  draw_status_band(img, in.status, 0.45, 1);
 }
 
 }  // namespace
