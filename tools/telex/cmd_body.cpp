@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "suite_report.h"
 #include "telex/stability/body_check.h"
 
 namespace telex::tool {
@@ -25,35 +26,26 @@ int run(const Options& o) {
     return 2;
   }
   const std::vector<BodyCaseResult> cases = run_body_check(o.seed);
-  int passed = 0, failed = 0;
-  for (const auto& c : cases) (c.pass ? passed : failed)++;
-  if (o.json) {
-    nlohmann::json j;
-    j["cases"] = nlohmann::json::array();
-    for (const auto& c : cases) {
-      nlohmann::json e{{"name", c.name},           {"pass", c.pass},
-                       {"reachable", c.reachable}, {"elbow_error_m", nullptr},
-                       {"nonfinite", c.nonfinite}, {"updates", c.updates},
-                       {"criteria", c.criteria},   {"note", c.note}};
-      if (c.elbow_error_m) e["elbow_error_m"] = *c.elbow_error_m;
-      j["cases"].push_back(std::move(e));
-    }
-    j["passed"] = passed;
-    j["failed"] = failed;
-    std::cout << j.dump(2) << "\n";
-  } else {
-    std::printf("%-52s %-4s %-9s %14s %7s\n", "case", "ok", "reachable", "elbow err mm", "NaN/Inf");
-    for (const auto& c : cases) {
-      const std::string err =
-          c.elbow_error_m ? fmt::format("{:.4g}", *c.elbow_error_m * 1e3) : std::string("-");
-      std::printf("%-52s %-4s %-9s %14s %7llu\n", c.name.c_str(), c.pass ? "PASS" : "FAIL",
-                  c.reachable ? "yes" : "no", err.c_str(),
-                  static_cast<unsigned long long>(c.nonfinite));
-      std::printf("    criteria: %s\n    result:   %s\n", c.criteria.c_str(), c.note.c_str());
-    }
-    std::printf("passed %d, failed %d\n", passed, failed);
-  }
-  return failed == 0 ? 0 : 1;
+  const std::string header = fmt::format("{:<52} {:<4} {:<9} {:>14} {:>7}", "case", "ok",
+                                         "reachable", "elbow err mm", "NaN/Inf");
+  return report_suite(
+      cases, o.json, header.c_str(),
+      [](const BodyCaseResult& c) {
+        nlohmann::json e{{"name", c.name},           {"pass", c.pass},
+                         {"reachable", c.reachable}, {"elbow_error_m", nullptr},
+                         {"nonfinite", c.nonfinite}, {"updates", c.updates},
+                         {"criteria", c.criteria},   {"note", c.note}};
+        if (c.elbow_error_m) e["elbow_error_m"] = *c.elbow_error_m;
+        return e;
+      },
+      [](const BodyCaseResult& c) {
+        const std::string err =
+            c.elbow_error_m ? fmt::format("{:.4g}", *c.elbow_error_m * 1e3) : std::string("-");
+        std::printf("%-52s %-4s %-9s %14s %7llu\n", c.name.c_str(), c.pass ? "PASS" : "FAIL",
+                    c.reachable ? "yes" : "no", err.c_str(),
+                    static_cast<unsigned long long>(c.nonfinite));
+      },
+      [](const BodyCaseResult&) {});
 }
 
 const RegisterCommand kRegister{

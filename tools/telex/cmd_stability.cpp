@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command.h"
+#include "suite_report.h"
 #include "telex/stability/haptic_stability.h"
 
 namespace telex::tool {
@@ -22,43 +23,34 @@ int run(const Options& o) {
   so.random_ticks = o.random_ticks;
   so.seed = o.seed;
   const std::vector<StabilityCaseResult> cases = run_stability_suite(so);
-  int passed = 0, failed = 0;
-  for (const auto& c : cases) (c.pass ? passed : failed)++;
-
-  if (o.json) {
-    nlohmann::json j;
-    j["cases"] = nlohmann::json::array();
-    for (const auto& c : cases) {
-      nlohmann::json e{{"name", c.name},
-                       {"group", c.group},
-                       {"pass", c.pass},
-                       {"max_force_N", c.max_force_N},
-                       {"max_force_step_N", c.max_force_step_N},
-                       {"energy_in_J", c.energy_in_J},
-                       {"nonfinite", c.nonfinite},
-                       {"ticks", c.ticks},
-                       {"criteria", c.criteria},
-                       {"note", c.note}};
-      for (const auto& [k, v] : c.metrics) e["metrics"][k] = v;
-      j["cases"].push_back(std::move(e));
-    }
-    j["passed"] = passed;
-    j["failed"] = failed;
-    std::cout << j.dump(2) << "\n";
-  } else {
-    std::printf("%-34s %-4s %10s %11s %12s %7s %9s\n", "case", "ok", "max|F| N", "max|dF| N",
-                "energy in J", "NaN/Inf", "ticks");
-    for (const auto& c : cases) {
-      std::printf("%-34s %-4s %10.4g %11.4g %12.4g %7llu %9llu\n", c.name.c_str(),
-                  c.pass ? "PASS" : "FAIL", c.max_force_N, c.max_force_step_N, c.energy_in_J,
-                  static_cast<unsigned long long>(c.nonfinite),
-                  static_cast<unsigned long long>(c.ticks));
-      std::printf("    criteria: %s\n    result:   %s\n", c.criteria.c_str(), c.note.c_str());
-      for (const auto& [k, v] : c.metrics) std::printf("    %s = %.6g\n", k.c_str(), v);
-    }
-    std::printf("passed %d, failed %d\n", passed, failed);
-  }
-  return failed == 0 ? 0 : 1;
+  char header[160];
+  std::snprintf(header, sizeof header, "%-34s %-4s %10s %11s %12s %7s %9s", "case", "ok",
+                "max|F| N", "max|dF| N", "energy in J", "NaN/Inf", "ticks");
+  return report_suite(
+      cases, o.json, header,
+      [](const StabilityCaseResult& c) {
+        nlohmann::json e{{"name", c.name},
+                         {"group", c.group},
+                         {"pass", c.pass},
+                         {"max_force_N", c.max_force_N},
+                         {"max_force_step_N", c.max_force_step_N},
+                         {"energy_in_J", c.energy_in_J},
+                         {"nonfinite", c.nonfinite},
+                         {"ticks", c.ticks},
+                         {"criteria", c.criteria},
+                         {"note", c.note}};
+        for (const auto& [k, v] : c.metrics) e["metrics"][k] = v;
+        return e;
+      },
+      [](const StabilityCaseResult& c) {
+        std::printf("%-34s %-4s %10.4g %11.4g %12.4g %7llu %9llu\n", c.name.c_str(),
+                    c.pass ? "PASS" : "FAIL", c.max_force_N, c.max_force_step_N, c.energy_in_J,
+                    static_cast<unsigned long long>(c.nonfinite),
+                    static_cast<unsigned long long>(c.ticks));
+      },
+      [](const StabilityCaseResult& c) {
+        for (const auto& [k, v] : c.metrics) std::printf("    %s = %.6g\n", k.c_str(), v);
+      });
 }
 
 const RegisterCommand kRegister{

@@ -66,12 +66,7 @@ class DynamixelHead final : public HeadDriver {
   }
 
   void command(const HeadAngles& target_rad, std::int64_t /*now_ns*/) override {
-    if (!std::all_of(target_rad.begin(), target_rad.end(),
-                     [](double v) { return std::isfinite(v); })) {
-      ++stats_.rejected;
-      stats_.last_error = "a non-finite target was not commanded";
-      return;
-    }
+    if (!detail::admit_target(target_rad, stats_)) return;
     HeadAngles t = target_rad;
     stats_.clamped += clamp_to_limits(t, limits_);
     if (send_goal(t)) ++stats_.commands;

@@ -2,7 +2,9 @@
 // Internal: the head drivers' constructors and the serial port the Dynamixel driver talks through.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -16,6 +18,16 @@ std::unique_ptr<HeadDriver> make_no_head();
 std::unique_ptr<HeadDriver> make_sim_head(const HeadSpec& spec, const HeadLimits& limits);
 std::unique_ptr<HeadDriver> make_dynamixel_head(const HeadSpec& spec, const HeadLimits& limits);
 std::unique_ptr<HeadDriver> make_udp_head(const HeadSpec& spec, const HeadLimits& limits);
+
+// Every driver's first step in command(): a target with a non-finite angle is never sent; it is
+// counted and named in `stats`. True when the target may go on.
+inline bool admit_target(const HeadAngles& target_rad, HeadStats& stats) {
+  if (std::all_of(target_rad.begin(), target_rad.end(), [](double v) { return std::isfinite(v); }))
+    return true;
+  ++stats.rejected;
+  stats.last_error = "a non-finite target was not commanded";
+  return false;
+}
 
 // A serial port opened raw (8N1, no flow control) at one of kDynamixelBauds, held exclusively.
 // Only I/O: the protocol lives in telex/dynamixel/protocol.h.

@@ -32,12 +32,7 @@ class SimHead final : public HeadDriver {
   SimHead(double tau_s, const HeadLimits& limits) : tau_s_(tau_s), limits_(limits) {}
 
   void command(const HeadAngles& target_rad, std::int64_t now_ns) override {
-    if (!std::all_of(target_rad.begin(), target_rad.end(),
-                     [](double v) { return std::isfinite(v); })) {
-      ++stats_.rejected;
-      stats_.last_error = "a non-finite target was not commanded";
-      return;
-    }
+    if (!detail::admit_target(target_rad, stats_)) return;
     advance(now_ns);
     target_ = target_rad;
     stats_.clamped += clamp_to_limits(target_, limits_);

@@ -45,12 +45,7 @@ class UdpHead final : public HeadDriver {
   }
 
   void command(const HeadAngles& target_rad, std::int64_t now_ns) override {
-    if (!std::all_of(target_rad.begin(), target_rad.end(),
-                     [](double v) { return std::isfinite(v); })) {
-      ++stats_.rejected;
-      stats_.last_error = "a non-finite target was not commanded";
-      return;
-    }
+    if (!detail::admit_target(target_rad, stats_)) return;
     HeadDatagram d;
     d.sequence = sequence_++;
     d.time_ns = now_ns;
