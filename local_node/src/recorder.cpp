@@ -292,8 +292,8 @@ void SessionRecorder::write_tick(const RecordedTick& t) {
   for (int i = 0; i < kFingerCount; ++i) {
     const auto& in = t.in[static_cast<std::size_t>(i)];
     auto& p = poses[static_cast<std::size_t>(i)];
-    p.p = {in.p_CameraFingertip.x, in.p_CameraFingertip.y, in.p_CameraFingertip.z};
-    p.q = in.tracked ? quat_z_to(in.axis_Camera) : std::array<double, 4>{0, 0, 0, 0};
+    p.p = {in.p_ModelFingertip.x, in.p_ModelFingertip.y, in.p_ModelFingertip.z};
+    p.q = in.tracked ? quat_z_to(in.axis_Model) : std::array<double, 4>{0, 0, 0, 0};
   }
   writer_->poses(kFingertipsTopic, stamp, static_cast<std::uint32_t>(t.surface_seq), kCameraFrame,
                  poses);
@@ -504,10 +504,10 @@ ReplayResult replay_session(const std::string& bag_path, const HapticParams& hap
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& p = tick.poses[static_cast<std::size_t>(i)];
       auto& f = in[static_cast<std::size_t>(i)];
-      f.p_CameraFingertip = {p.p[0], p.p[1], p.p[2]};
+      f.p_ModelFingertip = {p.p[0], p.p[1], p.p[2]};
       const double qn = p.q[0] * p.q[0] + p.q[1] * p.q[1] + p.q[2] * p.q[2] + p.q[3] * p.q[3];
       f.tracked = qn > 0.5;
-      f.axis_Camera = f.tracked ? z_of(p.q) : glm::dvec3{0, -1, 0};
+      f.axis_Model = f.tracked ? z_of(p.q) : glm::dvec3{0, -1, 0};
     }
     model.tick(tick.stamp_ns, surfaces.at(tick.seq), in, out);
     ++r.ticks;

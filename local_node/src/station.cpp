@@ -683,15 +683,9 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
                                          to_model * tip.axis_Camera, tip.valid && fresh};
     }
     model_.tick(now, newest, in, out);
-    // Logs and the view take the newest surface's camera frame.
+    // Logs, recording and view take the tick re-expressed in the newest surface's camera.
     const glm::dmat3 from_model = newest ? glm::transpose(newest->R_ModelCamera) : glm::dmat3(1.0);
-    if (newest && newest->R_ModelCamera != glm::dmat3(1.0))
-      for (auto& f : out) {
-        f.force_N = from_model * f.force_N;
-        f.tangential_force_N = from_model * f.tangential_force_N;
-        f.proxy_camera = from_model * f.proxy_camera;
-        f.normal_camera = from_model * f.normal_camera;
-      }
+    if (newest && newest->R_ModelCamera != glm::dmat3(1.0)) reexpress(from_model, out);
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& f = out[static_cast<std::size_t>(i)];
       shown[static_cast<std::size_t>(i)] = {channel_[static_cast<std::size_t>(i)], f.normal_force_N,
@@ -708,9 +702,9 @@ void Station::Run::haptic_ticks(std::stop_token stop) {
     for (int i = 0; i < kFingerCount; ++i) {
       sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
       sample.p_CameraFingertip[static_cast<std::size_t>(i)] =
-          from_model * in[static_cast<std::size_t>(i)].p_CameraFingertip;
+          from_model * in[static_cast<std::size_t>(i)].p_ModelFingertip;
       sample.axis_Camera[static_cast<std::size_t>(i)] =
-          from_model * in[static_cast<std::size_t>(i)].axis_Camera;
+          from_model * in[static_cast<std::size_t>(i)].axis_Model;
     }
     samples_.push(sample);
     missed_.store(timer.missed(), std::memory_order_relaxed);

@@ -98,7 +98,7 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
   for (std::size_t i = 0; i < kFingerCount; ++i) {
     const FingertipForce& f = in.forces[i];
     if (!hand.tips[i].valid || !f.contact) continue;
-    const glm::dvec3 p = f.proxy_camera;
+    const glm::dvec3 p = f.p_ModelProxy;
     out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N)});
     const glm::dvec3 end = p + f.force_N * in.arrow_m_per_N;
     if (glm::length(end - p) > 1e-4) {

@@ -50,12 +50,12 @@ constexpr double kForceTol = 1e-4;
 // One-fingertip driver.
 struct Rig {
   explicit Rig(const HapticParams& p) : model(p, 1) {}
-  FingertipForce step(const glm::dvec3& p_CameraFingertip,
+  FingertipForce step(const glm::dvec3& p_ModelFingertip,
                       std::shared_ptr<const Surface> s = nullptr, bool tracked = true) {
     if (s) surface = std::move(s);
     now_ns += kMs;
     FingertipInput in;
-    in.p_CameraFingertip = p_CameraFingertip;
+    in.p_ModelFingertip = p_ModelFingertip;
     in.tracked = tracked;
     FingertipForce out;
     last_status = model.tick(now_ns, surface, std::span(&in, 1), std::span(&out, 1));
@@ -86,7 +86,7 @@ TEST(HapticModel, HookesLawOnPlane) {
     EXPECT_NEAR(f.normal_force_N, p.stiffness_N_per_m * pen, kForceTol);
     EXPECT_NEAR(f.force_N.z, -p.stiffness_N_per_m * pen, kForceTol);  // pushes toward the camera
     EXPECT_LT(glm::length(f.tangential_force_N), 1e-9);
-    EXPECT_NEAR(f.proxy_camera.z, 0.8 - p.proxy_epsilon_m, kPosTol);
+    EXPECT_NEAR(f.p_ModelProxy.z, 0.8 - p.proxy_epsilon_m, kPosTol);
   }
   const FingertipForce off = rig.move({0.01, 0.02, 0.81}, {0.01, 0.02, 0.7}, 20);
   EXPECT_FALSE(off.contact);
@@ -129,7 +129,7 @@ TEST(HapticModel, StickSlipHysteresis) {
   // Sticking: the proxy holds its place while the shear grows up to mu_s * N.
   FingertipForce f = rig.move({0, 0, 0.8 + pen}, {0.004, 0, 0.8 + pen}, 40);
   EXPECT_FALSE(f.slipping);
-  EXPECT_NEAR(f.proxy_camera.x, 0.0, kPosTol);
+  EXPECT_NEAR(f.p_ModelProxy.x, 0.0, kPosTol);
   EXPECT_NEAR(glm::length(f.tangential_force_N), 0.4 * f.normal_force_N, kForceTol);
   // Past atan(mu_s): slips, and the shear drops to mu_d * N.
   f = rig.move({0.004, 0, 0.8 + pen}, {0.02, 0, 0.8 + pen}, 100);
@@ -137,15 +137,15 @@ TEST(HapticModel, StickSlipHysteresis) {
   EXPECT_NEAR(glm::length(f.tangential_force_N), 0.3 * f.normal_force_N, kForceTol);
   // Moving back a little: the angle falls below atan(mu_d) but not below 0.6 atan(mu_d):
   // still slipping (hysteresis), proxy does not move.
-  const double proxy_x = f.proxy_camera.x;
+  const double proxy_x = f.p_ModelProxy.x;
   const double back_small = pen * (0.3 - std::tan(0.6 * std::atan(0.3))) * 0.5;
   f = rig.move({0.02, 0, 0.8 + pen}, {0.02 - back_small, 0, 0.8 + pen}, 5);
   EXPECT_TRUE(f.slipping);
-  EXPECT_NEAR(f.proxy_camera.x, proxy_x, kPosTol);
+  EXPECT_NEAR(f.p_ModelProxy.x, proxy_x, kPosTol);
   // Further back, under 0.6 atan(mu_d): sticks again.
   f = rig.move({0.02 - back_small, 0, 0.8 + pen}, {proxy_x + 0.0005, 0, 0.8 + pen}, 20);
   EXPECT_FALSE(f.slipping);
-  EXPECT_NEAR(f.proxy_camera.x, proxy_x, kPosTol);
+  EXPECT_NEAR(f.p_ModelProxy.x, proxy_x, kPosTol);
 }
 
 TEST(HapticModel, NoPopThroughThinObject) {
@@ -163,7 +163,7 @@ TEST(HapticModel, NoPopThroughThinObject) {
   rig.step(a);
   const FingertipForce f = rig.step(b);
   ASSERT_TRUE(f.contact);
-  EXPECT_NEAR(f.proxy_camera.z, 0.6 - p.proxy_epsilon_m, 1e-4);
+  EXPECT_NEAR(f.p_ModelProxy.z, 0.6 - p.proxy_epsilon_m, 1e-4);
   EXPECT_LT(f.force_N.z, 0.0);
   // Straight through the bar along the optical axis in big steps: the proxy stays on its face.
   Rig rig2(p);
@@ -173,7 +173,7 @@ TEST(HapticModel, NoPopThroughThinObject) {
   for (double z : {0.65, 0.8, 1.2, 1.6}) {
     const FingertipForce g = rig2.step({c.x * z, c.y * z, z});
     ASSERT_TRUE(g.contact) << z;
-    EXPECT_NEAR(g.proxy_camera.z, 0.6 - p.proxy_epsilon_m, 1e-4) << z;
+    EXPECT_NEAR(g.p_ModelProxy.z, 0.6 - p.proxy_epsilon_m, 1e-4) << z;
   }
 }
 
@@ -192,9 +192,9 @@ TEST(HapticModel, StepEdgeBlocksSidewaysEntry) {
   const glm::dvec3 b = a + glm::dvec3(-0.45, 0, 0.005);  // well into the box's columns
   const FingertipForce f = rig.move(a + glm::dvec3(0, 0, 0.005), b, 100);
   ASSERT_TRUE(f.contact);
-  EXPECT_GT(f.proxy_camera.z, 1.0);  // still on the wall side
+  EXPECT_GT(f.p_ModelProxy.z, 1.0);  // still on the wall side
   const double edge_x = (79.5 - kK.cx) / kK.fx * 1.1;
-  EXPECT_NEAR(f.proxy_camera.x, edge_x, 0.01);
+  EXPECT_NEAR(f.p_ModelProxy.x, edge_x, 0.01);
   EXPECT_GT(f.force_N.x, 0.0);  // pushed back out of the box's side
 }
 
@@ -283,7 +283,7 @@ TEST(HapticModel, TrackingLossNanFadesAndRecovers) {
   EXPECT_NEAR(f.normal_force_N, held * (1.0 - 0.05), 1e-9);  // one 1 ms step of a 20 ms fade
   for (int i = 0; i < 30; ++i) f = rig.step({0, std::numeric_limits<double>::infinity(), 0.81});
   EXPECT_EQ(glm::length(f.force_N), 0.0);
-  EXPECT_TRUE(std::isfinite(f.proxy_camera.x));
+  EXPECT_TRUE(std::isfinite(f.p_ModelProxy.x));
   EXPECT_EQ(rig.model.counters().nonfinite_inputs, 31u);
   // Tracking back with the finger still 1 cm deep: the proxy is pushed out gradually.
   f = rig.step({0, 0, 0.81});
@@ -430,7 +430,7 @@ TEST(HapticModel, StaleTrackingSampleFadesToZero) {
   std::int64_t now = 0;
   auto tick = [&](double z, std::int64_t sample_ns) {
     now += kMs;
-    in.p_CameraFingertip = {0, 0, z};
+    in.p_ModelFingertip = {0, 0, z};
     in.sample_ns = sample_ns;
     model.tick(now, restamp(s, now, static_cast<std::uint64_t>(now / kMs) + 1), std::span(&in, 1),
                std::span(&out, 1));

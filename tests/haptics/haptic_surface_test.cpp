@@ -105,8 +105,8 @@ TEST(HapticSurface, PlaneFitFallbackWhenNormalsMissing) {
   const glm::dvec3 p = back_project(k, 70.3, 40.6, plane_depth(k, n, d, 70.3, 40.6) + 0.01);
   ASSERT_EQ(local_plane(s, p, pl), SurfaceQuery::Ok);
   EXPECT_TRUE(pl.normal_fallback);
-  EXPECT_GT(glm::dot(pl.n_camera, n), std::cos(2e-3));
-  EXPECT_NEAR(glm::dot(n, pl.q_camera), d, 2e-4);
+  EXPECT_GT(glm::dot(pl.normal_Camera, n), std::cos(2e-3));
+  EXPECT_NEAR(glm::dot(n, pl.p_CameraQ), d, 2e-4);
 }
 
 TEST(HapticSurface, LonePixelFallsBackToViewRay) {
@@ -117,8 +117,8 @@ TEST(HapticSurface, LonePixelFallsBackToViewRay) {
   LocalPlane pl;
   ASSERT_EQ(local_plane(s, back_project(k, 40.1, 24.2, 1.0), pl), SurfaceQuery::Ok);
   EXPECT_TRUE(pl.normal_fallback);
-  EXPECT_NEAR(glm::length(pl.n_camera), 1.0, 1e-9);
-  EXPECT_LT(glm::dot(pl.n_camera, pl.q_camera), 0.0);
+  EXPECT_NEAR(glm::length(pl.normal_Camera), 1.0, 1e-9);
+  EXPECT_LT(glm::dot(pl.normal_Camera, pl.p_CameraQ), 0.0);
 }
 
 TEST(HapticSurface, MakeSurfaceSanitisesAndValidates) {

@@ -66,7 +66,7 @@ TEST(StereoView, AFingertipInContactShowsItsPressureAndOneEyeServesBoth) {
   in.forces[1].contact = true;
   in.forces[1].normal_force_N = 3.0;  // red
   in.forces[1].force_N = {0.0, 0.0, -3.0};
-  in.forces[1].proxy_camera = in.hand.joints_camera[1][3];
+  in.forces[1].p_ModelProxy = in.hand.joints_camera[1][3];
   in.eye_bgr[1] = cv::Mat3b(480, 640, cv::Vec3b(60, 60, 60));  // right eye only
   in.status = std::string(300, 'x');  // far wider than the image: shrunk to fit
   const StereoViewImages v = view.render(in);

@@ -106,7 +106,7 @@ TEST(HapticStability, ExtremeCasesHoldTheirPropertiesCheckedFromTheirTicks) {
     glm::dvec3 prev(0.0);
     for (std::size_t i = 0; i < r.trace.size(); ++i) {
       const auto& o = r.trace[i].out;
-      ASSERT_TRUE(finite(o.force_N) && finite(o.proxy_camera) && std::isfinite(o.normal_force_N))
+      ASSERT_TRUE(finite(o.force_N) && finite(o.p_ModelProxy) && std::isfinite(o.normal_force_N))
           << r.name << " tick " << i;
       ASSERT_LE(glm::length(o.force_N), p.max_force_N + 1e-9) << r.name << " tick " << i;
       ASSERT_LE(glm::length(o.force_N - prev), p.max_force_step_N + 1e-9)
@@ -132,9 +132,9 @@ TEST(HapticStability, ExtremeCasesHoldTheirPropertiesCheckedFromTheirTicks) {
     // the ray, at the end of the press (before the slide).
     const auto& r = find_case(all, "one-valid-pixel");
     std::size_t end = 0;
-    while (end < r.trace.size() && r.trace[end].p_CameraFingertip.z < 0.82 - 1e-9) ++end;
+    while (end < r.trace.size() && r.trace[end].p_ModelFingertip.z < 0.82 - 1e-9) ++end;
     ASSERT_LT(end, r.trace.size());
-    const glm::dvec3 x = r.trace[end].p_CameraFingertip;
+    const glm::dvec3 x = r.trace[end].p_ModelFingertip;
     const glm::dvec3 f = r.trace[end].out.force_N;
     const double hooke = std::min(p.stiffness_N_per_m * 0.02, p.max_force_N);
     EXPECT_NEAR(glm::length(f), hooke, 1e-6);
@@ -144,16 +144,16 @@ TEST(HapticStability, ExtremeCasesHoldTheirPropertiesCheckedFromTheirTicks) {
   {
     // Over a 1 m step edge and back in contact: the proxy never crosses to the near side.
     const auto& r = find_case(all, "step-edge-1m");
-    EXPECT_GT(r.trace.back().out.proxy_camera.z, 1.0);
+    EXPECT_GT(r.trace.back().out.p_ModelProxy.z, 1.0);
   }
   {
     // A 1 m jump into a wall at 0.8 m: the proxy stays in front of it while the finger is inside.
     const auto& r = find_case(all, "teleport-1m");
     int inside = 0;
     for (const auto& t : r.trace)
-      if (t.p_CameraFingertip.z > 1.7) {
+      if (t.p_ModelFingertip.z > 1.7) {
         ++inside;
-        EXPECT_LT(t.out.proxy_camera.z, 0.8 + 1e-6);
+        EXPECT_LT(t.out.p_ModelProxy.z, 0.8 + 1e-6);
       }
     EXPECT_GT(inside, 200);
     EXPECT_FALSE(r.trace.back().out.contact);
@@ -163,7 +163,7 @@ TEST(HapticStability, ExtremeCasesHoldTheirPropertiesCheckedFromTheirTicks) {
     // fade_out_s of the first bad sample, never rising meanwhile.
     const auto& r = find_case(all, "tracker-nan-inf");
     std::size_t bad = 0;
-    while (bad < r.trace.size() && finite(r.trace[bad].p_CameraFingertip)) ++bad;
+    while (bad < r.trace.size() && finite(r.trace[bad].p_ModelFingertip)) ++bad;
     ASSERT_LT(bad, r.trace.size());
     const double at_bad = bad ? glm::length(r.trace[bad - 1].out.force_N) : 0.0;
     EXPECT_GT(at_bad, 0.5) << "the case must be in contact when tracking breaks";

@@ -46,7 +46,7 @@ void BM_FingertipUpdateInContact(benchmark::State& state) {
     // 5 mm deep, sliding back and forth 5 cm at 0.1 m/s.
     const double s = 0.05 * std::sin(static_cast<double>(i++) * 2e-3);
     for (int f = 0; f < fingers; ++f)
-      in[f].p_CameraFingertip = glm::dvec3(0.0, 0.02 * f, 1.0) + s * t - 0.005 * n;
+      in[f].p_ModelFingertip = glm::dvec3(0.0, 0.02 * f, 1.0) + s * t - 0.005 * n;
     now += 1'000'000;
     benchmark::DoNotOptimize(model.tick(now, surface, in, out));
     benchmark::DoNotOptimize(out.data());
@@ -69,7 +69,7 @@ void BM_FingertipUpdateFree(benchmark::State& state) {
   std::int64_t now = 0;
   std::int64_t i = 0;
   for (auto _ : state) {
-    in.p_CameraFingertip = glm::dvec3(0.05 * std::sin(static_cast<double>(i++) * 2e-3), 0.0, 0.6);
+    in.p_ModelFingertip = glm::dvec3(0.05 * std::sin(static_cast<double>(i++) * 2e-3), 0.0, 0.6);
     now += 1'000'000;
     benchmark::DoNotOptimize(model.tick(now, surface, std::span(&in, 1), std::span(&out, 1)));
   }

@@ -11,8 +11,8 @@
 #include <string>
 
 #include "bench.h"
-#include "telex/haptics/haptic_model.h"
 #include "telex/common/stage_clock.h"
+#include "telex/haptics/haptic_model.h"
 
 namespace telex::tool::bench {
 namespace {
@@ -57,8 +57,8 @@ std::vector<glm::dvec3> run_script(const std::shared_ptr<const Surface>& surface
   std::vector<glm::dvec3> forces;
   forces.reserve(script.path_camera.size());
   for (std::size_t i = 0; i < script.path_camera.size(); ++i) {
-    in[0].p_CameraFingertip = script.path_camera[i];
-    in[0].axis_Camera = script.hand.tips[1].axis_Camera;
+    in[0].p_ModelFingertip = script.path_camera[i];
+    in[0].axis_Model = script.hand.tips[1].axis_Camera;
     model.tick(static_cast<std::int64_t>(i) * 1'000'000, surface, in, out);
     forces.push_back(out[0].force_N);
   }

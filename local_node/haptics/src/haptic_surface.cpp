@@ -235,7 +235,7 @@ SurfaceQuery local_plane(const Surface& s, const glm::dvec3& p, LocalPlane& out,
   Corners c;
   if (!gather(s, u, v, steps, c)) return SurfaceQuery::Hole;
   const double z = blended_depth(c);
-  out.q_camera = back_project(k, u, v, z);
+  out.p_CameraQ = back_project(k, u, v, z);
 
   glm::dvec3 n_sum(0.0);
   const int u1 = std::min(c.u0 + 1, s.depth_m.cols - 1);
@@ -250,7 +250,7 @@ SurfaceQuery local_plane(const Surface& s, const glm::dvec3& p, LocalPlane& out,
   }
   const double len = glm::length(n_sum);
   if (len > 1e-9) {
-    out.n_camera = n_sum / len;
+    out.normal_Camera = n_sum / len;
     out.normal_fallback = false;
     return SurfaceQuery::Ok;
   }
@@ -258,9 +258,9 @@ SurfaceQuery local_plane(const Surface& s, const glm::dvec3& p, LocalPlane& out,
   const int un = (c.nearest & 1) ? u1 : c.u0;
   const int vn = (c.nearest & 2) ? v1 : c.v0;
   if (auto fit = fit_plane_normal(s, un, vn, c.z_min, 2, steps)) {
-    out.n_camera = *fit;
+    out.normal_Camera = *fit;
   } else {
-    out.n_camera = -glm::normalize(out.q_camera);
+    out.normal_Camera = -glm::normalize(out.p_CameraQ);
   }
   return SurfaceQuery::Ok;
 }

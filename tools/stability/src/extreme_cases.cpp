@@ -94,7 +94,7 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
     drv.move(on_ray(220, 120, 0.51), on_ray(220, 120, 1.51), 500);  // down onto the far wall
     drv.move(on_ray(220, 120, 1.51), on_ray(100, 120, 1.51), 500);  // into the step's side
     const FingertipForce f = drv.step(on_ray(100, 120, 1.51));
-    out.push_back(finish("step-edge-1m", drv, f.proxy_camera.z > 1.0,
+    out.push_back(finish("step-edge-1m", drv, f.p_ModelProxy.z > 1.0,
                          "proxy stays on the far side of the step",
                          "over a 0.5 m / 1.5 m edge both ways while in contact"));
   }
@@ -116,9 +116,9 @@ std::vector<StabilityCaseResult> extreme_cases(std::uint64_t random_ticks, std::
     drv.warm_up(on_ray(160, 120, 0.7));
     drv.move(on_ray(160, 120, 0.7), on_ray(160, 120, 0.805), 100);
     FingertipForce f = drv.step(on_ray(160, 120, 1.805));
-    bool proxy_outside = f.proxy_camera.z < 0.8;
+    bool proxy_outside = f.p_ModelProxy.z < 0.8;
     for (int i = 0; i < 200; ++i)
-      proxy_outside &= drv.step(on_ray(200, 60, 1.805)).proxy_camera.z < 0.8;
+      proxy_outside &= drv.step(on_ray(200, 60, 1.805)).p_ModelProxy.z < 0.8;
     drv.step(on_ray(160, 120, 0.3));
     f = drv.step(on_ray(160, 120, 0.3));
     out.push_back(finish("teleport-1m", drv, proxy_outside && !f.contact,

@@ -50,12 +50,12 @@ struct Monitor {
                              f.tangential_force_N.z,
                              f.shear_along_axis_N,
                              f.penetration_m,
-                             f.proxy_camera.x,
-                             f.proxy_camera.y,
-                             f.proxy_camera.z,
-                             f.normal_camera.x,
-                             f.normal_camera.y,
-                             f.normal_camera.z,
+                             f.p_ModelProxy.x,
+                             f.p_ModelProxy.y,
+                             f.p_ModelProxy.z,
+                             f.normal_Model.x,
+                             f.normal_Model.y,
+                             f.normal_Model.z,
                              f.gain};
     bool finite = true;
     for (double v : fields)
@@ -153,7 +153,7 @@ struct Driver {
     if (republish && surface && now_ns - surface->capture_ns >= kFrameNs)
       surface = restamp(surface, now_ns, ++frame_id);
     FingertipInput in;
-    in.p_CameraFingertip = x;
+    in.p_ModelFingertip = x;
     in.tracked = tracked;
     FingertipForce out;
     model.tick(now_ns, surface, std::span(&in, 1), std::span(&out, 1));

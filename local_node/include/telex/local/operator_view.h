@@ -16,6 +16,7 @@ struct ViewInputs {
   const Surface* surface = nullptr;  // may be null before the first frame
   cv::Mat1w depth_mm;                // raw depth for the colourised background
   HandState hand;
+  // The tick re-expressed in the camera (reexpress): there the Model frame is the Camera.
   std::array<FingertipForce, kFingerCount> forces{};
   std::string status;
   double arrow_m_per_N = 0.02;  // force arrow length in the scene per newton

@@ -44,7 +44,8 @@ nlohmann::json session_config_json(const HapticParams& haptic, const SurfaceOpti
 void apply_session_config(const nlohmann::json& j, HapticParams& haptic, SurfaceOptions& surface,
                           double& rate_hz);
 
-// One haptic tick as the model saw it and what it gave.
+// One haptic tick as the model saw it and what it gave, re-expressed in the newest surface's camera
+// (reexpress): the Model frame of a replay against the recorded surfaces.
 struct RecordedTick {
   std::int64_t t_ns = 0;  // station monotonic clock
   std::uint64_t surface_seq = 0;

@@ -12,9 +12,9 @@
 #include <span>
 #include <string>
 
+#include "telex/common/rig.h"
 #include "telex/haptics/body.h"
 #include "telex/haptics/haptic_model.h"
-#include "telex/common/rig.h"
 #include "telex/local/stereo_renderer.h"
 #include "telex/local/tracker.h"
 
@@ -26,6 +26,7 @@ struct StereoViewInputs {
   Intrinsics k;                      // the right eye's (and, rectified, the left eye's)
   double baseline_m = 0.065;         // the left eye sits this far to the right eye's left
   HandState hand;                    // camera (right eye) frame
+  // The tick re-expressed in the camera (reexpress): there the Model frame is the Camera.
   std::array<FingertipForce, kFingerCount> forces{};
   const Surface* surface = nullptr;  // for the normal-map inset; may be null
   std::string status;

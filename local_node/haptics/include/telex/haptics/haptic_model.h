@@ -1,13 +1,16 @@
 // SPDX-License-Identifier: MIT
 // Fingertip force model: god-point proxies on a depth surface, friction, and the 1 kHz safety
-// layer.
+// layer. It works in the Model frame (docs/NAMING.md): the head base's during head teleoperation,
+// the camera's otherwise; each surface says where its camera is in it (Surface::R_ModelCamera).
 #pragma once
 
 #include <array>
 #include <climits>
 #include <cstdint>
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -48,10 +51,11 @@ struct HapticParams {
   double passive_stiffness_limit(double device_damping_Ns_per_m) const;
 };
 
+// One fingertip as the model is given it, in the Model frame.
 struct FingertipInput {
-  glm::dvec3 p_CameraFingertip{0.0};
+  glm::dvec3 p_ModelFingertip{0.0};
   // Unit direction along the finger, for displays that render shear in one direction only.
-  glm::dvec3 axis_Camera{0.0, -1.0, 0.0};
+  glm::dvec3 axis_Model{0.0, -1.0, 0.0};
   bool tracked = true;  // false when the tracker says it lost this fingertip
   // When the tracker sampled this position. A sample older than stale_limit_s is tracking loss
   // (a tracker that stopped reporting keeps repeating its last pose). kUnknownTime: not checked.
@@ -70,17 +74,18 @@ enum class FingertipStatus : std::uint8_t {
 };
 std::string_view to_string(FingertipStatus s);
 
+// One fingertip's output; vectors in the Model frame (the frame of the inputs).
 struct FingertipForce {
-  glm::dvec3 force_N{0.0};             // on the finger, camera frame, after all safety stages
+  glm::dvec3 force_N{0.0};             // on the finger, Model frame, after all safety stages
   double normal_force_N = 0.0;         // pressure along the contact normal (>= 0)
-  glm::dvec3 tangential_force_N{0.0};  // shear (friction) in the contact plane
+  glm::dvec3 tangential_force_N{0.0};  // shear (friction) in the contact plane, Model frame
   double shear_along_axis_N = 0.0;     // tangential force along the finger axis
   bool contact = false;
   bool slipping = false;
   double penetration_m = 0.0;
-  glm::dvec3 proxy_camera{0.0};
-  glm::dvec3 normal_camera{0.0, 0.0, -1.0};
-  double gain = 0.0;  // safety ramp applied, in [0, 1]
+  glm::dvec3 p_ModelProxy{0.0};             // the god-point
+  glm::dvec3 normal_Model{0.0, 0.0, -1.0};  // unit contact normal, towards the free side
+  double gain = 0.0;                        // safety ramp applied, in [0, 1]
   FingertipStatus status = FingertipStatus::NoSurface;
 };
 
@@ -107,6 +112,34 @@ struct HapticCounters {
   std::uint64_t observer_active = 0;
 };
 
+namespace detail {
+class SurfaceView;
+
+// One fingertip's state between ticks, Model frame.
+struct FingerState {
+  bool has_proxy = false;
+  glm::dvec3 p_ModelProxy{0.0};
+  bool contact = false;
+  bool slipping = false;
+  bool side_contact = false;  // blocked by a step edge: force along proxy - device
+  glm::dvec3 normal_Model{0.0, 0.0, -1.0};
+  double penetration_m = 0.0;
+  glm::dvec3 raw_force_N{0.0};  // before the safety stages, held through tracking loss
+  glm::dvec3 out_force_N{0.0};  // last output, for the rate limit and the observer
+  bool has_last_p = false;
+  glm::dvec3 p_ModelFingertipLast{0.0};  // the device at the previous tracked tick
+  double gain = 0.0;
+  double observer_energy_J = 0.0;
+  FingertipStatus status = FingertipStatus::NoSurface;
+};
+}  // namespace detail
+
+// Outputs as a model working in another frame would give them: every vector turned by R_NewModel
+// (the Model frame's orientation in the new one). The station's logs, recording and views hold
+// each tick re-expressed in the newest surface's camera, the frame a replay against the recorded
+// surfaces works in (there Model is Camera).
+void reexpress(const glm::dmat3& R_NewModel, std::span<FingertipForce> out);
+
 // The fingertip force model. Pure: no threads, no clocks (time comes in), no allocation after
 // construction (a new snapshot only moves shared_ptrs; the publisher should keep retired snapshots
 // alive a little so the last release happens on its own thread).
@@ -116,8 +149,27 @@ class HapticModel {
 
   explicit HapticModel(const HapticParams& params, int fingertips = 5);
 
-  // One 1 kHz step. `newest` is the newest published snapshot (may be null, may repeat); `in` and
-  // `out` hold one entry per fingertip. Never throws.
+  // One 1 kHz step, in the Model frame: `in` holds the fingertips there, `out` gets the forces
+  // there, and each surface is placed by its own R_ModelCamera. `newest` is the newest published
+  // snapshot (may be null, may repeat); `in` and `out` hold one entry per fingertip. Never throws.
+  // The steps, in order (detail/force_steps.h has each):
+  //  1. time step: dt from the clock; backwards or long gaps are counted and integrated as
+  //     nominal_period_s / max_tick_s (time_step);
+  //  2. surface: a newer frame becomes current, the previous one is kept for the crossfade
+  //     (accept_surface), and the current one's age decides freshness;
+  //  3. crossfade: the view blends the previous surface into the current over crossfade_s
+  //     (crossfade_weight, SurfaceView);
+  //  then per fingertip:
+  //  4. tracking: the tracker's flag, NaN/Inf, > 1 km or a stale sample is tracking loss
+  //     (fingertip_tracked);
+  //  5. gain: ramps up over startup_ramp_s, down over fade_out_s (ramp_gain);
+  //  6. contact: the god-point proxy (update_proxy: push-out, free move, friction, spring force)
+  //     and the fingertip's status; tracking loss holds the last force instead;
+  //  7. damping and passivity: virtual damping, the Hannaford/Ryu observer's damping and force
+  //     bound (passivity);
+  //  8. clamp to max_force_N (clamp_force), then the gain;
+  //  9. rate limit: at most max_force_step_N of change per tick (rate_limit);
+  // 10. outputs: pressure, shear, the shear along the finger, proxy, normal (write_output).
   TickStatus tick(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest,
                   std::span<const FingertipInput> in, std::span<FingertipForce> out);
 
@@ -129,29 +181,18 @@ class HapticModel {
   int fingertips() const { return fingertips_; }
 
  private:
-  struct Finger {
-    bool has_proxy = false;
-    glm::dvec3 proxy{0.0};
-    bool contact = false;
-    bool slipping = false;
-    bool side_contact = false;  // blocked by a step edge: force along proxy - device
-    glm::dvec3 normal{0.0, 0.0, -1.0};
-    double penetration_m = 0.0;
-    glm::dvec3 raw_force{0.0};  // before the safety stages, held through tracking loss
-    glm::dvec3 out_force{0.0};  // last output, for the rate limit and the observer
-    bool has_prev_p = false;
-    glm::dvec3 prev_p{0.0};
-    double gain = 0.0;
-    double observer_energy_J = 0.0;
-    FingertipStatus status = FingertipStatus::NoSurface;
-  };
-  struct View;
-
-  void update_proxy(Finger& f, const View& view, const glm::dvec3& x, double dt_s);
+  void accept_surface(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest);
+  // Steps 4 to 10 for one fingertip.
+  void finger_tick(detail::FingerState& f, const detail::SurfaceView& view, bool surface_fresh,
+                   std::int64_t now_ns, double dt_s, const FingertipInput& fin, FingertipForce& fo);
+  // Step 6 for a tracked fingertip with a surface: proxy, status and the observer's energy.
+  // Returns the fingertip's velocity when it has one.
+  std::optional<glm::dvec3> contact(detail::FingerState& f, const detail::SurfaceView& view,
+                                    bool surface_fresh, const glm::dvec3& x, double dt_s);
 
   HapticParams params_;
   int fingertips_;
-  std::array<Finger, kMaxFingertips> fingers_{};
+  std::array<detail::FingerState, kMaxFingertips> fingers_{};
   std::shared_ptr<const Surface> current_;
   std::shared_ptr<const Surface> previous_;
   std::int64_t fade_start_ns_ = 0;

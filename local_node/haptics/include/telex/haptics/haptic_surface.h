@@ -71,11 +71,11 @@ inline glm::dvec3 back_project(const Intrinsics& k, double u, double v, double z
   return {(u - k.cx) / k.fx * z_m, (v - k.cy) / k.fy * z_m, z_m};
 }
 
-// Local surface plane under a camera-frame point: q on the surface (on the point's camera ray),
-// n the unit normal facing the camera (the free side).
+// Local surface plane under a camera-frame point: Q on the surface (on the point's camera ray),
+// and the unit normal facing the camera (the free side).
 struct LocalPlane {
-  glm::dvec3 q_camera{0.0};
-  glm::dvec3 n_camera{0.0, 0.0, -1.0};
+  glm::dvec3 p_CameraQ{0.0};
+  glm::dvec3 normal_Camera{0.0, 0.0, -1.0};
   // True when the normal came from the neighbourhood plane fit or the view ray, not the normal map.
   bool normal_fallback = false;
 };

@@ -17,7 +17,7 @@ namespace telex {
 struct StabilityTick {
   std::int64_t t_ns = 0;
   std::int64_t dt_ns = 0;
-  glm::dvec3 p_CameraFingertip{0.0};
+  glm::dvec3 p_ModelFingertip{0.0};
   bool tracked = false;
   FingertipForce out;
 };
