@@ -406,36 +406,22 @@ void RemoteDaemon::process_loop() {
     // Fill and stabiliser keep their history; tiles are only cut and encoded for a receiver.
     request.select_tiles = server_->state() == ClientState::Connected;
     // ROI first: a receiver that takes frames in parts gets the ROI tiles before the rest of the
-    // frame is even filled; others get both parts as one message set.
-    ProcessedFrame p = request.frame_parts ? pipeline_.process_roi(*frame, request)
-                                           : pipeline_.process(*frame, request);
-    p.manifest.head = frame->head;
-    if (observer_) observer_(p);
-    server_->publish(p);
-    const double first_part_ms = p.times.total_ms;
-    if (pipeline_.rest_pending()) {
-      // A newer frame waiting cuts this rest short, so its ROI part does not queue behind it.
-      ProcessedFrame rest =
-          pipeline_.process_rest(*frame, [this] { return depth_slot_.has_value(); });
-      rest.manifest.head = frame->head;
-      if (observer_) observer_(rest);
-      server_->publish(rest);
-      if (rest.rest_cut) {
-        std::lock_guard lock(stats_mu_);
-        ++stats_.rests_cut;
-      }
-      rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
-                        std::make_move_iterator(p.tiles.end()));
-      rest.tiles_skipped += p.tiles_skipped;
-      rest.times += p.times;
-      p = std::move(rest);
-    }
+    // frame is even filled, and a newer frame waiting cuts the rest short so its ROI part does not
+    // queue behind it; others get both parts as one message set.
+    const ProcessedFrame p = pipeline_.process(
+        *frame, request,
+        [this](const ProcessedFrame& part) {
+          if (observer_) observer_(part);
+          server_->publish(part);
+        },
+        [this] { return depth_slot_.has_value(); });
     std::lock_guard lock(stats_mu_);
+    if (p.rest_cut) ++stats_.rests_cut;
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
     stats_.tiles_skipped += p.tiles_skipped;
     stats_.stage_ms_sum += p.times;
-    stats_.first_part_ms_sum += first_part_ms;
+    stats_.first_part_ms_sum += p.first_part_ms;
   }
 }
 
