@@ -104,15 +104,26 @@ struct SourceOptions {
   std::function<std::optional<glm::dmat3>(std::int64_t capture_ns)> head_orientation;
 };
 
-// Valid depth specs: openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] |
-// files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] |
-// bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | synthetic[:SCENE][,animate].
-// A bag source with colour=T also gives the eye view when no stereo source is set.
+// One registered source scheme: its name (the text before ':'), the spec's form and what it is.
+struct SourceScheme {
+  std::string_view name;
+  std::string_view form;  // e.g. "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop]"
+  std::string_view help;
+};
+// The registered schemes, in the order --help lists them.
+std::vector<SourceScheme> depth_source_schemes();
+std::vector<SourceScheme> stereo_source_schemes();
+// "FORM (HELP) | FORM (HELP) | ...": the --source / --stereo help text.
+std::string depth_source_help();
+std::string stereo_source_help();
+
+// A depth source by its spec (depth_source_schemes()). Throws std::invalid_argument on a bad spec;
+// an unknown scheme's message lists the valid ones. A bag source with colour=T also gives the eye
+// view when no stereo source is set.
 std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
                                                const SourceOptions& options = {});
 
-// Valid stereo specs: v4l2:/dev/videoL,/dev/videoR[,WxH][,mjpeg|yuyv] | files:LEFT_GLOB,RIGHT_GLOB
-// | bag:FILE,colour=T[,loop][,rate=R|fast] (both eyes) | synthetic[:SCENE][,animate].
+// A stereo (eye view) source by its spec (stereo_source_schemes()); throws as make_depth_source.
 std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec,
                                                  const SourceOptions& options = {});
 
