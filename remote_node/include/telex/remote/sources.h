@@ -66,6 +66,9 @@ class DepthSource {
   virtual double nominal_fps() const = 0;
   // Frames in a recording or file sequence (valid after start()); -1 for live and endless sources.
   virtual std::int64_t frame_count() const { return -1; }
+  // A file sequence or bag without loop: it plays frame_count() frames once, then ends. It paces
+  // from its first read, so the daemon holds it until the first station connects.
+  virtual bool plays_once() const { return false; }
   virtual std::string describe() const = 0;
 };
 
@@ -75,6 +78,9 @@ class StereoSource {
   virtual void start() = 0;
   virtual void stop() = 0;
   virtual ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) = 0;
+  // As DepthSource's.
+  virtual std::int64_t frame_count() const { return -1; }
+  virtual bool plays_once() const { return false; }
   virtual std::string describe() const = 0;
 };
 
