@@ -41,8 +41,8 @@ const DepthEntry kDepthSources[] = {
       "depth images; without loop they play once, from the first station's connection"},
      detail::make_files_depth_source},
     {{"bag", "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast]",
-      "a ROS 1 bag (16UC1 or 32FC1; colour=T is the eye view); without loop it plays once, from "
-      "the first station's connection"},
+      "a ROS 1 bag, 16UC1 or 32FC1 (colour=T is the eye view); without loop it plays once, "
+      "from the first station's connection"},
      detail::make_bag_depth_source},
     {{"synthetic", "synthetic[:SCENE][,animate][,noise=on|off]", "the synthetic renderer"},
      detail::make_synthetic_depth_source},
@@ -52,9 +52,11 @@ const StereoEntry kStereoSources[] = {
     {{"v4l2", "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg]", "two USB cameras"},
      detail::make_v4l2_stereo_source},
     {{"files", "files:LEFT_PATTERN,RIGHT_PATTERN[,fps=F][,loop]",
-      "image pairs; without loop they play once, from the first station's connection"},
+      "image pairs; without loop they play once, when the first station asks for video"},
      detail::make_files_stereo_source},
-    {{"bag", "bag:FILE,colour=T[,loop][,rate=R|fast]", "a bag's colour topic (both eyes)"},
+    {{"bag", "bag:FILE,colour=T[,loop][,rate=R|fast]",
+      "a bag's colour topic for both eyes; without loop it plays once, when the first station "
+      "asks for video"},
      detail::make_bag_colour_source},
     {{"synthetic", "synthetic[:SCENE][,animate]", "the synthetic renderer"},
      detail::make_synthetic_stereo_source},
@@ -71,7 +73,7 @@ template <typename Entries>
 std::string help_of(const Entries& table) {
   std::string out;
   for (const auto& e : table)
-    out += fmt::format("{}{} ({})", out.empty() ? "" : " | ", e.scheme.form, e.scheme.help);
+    out += fmt::format("{}{}: {}", out.empty() ? "" : " | ", e.scheme.form, e.scheme.help);
   return out;
 }
 

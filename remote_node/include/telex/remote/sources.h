@@ -119,7 +119,7 @@ struct SourceScheme {
 // The registered schemes, in the order --help lists them.
 std::vector<SourceScheme> depth_source_schemes();
 std::vector<SourceScheme> stereo_source_schemes();
-// "FORM (HELP) | FORM (HELP) | ...": the --source / --stereo help text.
+// "FORM: HELP | FORM: HELP | ...": the --source / --stereo help text.
 std::string depth_source_help();
 std::string stereo_source_help();
 
