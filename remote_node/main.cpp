@@ -102,16 +102,9 @@ int main(int argc, char** argv) {
                  "depth-to-right-eye extrinsics (registration becomes full), the robot head's "
                  "joints; the flags below override it");
   app.add_option("--source", cfg.depth_source,
-                 "Depth source: openni[:URI] | freenect[:INDEX] (Kinect v1; under fakenect a "
-                 "recording) | oni:PATH[,loop][,realtime|fast] | "
-                 "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
-                 "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] (ROS 1 bag, "
-                 "16UC1 or 32FC1; colour=T is the eye view) | "
-                 "synthetic[:SCENE][,animate][,noise=on|off]");
+                 "Depth source: " + telex::remote::depth_source_help());
   app.add_option("--stereo", cfg.stereo_source,
-                 "Stereo video source (empty = none): "
-                 "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg] | "
-                 "files:LEFT,RIGHT | bag:FILE,colour=T | synthetic[:SCENE]");
+                 "Stereo video source (empty = none): " + telex::remote::stereo_source_help());
   app.add_option("--listen", listen, "TCP control endpoint HOST:PORT");
   app.add_option("--transport", transport,
                  "Depth/video transport when the client offers UDP: udp | tcp")

@@ -328,4 +328,33 @@ HoleFillResult fill_holes_mode_roi_into(const cv::Mat1w& depth_mm, const cv::Rec
   return r;
 }
 
+cv::Rect widen_roi(const cv::Rect& roi, cv::Size image, const RoiWidening& widening) {
+  if (widening.margin_px < 0)
+    throw std::invalid_argument("widen_roi: margin must be >= 0 px, got " +
+                                std::to_string(widening.margin_px));
+  if (widening.align_px.width < 1 || widening.align_px.height < 1)
+    throw std::invalid_argument("widen_roi: alignment must be >= 1x1 px");
+  const cv::Rect whole(cv::Point(0, 0), image);
+  const cv::Rect r = roi & whole;
+  if (r.empty()) return {};
+  const int m = widening.margin_px;
+  const int ax = widening.align_px.width, ay = widening.align_px.height;
+  // Floor and ceiling to the grid (coordinates may be negative after the margin).
+  const auto floor_to = [](int v, int a) { return (v >= 0 ? v : v - a + 1) / a * a; };
+  const auto ceil_to = [&](int v, int a) { return floor_to(v + a - 1, a); };
+  const int x0 = floor_to(r.x - m, ax), y0 = floor_to(r.y - m, ay);
+  const int x1 = ceil_to(r.x + r.width + m, ax), y1 = ceil_to(r.y + r.height + m, ay);
+  return cv::Rect(x0, y0, x1 - x0, y1 - y0) & whole;
+}
+
+void fill_holes_mode_rois_into(const cv::Mat1w& depth_mm, std::span<const cv::Rect> rois,
+                               const RoiWidening& widening, cv::Mat1w& out_mm,
+                               const HoleFillOptions& options) {
+  out_mm.create(depth_mm.size());
+  for (const cv::Rect& roi : rois) {
+    const cv::Rect wide = widen_roi(roi, depth_mm.size(), widening);
+    if (!wide.empty()) fill_holes_mode_roi_into(depth_mm, wide, out_mm, options);
+  }
+}
+
 }  // namespace telex

@@ -185,14 +185,10 @@ std::shared_ptr<Surface> build_surface(const AssembledFrame& frame, const Surfac
     if (!o.roi) {
       fill_holes_mode_into(frame.depth_mm, filled, o.fill_options);
     } else {
-      filled.create(size);
+      // What the filter reads: the windows plus the bilateral radius.
       const int margin = o.bilateral ? o.bilateral_options.radius_px : 0;
-      for (const auto& r : windows) {
-        const cv::Rect wide =
-            cv::Rect(r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin) &
-            cv::Rect(cv::Point(0, 0), size);
-        fill_holes_mode_roi_into(frame.depth_mm, wide, filled, o.fill_options);
-      }
+      fill_holes_mode_rois_into(frame.depth_mm, windows, RoiWidening{margin, {1, 1}}, filled,
+                                o.fill_options);
     }
     depth = &filled;
     local.fill_ms = now_ms() - t0;

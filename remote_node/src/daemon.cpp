@@ -47,6 +47,22 @@ void validate(const DaemonConfig& c) {
         "--head sim|dynamixel:DEV|udp:HOST:PORT");
 }
 
+std::string_view eye_state_name(EyeState state) {
+  switch (state) {
+    case EyeState::Held:
+      return "held";
+    case EyeState::None:
+      return "none";
+    case EyeState::Live:
+      return "live";
+    case EyeState::Ended:
+      return "ended";
+    case EyeState::Off:
+      break;
+  }
+  return "off";
+}
+
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds) {
   const double dt = seconds > 0 ? seconds : 1.0;
   std::string ended;  // sessions ended so far, by reason
@@ -65,7 +81,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
       "over-queue {} control-dropped {} | frames-sent {} | head-in {} "
       "clamped {} rate-limited {} accel-limited {} link-lost {} stale-held {} repeat-held {} "
-      "deadman-held {}{} head-errors {} | realtime {}/{}",
+      "deadman-held {}{} head-errors {} | realtime {}/{} | eyes {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -91,7 +107,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.head_holding ? std::string(" holding (") + head_hold_name(now.head_hold) + ")" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
           now.head.hardware_errors + now.head.io_errors,
-      now.realtime_threads, now.path_threads);
+      now.realtime_threads, now.path_threads, eye_state_name(now.eyes));
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -154,6 +170,8 @@ void RemoteDaemon::start() {
   start_opencv_workers();  // from this thread, so they never inherit the depth path's priority
   depth_->start();
   if (stereo_) stereo_->start();
+  log_plays_once();
+  eyes_ = !stereo_ ? EyeState::Off : stereo_->plays_once() ? EyeState::Held : EyeState::None;
   config_.server.fps = static_cast<float>(depth_->nominal_fps());
   const int path_priority = config_.realtime ? kRemotePathPriority : 0;
   config_.server.realtime_priority = path_priority;
@@ -215,6 +233,7 @@ DaemonStats RemoteDaemon::stats() const {
         return t.second.rfind("SCHED_FIFO", 0) == 0;
       }));
   s.source_ended = source_ended_;
+  s.eyes = eyes_;
   if (server_) {
     const auto& c = server_->counters();
     s.frames_sent = c.frames_sent;
@@ -348,9 +367,41 @@ HeadPose RemoteDaemon::head_pose_at(std::int64_t t) const {
   return out;
 }
 
+void RemoteDaemon::log_plays_once() const {
+  const auto once = [](std::int64_t n) {
+    return n >= 0 ? fmt::format("{} frames once", n) : std::string("its frames once");
+  };
+  if (depth_->plays_once())
+    spdlog::info(
+        "depth source {} will play {}, when the first station connects (add ,loop to the "
+        "--source spec to play it on a loop)",
+        depth_->describe(), once(depth_->frame_count()));
+  if (stereo_ && stereo_->plays_once())
+    spdlog::info(
+        "eye source {} will play {}, when the first station asks for video (add ,loop to its "
+        "spec to play it on a loop)",
+        stereo_->describe(), once(stereo_->frame_count()));
+}
+
+bool RemoteDaemon::depth_released() {
+  if (!station_seen_ && server_->state() == ClientState::Connected) station_seen_ = true;
+  return station_seen_;
+}
+
+bool RemoteDaemon::eyes_released() {
+  if (!video_seen_ && server_->video_wanted()) video_seen_ = true;
+  return video_seen_;
+}
+
 void RemoteDaemon::capture_loop() {
   auto last_log = std::chrono::steady_clock::time_point{};
+  const bool hold = depth_->plays_once();
   while (running_) {
+    // A source that plays once starts with the first station: played before, nobody would see it.
+    if (hold && !depth_released()) {
+      std::this_thread::sleep_for(20ms);
+      continue;
+    }
     auto r = depth_->read(100ms);
     if (r.status == ReadStatus::Frame) {
       {
@@ -385,14 +436,24 @@ void RemoteDaemon::capture_loop() {
 }
 
 void RemoteDaemon::stereo_loop() {
+  const bool hold = stereo_->plays_once();
   while (running_) {
+    // Video frames go out only once asked for, so a source that plays once waits for that.
+    if (hold && !eyes_released()) {
+      eyes_ = EyeState::Held;
+      std::this_thread::sleep_for(20ms);
+      continue;
+    }
+    if (eyes_ == EyeState::Held || eyes_ == EyeState::Off) eyes_ = EyeState::None;
     auto r = stereo_->read(100ms);
     if (r.status == ReadStatus::Frame) {
+      eyes_ = EyeState::Live;
       stereo_slot_.put(std::move(r.frame));
     } else if (r.status == ReadStatus::Error) {
       std::lock_guard lock(stats_mu_);
       ++stats_.source_errors;
     } else if (r.status == ReadStatus::EndOfStream) {
+      eyes_ = EyeState::Ended;
       return;
     }
   }
@@ -406,36 +467,22 @@ void RemoteDaemon::process_loop() {
     // Fill and stabiliser keep their history; tiles are only cut and encoded for a receiver.
     request.select_tiles = server_->state() == ClientState::Connected;
     // ROI first: a receiver that takes frames in parts gets the ROI tiles before the rest of the
-    // frame is even filled; others get both parts as one message set.
-    ProcessedFrame p = request.frame_parts ? pipeline_.process_roi(*frame, request)
-                                           : pipeline_.process(*frame, request);
-    p.manifest.head = frame->head;
-    if (observer_) observer_(p);
-    server_->publish(p);
-    const double first_part_ms = p.times.total_ms;
-    if (pipeline_.rest_pending()) {
-      // A newer frame waiting cuts this rest short, so its ROI part does not queue behind it.
-      ProcessedFrame rest =
-          pipeline_.process_rest(*frame, [this] { return depth_slot_.has_value(); });
-      rest.manifest.head = frame->head;
-      if (observer_) observer_(rest);
-      server_->publish(rest);
-      if (rest.rest_cut) {
-        std::lock_guard lock(stats_mu_);
-        ++stats_.rests_cut;
-      }
-      rest.tiles.insert(rest.tiles.end(), std::make_move_iterator(p.tiles.begin()),
-                        std::make_move_iterator(p.tiles.end()));
-      rest.tiles_skipped += p.tiles_skipped;
-      rest.times += p.times;
-      p = std::move(rest);
-    }
+    // frame is even filled, and a newer frame waiting cuts the rest short so its ROI part does not
+    // queue behind it; others get both parts as one message set.
+    const ProcessedFrame p = pipeline_.process(
+        *frame, request,
+        [this](const ProcessedFrame& part) {
+          if (observer_) observer_(part);
+          server_->publish(part);
+        },
+        [this] { return depth_slot_.has_value(); });
     std::lock_guard lock(stats_mu_);
+    if (p.rest_cut) ++stats_.rests_cut;
     ++stats_.frames_processed;
     stats_.tiles_sent += p.tiles.size();
     stats_.tiles_skipped += p.tiles_skipped;
     stats_.stage_ms_sum += p.times;
-    stats_.first_part_ms_sum += first_part_ms;
+    stats_.first_part_ms_sum += p.first_part_ms;
   }
 }
 
@@ -473,6 +520,7 @@ int RemoteDaemon::run() {
   auto last = t_start;
   auto last_insecure_warning = t_start;  // main() warned at start
   DaemonStats before = stats();
+  bool end_logged = false;
   asio::steady_timer tick(io);
   std::function<void()> arm = [&] {
     tick.expires_after(100ms);
@@ -497,6 +545,15 @@ int RemoteDaemon::run() {
       }
       if (source_ended_ &&
           depth_slot_.put_count() == stats().frames_processed + depth_slot_.dropped()) {
+        // What played for a station stays on its screen until it leaves.
+        if (depth_->plays_once() && server_->state() == ClientState::Connected) {
+          if (!end_logged)
+            spdlog::info("depth source {} ended; stopping when the station leaves",
+                         depth_->describe());
+          end_logged = true;
+          arm();
+          return;
+        }
         spdlog::info("depth source {} ended", depth_->describe());
         io.stop();
         return;

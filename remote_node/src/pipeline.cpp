@@ -114,32 +114,43 @@ const DepthImage& FramePipeline::register_frame(const DepthImage& in) {
   return registered_;
 }
 
-ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameRequest& request) {
-  // One message set in index order: nothing is streamed (the sink is back when this returns).
-  struct Unset {
-    TileSink& sink;
-    TileSink saved = std::move(sink);
-    ~Unset() { sink = std::move(saved); }
-  } unset{sink_};
-  ProcessedFrame out = process_roi(frame, request);
-  if (!rest_pending()) return out;
-  ProcessedFrame rest = process_rest(frame);
-  // One message set: every tile of the frame in index order, closed by the rest's manifest.
+ProcessedFrame FramePipeline::process(const DepthFrame& frame, const FrameRequest& request,
+                                      const PartHandler& on_part,
+                                      const std::function<bool()>& preempt) {
+  // Parts stream to the tile sink only when they go out as parts; one message set streams nothing.
+  stream_parts_ = request.frame_parts;
+  ProcessedFrame out = first_part(frame, request);
+  out.first_part_ms = out.times.total_ms;
+  if (!pending_.active) {
+    if (on_part) on_part(out);
+    return out;
+  }
+  if (request.frame_parts && on_part) on_part(out);
+  ProcessedFrame rest = rest_part(frame, request.frame_parts ? preempt : std::function<bool()>{});
+  if (request.frame_parts && on_part) on_part(rest);
+  merge_into_rest(std::move(out), rest);
+  if (!request.frame_parts && on_part) on_part(rest);
+  return rest;
+}
+
+void FramePipeline::merge_into_rest(ProcessedFrame&& roi, ProcessedFrame& rest) {
+  // The rest's manifest already closes the frame and lists both parts' tiles.
   std::vector<proto::EncodedTile> tiles;
-  tiles.reserve(out.tiles.size() + rest.tiles.size());
+  tiles.reserve(roi.tiles.size() + rest.tiles.size());
   std::merge(
-      std::make_move_iterator(out.tiles.begin()), std::make_move_iterator(out.tiles.end()),
+      std::make_move_iterator(roi.tiles.begin()), std::make_move_iterator(roi.tiles.end()),
       std::make_move_iterator(rest.tiles.begin()), std::make_move_iterator(rest.tiles.end()),
       std::back_inserter(tiles),
       [](const proto::EncodedTile& a, const proto::EncodedTile& b) { return a.index < b.index; });
   rest.tiles = std::move(tiles);
+  rest.tiles_streamed = 0;  // the parts streamed, not this set
   rest.part = FramePart::Whole;
-  rest.tiles_skipped += out.tiles_skipped;
-  rest.holes_in += out.holes_in;
-  rest.holes_out += out.holes_out;
-  rest.pixels_processed += out.pixels_processed;
-  rest.times += out.times;
-  return rest;
+  rest.tiles_skipped += roi.tiles_skipped;
+  rest.holes_in += roi.holes_in;
+  rest.holes_out += roi.holes_out;
+  rest.pixels_processed += roi.pixels_processed;
+  rest.times += roi.times;
+  rest.first_part_ms = roi.first_part_ms;
 }
 
 ProcessedFrame FramePipeline::start_frame(const DepthFrame& frame, const FrameRequest& request,
@@ -151,6 +162,7 @@ ProcessedFrame FramePipeline::start_frame(const DepthFrame& frame, const FrameRe
   out.codec = request.codec.value_or(config_.codec);
   const cv::Mat1w& in = image.depth_mm;
   out.grid = proto::TileGrid{in.cols, in.rows, config_.tile_width, config_.tile_height};
+  out.manifest.head = frame.head;
   return out;
 }
 
@@ -180,19 +192,9 @@ std::vector<int> FramePipeline::process_tiles(const DepthFrame& frame, const cv:
     if (job.fill_rois != nullptr) {
       // Per requested rectangle widened to whole tiles, with the fill's own margin, so its result
       // there equals a full-frame fill bit for bit.
-      filled_.create(in.size());
-      const cv::Rect image(0, 0, in.cols, in.rows);
-      for (const auto& roi : *job.fill_rois) {
-        const cv::Rect r = cv::Rect(roi.x, roi.y, roi.w, roi.h) & image;
-        if (r.empty()) continue;
-        const int x0 = r.x / grid.tile_width * grid.tile_width;
-        const int y0 = r.y / grid.tile_height * grid.tile_height;
-        const int x1 = (r.x + r.width + grid.tile_width - 1) / grid.tile_width * grid.tile_width;
-        const int y1 =
-            (r.y + r.height + grid.tile_height - 1) / grid.tile_height * grid.tile_height;
-        fill_holes_mode_roi_into(in, cv::Rect(x0, y0, x1 - x0, y1 - y0) & image, filled_,
-                                 config_.hole_fill);
-      }
+      fill_holes_mode_rois_into(in, *job.fill_rois,
+                                RoiWidening{0, cv::Size(grid.tile_width, grid.tile_height)},
+                                filled_, config_.hole_fill);
     } else {
       // Holes reach across tiles: the whole frame (inside tiles an ROI part already filled it
       // rewrites the same values, bit for bit).
@@ -257,7 +259,7 @@ std::vector<int> FramePipeline::process_tiles(const DepthFrame& frame, const cv:
     t.bytes = proto::encode_depth(stabilised_(r), out.codec, config_.zip_level);
     out.tiles.push_back(std::move(t));
     // Hand a batch on while the next ones are encoded; the last batch goes with the manifest.
-    if (sink_ && config_.stream_tiles > 0 && sent.size() < send.size() &&
+    if (sink_ && stream_parts_ && config_.stream_tiles > 0 && sent.size() < send.size() &&
         out.tiles.size() - out.tiles_streamed >= static_cast<std::size_t>(config_.stream_tiles)) {
       sink_(out, out.tiles_streamed);
       out.tiles_streamed = out.tiles.size();
@@ -267,9 +269,9 @@ std::vector<int> FramePipeline::process_tiles(const DepthFrame& frame, const cv:
   return sent;
 }
 
-ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRequest& request) {
+ProcessedFrame FramePipeline::first_part(const DepthFrame& frame, const FrameRequest& request) {
   pending_.active = false;
-  if (!request.select_tiles || request.rois.empty()) return process_whole(frame, request);
+  if (!request.select_tiles || request.rois.empty()) return whole_frame(frame, request);
   const double t_start = config_.clock_ms();
   const DepthImage& image = register_frame(frame.image);
   ProcessedFrame out = start_frame(frame, request, image);
@@ -290,7 +292,10 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
 
   TileJob job;
   job.tiles = &roi_tiles;
-  job.fill_rois = &request.rois;
+  std::vector<cv::Rect> fill_rois;
+  fill_rois.reserve(request.rois.size());
+  for (const auto& roi : request.rois) fill_rois.emplace_back(roi.x, roi.y, roi.w, roi.h);
+  job.fill_rois = &fill_rois;
   job.key = key;
   out.part = has_rest ? FramePart::RoiPart : FramePart::Whole;  // what streamed tiles carry
   out.key_frame = key;
@@ -320,9 +325,9 @@ ProcessedFrame FramePipeline::process_roi(const DepthFrame& frame, const FrameRe
   return out;
 }
 
-ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame,
-                                           const std::function<bool()>& preempt) {
-  // Only the frame whose ROI part process_roi() just returned has a rest.
+ProcessedFrame FramePipeline::rest_part(const DepthFrame& frame,
+                                        const std::function<bool()>& preempt) {
+  // Only the frame whose ROI part first_part() just returned has a rest.
   TELEX_DEMAND(pending_.active && pending_.frame_id == frame.frame_id);
   pending_.active = false;
   const double t_start = config_.clock_ms();
@@ -371,7 +376,7 @@ ProcessedFrame FramePipeline::process_rest(const DepthFrame& frame,
   return out;
 }
 
-ProcessedFrame FramePipeline::process_whole(const DepthFrame& frame, const FrameRequest& request) {
+ProcessedFrame FramePipeline::whole_frame(const DepthFrame& frame, const FrameRequest& request) {
   const double t_start = config_.clock_ms();
   const DepthImage& image = register_frame(frame.image);
   ProcessedFrame out = start_frame(frame, request, image);

@@ -12,6 +12,7 @@
 #include <iterator>
 #include <map>
 #include <mutex>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <thread>
 
@@ -350,6 +351,55 @@ TEST(RemoteDaemon, VideoIsSentOnlyWhenAsked) {
   ASSERT_TRUE(viewer.run_until([&] { return viewer.video_.size() >= 2; }, 10s));
   EXPECT_EQ(viewer.video_[0].width, 160);
   EXPECT_GT(viewer.video_[0].jpeg.size(), 100u);
+  d.stop();
+}
+
+TEST(RemoteDaemon, EyesThatPlayOnceWaitForAViewerAndTheirEndIsReported) {
+  const auto dir = telex::test::scratch_dir("eyes_play_once");
+  for (int i = 0; i < 3; ++i)
+    for (const char* eye : {"left", "right"})
+      ASSERT_TRUE(cv::imwrite((dir / (std::string(eye) + std::to_string(i) + ".png")).string(),
+                              cv::Mat3b(120, 160, cv::Vec3b(40, 80, std::uint8_t(100 + i)))));
+  auto cfg = base_config("synthetic:plane");
+  cfg.stereo_source =
+      "files:" + (dir / "left*.png").string() + "," + (dir / "right*.png").string() + ",fps=5";
+  RemoteDaemon d(cfg);
+  d.start();
+  EXPECT_EQ(d.stats().eyes, EyeState::Held);
+  // A station without video does not start them.
+  test::TestClient plain(d.port(), true);
+  ASSERT_TRUE(plain.run_until([&] { return plain.frames_.size() >= 3; }, 5s));
+  EXPECT_EQ(d.stats().eyes, EyeState::Held);
+  EXPECT_EQ(d.stats().video_frames, 0u);
+  plain.close();
+  // The first that asks for video gets every pair (one message per eye), then the stats line
+  // says they ended.
+  test::TestClient viewer(d.port(), true, proto::kCapVideo);
+  ASSERT_TRUE(viewer.run_until([&] { return d.stats().eyes == EyeState::Ended; }, 10s));
+  ASSERT_TRUE(viewer.run_until([&] { return viewer.video_.size() >= 6; }, 5s));
+  EXPECT_EQ(d.stats().video_frames, 3u);
+  EXPECT_EQ(viewer.video_.size(), 6u);
+  EXPECT_NE(format_stats_line(d.stats(), DaemonStats{}, 1.0).find("| realtime "),
+            std::string::npos);
+  EXPECT_TRUE(format_stats_line(d.stats(), DaemonStats{}, 1.0).ends_with(" | eyes ended"));
+  d.stop();
+}
+
+TEST(RemoteDaemon, EyesThatNeverDeliverAreReportedAsNone) {
+  auto cfg = base_config("synthetic:plane");
+  EXPECT_EQ(RemoteDaemon(cfg).stats().eyes, EyeState::Off);
+  // Files that are no images: every read fails, no pair is ever delivered.
+  const auto dir = telex::test::scratch_dir("eyes_never");
+  for (const char* name : {"left0.png", "right0.png"}) std::ofstream(dir / name) << "not a png";
+  cfg.stereo_source =
+      "files:" + (dir / "left*.png").string() + "," + (dir / "right*.png").string() + ",loop";
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient viewer(d.port(), true, proto::kCapVideo);
+  ASSERT_TRUE(viewer.run_until([&] { return d.stats().source_errors >= 3; }, 10s));
+  EXPECT_EQ(d.stats().eyes, EyeState::None);
+  EXPECT_TRUE(viewer.video_.empty());
+  EXPECT_TRUE(format_stats_line(d.stats(), DaemonStats{}, 1.0).ends_with(" | eyes none"));
   d.stop();
 }
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 #include <random>
 
 #include "remote_frames.h"
@@ -53,6 +54,17 @@ void receive(cv::Mat1w& held, const ProcessedFrame& p) {
               proto::DecodeStatus::Ok);
 }
 
+// The message sets process() hands on for one frame sent in parts, in order.
+std::vector<ProcessedFrame> parts_of(FramePipeline& p, const DepthFrame& frame,
+                                     FrameRequest request,
+                                     const std::function<bool()>& preempt = {}) {
+  request.frame_parts = true;
+  std::vector<ProcessedFrame> parts;
+  p.process(
+      frame, request, [&](const ProcessedFrame& part) { parts.push_back(part); }, preempt);
+  return parts;
+}
+
 FrameRequest roi_request(bool key = false) {
   FrameRequest r;
   r.force_key_frame = key;
@@ -71,7 +83,9 @@ TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
   ASSERT_EQ(mask_indices(in_roi, true), (std::vector<int>{9, 10, 17, 18, 25, 26, 36, 37, 44, 45}));
 
   // Key frame: the ROI part carries every ROI tile and lists them; it is not a key manifest.
-  const ProcessedFrame roi = p.process_roi(frame_of(d, 1), req);
+  const std::vector<ProcessedFrame> parts1 = parts_of(p, frame_of(d, 1), req);
+  ASSERT_EQ(parts1.size(), 2u);
+  const ProcessedFrame& roi = parts1[0];
   EXPECT_EQ(roi.part, FramePart::RoiPart);
   EXPECT_TRUE(roi.key_frame);
   EXPECT_FALSE(roi.manifest.key_frame);
@@ -79,11 +93,8 @@ TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
   EXPECT_EQ(std::vector<int>(roi.manifest.changed_tiles.begin(), roi.manifest.changed_tiles.end()),
             mask_indices(in_roi, true));
   EXPECT_EQ(roi.pixels_processed, 10u * 80u * 60u);
-  ASSERT_TRUE(p.rest_pending());
-  EXPECT_DEATH(p.process_rest(frame_of(d, 2)), "TELEX_DEMAND");  // another frame's rest
 
-  const ProcessedFrame rest = p.process_rest(frame_of(d, 1));
-  EXPECT_FALSE(p.rest_pending());
+  const ProcessedFrame& rest = parts1[1];
   EXPECT_EQ(rest.part, FramePart::Rest);
   EXPECT_EQ(rest.frame_id, 1u);
   EXPECT_TRUE(rest.manifest.key_frame);
@@ -103,11 +114,12 @@ TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
 
   // Frame 2 (rest due): the rest's manifest lists the changed tiles of both parts.
   const cv::Mat1w d2 = holey_frame(2);
-  const ProcessedFrame roi2 = p.process_roi(frame_of(d2, 2), roi_request());
-  ASSERT_TRUE(p.rest_pending());
+  const std::vector<ProcessedFrame> parts2 = parts_of(p, frame_of(d2, 2), roi_request());
+  ASSERT_EQ(parts2.size(), 2u);
+  const ProcessedFrame& roi2 = parts2[0];
   EXPECT_FALSE(roi2.tiles.empty());
   for (int i : indices(roi2.tiles)) EXPECT_TRUE(in_roi[static_cast<std::size_t>(i)]) << i;
-  const ProcessedFrame rest2 = p.process_rest(frame_of(d2, 2));
+  const ProcessedFrame& rest2 = parts2[1];
   EXPECT_FALSE(rest2.manifest.key_frame);
   std::vector<int> both = indices(roi2.tiles);
   for (int i : indices(rest2.tiles)) both.push_back(i);
@@ -120,9 +132,11 @@ TEST(RoiFirst, RoiPartCarriesExactlyTheRoiTilesThenTheRestCompletesTheFrame) {
   EXPECT_EQ(cv::norm(held, rest2.sent_view_mm, cv::NORM_INF), 0.0);
 
   // Frame 3 (rest not due): one part, ROI tiles only, nothing pending.
-  const ProcessedFrame f3 = p.process_roi(frame_of(holey_frame(3), 3), roi_request());
+  const std::vector<ProcessedFrame> parts3 =
+      parts_of(p, frame_of(holey_frame(3), 3), roi_request());
+  ASSERT_EQ(parts3.size(), 1u);
+  const ProcessedFrame& f3 = parts3[0];
   EXPECT_EQ(f3.part, FramePart::Whole);
-  EXPECT_FALSE(p.rest_pending());
   EXPECT_FALSE(f3.manifest.key_frame);
   for (int i : indices(f3.tiles)) EXPECT_TRUE(in_roi[static_cast<std::size_t>(i)]) << i;
   EXPECT_EQ(f3.pixels_processed, 10u * 80u * 60u);
@@ -140,11 +154,12 @@ TEST(RoiFirst, ACutRestLeavesItsTilesDueAndTheNextFrameCarriesThem) {
   cv::Mat1w held(480, 640, std::uint16_t(0));
 
   // Key frame 1; its rest is cut after 5 tiles (a newer frame "arrived").
-  const ProcessedFrame roi1 = p.process_roi(frame_of(holey_frame(1), 1), roi_request(true));
-  ASSERT_TRUE(p.rest_pending());
   int polls = 0;
-  const ProcessedFrame rest1 =
-      p.process_rest(frame_of(holey_frame(1), 1), [&] { return ++polls > 5; });
+  const std::vector<ProcessedFrame> parts1 =
+      parts_of(p, frame_of(holey_frame(1), 1), roi_request(true), [&] { return ++polls > 5; });
+  ASSERT_EQ(parts1.size(), 2u);
+  const ProcessedFrame& roi1 = parts1[0];
+  const ProcessedFrame& rest1 = parts1[1];
   EXPECT_TRUE(rest1.rest_cut);
   EXPECT_EQ(rest1.tiles.size(), 5u);
   // Cut, so not a key manifest: it lists exactly what both parts carried.
@@ -164,10 +179,12 @@ TEST(RoiFirst, ACutRestLeavesItsTilesDueAndTheNextFrameCarriesThem) {
   // Frame 2 (background not due by the divider): it is a key frame with a rest, owed by the cut;
   // a second rest in a row is never cut, so it completes whatever `preempt` says.
   const cv::Mat1w d2 = holey_frame(2);
-  const ProcessedFrame roi2 = p.process_roi(frame_of(d2, 2), roi_request());
+  const std::vector<ProcessedFrame> parts2 =
+      parts_of(p, frame_of(d2, 2), roi_request(), [] { return true; });
+  ASSERT_EQ(parts2.size(), 2u);
+  const ProcessedFrame& roi2 = parts2[0];
   EXPECT_TRUE(roi2.key_frame);
-  ASSERT_TRUE(p.rest_pending());
-  const ProcessedFrame rest2 = p.process_rest(frame_of(d2, 2), [] { return true; });
+  const ProcessedFrame& rest2 = parts2[1];
   EXPECT_FALSE(rest2.rest_cut);
   EXPECT_TRUE(rest2.manifest.key_frame);
   EXPECT_EQ(indices(rest2.tiles), mask_indices(in_roi, false));
@@ -176,10 +193,11 @@ TEST(RoiFirst, ACutRestLeavesItsTilesDueAndTheNextFrameCarriesThem) {
   EXPECT_EQ(cv::norm(held, rest2.sent_view_mm, cv::NORM_INF), 0.0);
 
   // Frame 3: nothing owed, background not due: ROI tiles only.
-  const ProcessedFrame f3 = p.process_roi(frame_of(holey_frame(3), 3), roi_request());
-  EXPECT_EQ(f3.part, FramePart::Whole);
-  EXPECT_FALSE(p.rest_pending());
-  EXPECT_FALSE(f3.key_frame);
+  const std::vector<ProcessedFrame> parts3 =
+      parts_of(p, frame_of(holey_frame(3), 3), roi_request());
+  ASSERT_EQ(parts3.size(), 1u);
+  EXPECT_EQ(parts3[0].part, FramePart::Whole);
+  EXPECT_FALSE(parts3[0].key_frame);
 }
 
 TEST(RoiFirst, FramesWithoutTheRestDueLeaveNonRoiPixelsAlone) {
@@ -226,17 +244,22 @@ TEST(RoiFirst, MergedProcessEqualsBothPartsInOneMessageSet) {
     EXPECT_TRUE(std::is_sorted(m.tiles.begin(), m.tiles.end(),
                                [](const auto& a, const auto& b) { return a.index < b.index; }));
     receive(held_merged, m);
-    const ProcessedFrame a = split.process_roi(frame_of(d, id), roi_request(id == 1));
-    receive(held_split, a);
-    std::size_t tiles = a.tiles.size();
-    proto::FrameManifest closing = a.manifest;
-    if (split.rest_pending()) {
-      const ProcessedFrame b = split.process_rest(frame_of(d, id));
-      receive(held_split, b);
-      tiles += b.tiles.size();
-      closing = b.manifest;
-    }
+    FrameRequest in_parts = roi_request(id == 1);
+    in_parts.frame_parts = true;
+    std::size_t tiles = 0;
+    proto::FrameManifest closing;
+    const ProcessedFrame all =
+        split.process(frame_of(d, id), in_parts, [&](const ProcessedFrame& part) {
+          receive(held_split, part);
+          tiles += part.tiles.size();
+          closing = part.manifest;
+        });
     EXPECT_EQ(m.tiles.size(), tiles) << id;
+    // What process() returns for a frame sent in parts is the same one message set.
+    EXPECT_EQ(indices(all.tiles), indices(m.tiles)) << id;
+    EXPECT_EQ(all.manifest, m.manifest) << id;
+    EXPECT_EQ(all.tiles_skipped, m.tiles_skipped) << id;
+    EXPECT_EQ(all.pixels_processed, m.pixels_processed) << id;
     EXPECT_EQ(m.manifest, closing) << id;
     EXPECT_EQ(cv::norm(held_split, held_merged, cv::NORM_INF), 0.0) << id;
     EXPECT_EQ(cv::norm(held_merged, m.sent_view_mm, cv::NORM_INF), 0.0) << id;
@@ -246,17 +269,16 @@ TEST(RoiFirst, MergedProcessEqualsBothPartsInOneMessageSet) {
 TEST(RoiFirst, WithoutRoisOrReceiverTheFrameIsWhole) {
   FramePipeline p(PipelineConfig{});
   const cv::Mat1w d = holey_frame(4);
-  const ProcessedFrame a = p.process_roi(frame_of(d, 1), {});
-  EXPECT_EQ(a.part, FramePart::Whole);
-  EXPECT_FALSE(p.rest_pending());
-  EXPECT_EQ(a.tiles.size(), 64u);
+  const std::vector<ProcessedFrame> a = parts_of(p, frame_of(d, 1), {});
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].part, FramePart::Whole);
+  EXPECT_EQ(a[0].tiles.size(), 64u);
   FrameRequest nobody = roi_request();
   nobody.select_tiles = false;
-  const ProcessedFrame b = p.process_roi(frame_of(d, 2), nobody);
-  EXPECT_EQ(b.part, FramePart::Whole);
-  EXPECT_TRUE(b.tiles.empty());
-  EXPECT_FALSE(p.rest_pending());
-  EXPECT_DEATH(p.process_rest(frame_of(d, 2)), "TELEX_DEMAND");
+  const std::vector<ProcessedFrame> b = parts_of(p, frame_of(d, 2), nobody);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].part, FramePart::Whole);
+  EXPECT_TRUE(b[0].tiles.empty());
 }
 
 TEST(TileSink, PartsStreamInBatchesAheadOfTheirManifestAndMergedFramesDoNot) {
@@ -277,8 +299,8 @@ TEST(TileSink, PartsStreamInBatchesAheadOfTheirManifestAndMergedFramesDoNot) {
   });
   // A whole key frame (64 tiles): seven batches of 8 stream, the last 8 go with the manifest.
   const cv::Mat1w d = holey_frame(5);
-  const ProcessedFrame whole = streaming.process_roi(frame_of(d, 1), {});
-  const ProcessedFrame reference = plain.process_roi(frame_of(d, 1), {});
+  const ProcessedFrame whole = parts_of(streaming, frame_of(d, 1), {}).at(0);
+  const ProcessedFrame reference = plain.process(frame_of(d, 1), {});
   ASSERT_EQ(whole.tiles.size(), 64u);
   EXPECT_EQ(whole.tiles_streamed, 56u);
   ASSERT_EQ(batches.size(), 7u);
@@ -301,24 +323,26 @@ TEST(TileSink, PartsStreamInBatchesAheadOfTheirManifestAndMergedFramesDoNot) {
 
   // An ROI part with a rest: the ROI part's batches carry its part and key flags.
   batches.clear();
-  const ProcessedFrame roi = streaming.process_roi(frame_of(holey_frame(6), 2), roi_request(true));
+  const std::vector<ProcessedFrame> parts =
+      parts_of(streaming, frame_of(holey_frame(6), 2), roi_request(true));
+  ASSERT_EQ(parts.size(), 2u);
+  const ProcessedFrame& roi = parts[0];
+  const ProcessedFrame& rest = parts[1];
   ASSERT_EQ(roi.part, FramePart::RoiPart);
-  for (const auto& b : batches) EXPECT_EQ(b.part, FramePart::RoiPart);
-  EXPECT_EQ(roi.tiles_streamed, batches.size() * 8);
-  batches.clear();
-  const ProcessedFrame rest = streaming.process_rest(frame_of(holey_frame(6), 2));
-  ASSERT_FALSE(batches.empty());
-  for (const auto& b : batches) EXPECT_EQ(b.part, FramePart::Rest);
-  EXPECT_EQ(rest.tiles_streamed, batches.size() * 8);
+  const std::size_t roi_batches = roi.tiles_streamed / 8;
+  ASSERT_LT(roi_batches, batches.size());
+  for (std::size_t i = 0; i < batches.size(); ++i)
+    EXPECT_EQ(batches[i].part, i < roi_batches ? FramePart::RoiPart : FramePart::Rest) << i;
+  EXPECT_EQ(rest.tiles_streamed, (batches.size() - roi_batches) * 8);
   EXPECT_LT(rest.tiles_streamed, rest.tiles.size());  // the last batch goes with the manifest
 
-  // process() merges both parts into one message set in index order: nothing streams, and the
-  // sink is back afterwards.
+  // Without frame_parts, process() merges both parts into one message set in index order:
+  // nothing streams, and the next frame sent in parts streams again.
   batches.clear();
   const ProcessedFrame merged = streaming.process(frame_of(holey_frame(7), 3), roi_request(true));
   EXPECT_TRUE(batches.empty());
   EXPECT_EQ(merged.tiles_streamed, 0u);
-  streaming.process_roi(frame_of(holey_frame(8), 4), {});
+  parts_of(streaming, frame_of(holey_frame(8), 4), {});
   EXPECT_FALSE(batches.empty());
 }
 

@@ -57,6 +57,25 @@ TEST(SourceSpec, SplitsKindArgFlagsAndValues) {
   EXPECT_EQ(v.flags[0], "/dev/video2");
 }
 
+TEST(SourceRegistry, HelpListsEverySchemeAndUnknownSchemesNameTheValidOnes) {
+  const std::string depth_help = depth_source_help(), stereo_help = stereo_source_help();
+  for (const auto& s : depth_source_schemes()) {
+    EXPECT_NE(depth_help.find(s.form), std::string::npos) << s.name;
+    EXPECT_EQ(s.form.substr(0, s.name.size()), s.name);
+  }
+  for (const auto& s : stereo_source_schemes())
+    EXPECT_NE(stereo_help.find(s.form), std::string::npos) << s.name;
+  EXPECT_NE(stereo_help.find("files:LEFT_PATTERN,RIGHT_PATTERN[,fps=F][,loop]"), std::string::npos);
+  try {
+    make_stereo_source("oni:x.oni");  // a depth scheme, not a stereo one
+    FAIL() << "unknown stereo scheme accepted";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("unknown stereo source 'oni'"), std::string::npos) << what;
+    EXPECT_NE(what.find("v4l2, files, bag, synthetic"), std::string::npos) << what;
+  }
+}
+
 TEST(SourceSpec, RejectsMalformedSpecsWithTheirName) {
   EXPECT_THROW(parse_source_spec(""), std::invalid_argument);
   EXPECT_THROW(parse_source_spec(":x"), std::invalid_argument);
@@ -66,7 +85,8 @@ TEST(SourceSpec, RejectsMalformedSpecsWithTheirName) {
     FAIL() << "unknown kind accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("kinect2"), std::string::npos);
-    EXPECT_NE(std::string(e.what()).find("openni"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("openni, freenect, oni, files, bag, synthetic"),
+              std::string::npos);
   }
   EXPECT_THROW(make_depth_source("oni:x.oni,loop,bogus"), std::invalid_argument);
   EXPECT_THROW(make_depth_source("oni:x.oni,realtime,fast"), std::invalid_argument);

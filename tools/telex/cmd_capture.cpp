@@ -212,12 +212,11 @@ const RegisterCommand kRegister{
     "capture", "save N depth frames (16-bit mm PNG) and eye images from any source",
     [](CLI::App& app) -> std::function<int()> {
       auto a = std::make_shared<CaptureArgs>();
-      app.add_option("--source", a->source,
-                     "depth source spec, as telex-remote --source (synthetic, files, oni, "
-                     "openni, freenect, bag)")
+      app.add_option("--source", a->source, "depth source spec: " + remote::depth_source_help())
           ->required();
-      app.add_option("--stereo", a->stereo,
-                     "eye view spec, as telex-remote --stereo (default: a bag source's colour=)");
+      app.add_option(
+          "--stereo", a->stereo,
+          "eye view spec (default: a bag source's colour=): " + remote::stereo_source_help());
       app.add_option("--frames", a->frames, "frames to save")->check(CLI::Range(1, 1'000'000));
       app.add_option("--out", a->out, "output directory (created)")->required();
       app.add_option("--every", a->every, "keep every K-th frame read")

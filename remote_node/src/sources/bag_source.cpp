@@ -260,6 +260,7 @@ class BagDepthSource final : public DepthSource {
   // The recorded rate, scaled by rate=R (the pipeline's pacing and the stats line use it).
   double nominal_fps() const override { return fps_ * rate_; }
   std::int64_t frame_count() const override { return static_cast<std::int64_t>(messages_); }
+  bool plays_once() const override { return !stream_.loop(); }
   std::string describe() const override {
     return fmt::format("bag:{} ({} {}, {} frames, intrinsics from {}, {}{})", spec_.arg, topic_,
                        encoding_, messages_, info_, stream_.pace(), stream_.loop() ? ", loop" : "");
@@ -300,6 +301,7 @@ class BagColourSource final : public StereoSource {
     if (t == nullptr || t->type != "sensor_msgs/Image")
       throw std::runtime_error(fmt::format("bag {} has no sensor_msgs/Image topic {}; it holds {}",
                                            spec_.arg, topic_, r.describe_topics()));
+    messages_ = t->messages;
     stream_.open(topic_, "");
   }
   void stop() override {}
@@ -320,15 +322,18 @@ class BagColourSource final : public StereoSource {
     out.frame.frame_id = ++frames_;
     return out;
   }
+  std::int64_t frame_count() const override { return static_cast<std::int64_t>(messages_); }
+  bool plays_once() const override { return !stream_.loop(); }
   std::string describe() const override {
-    return fmt::format("bag:{} colour {} (both eyes)", spec_.arg, topic_);
+    return fmt::format("bag:{} colour {} (both eyes{})", spec_.arg, topic_,
+                       stream_.loop() ? ", loop" : "");
   }
 
  private:
   SourceSpec spec_;
   BagImageStream stream_;
   std::string topic_;
-  std::uint64_t frames_ = 0;
+  std::uint64_t frames_ = 0, messages_ = 0;
 };
 
 void check_bag_spec(const SourceSpec& spec) {

@@ -161,6 +161,7 @@ class FilesDepthSource final : public DepthSource {
   Intrinsics intrinsics() const override { return intrinsics_; }
   double nominal_fps() const override { return fps_; }
   std::int64_t frame_count() const override { return static_cast<std::int64_t>(files_.size()); }
+  bool plays_once() const override { return !cursor_.loop(); }
   std::string describe() const override {
     return fmt::format("files:{} ({} files, {}, {} fps{})", pattern_, files_.size(),
                        to_string(units_), fps_, cursor_.loop() ? ", loop" : "");
@@ -281,8 +282,11 @@ class FilesStereoSource final : public StereoSource {
     out.status = ReadStatus::Frame;
     return out;
   }
+  std::int64_t frame_count() const override { return static_cast<std::int64_t>(left_.size()); }
+  bool plays_once() const override { return !cursor_.loop(); }
   std::string describe() const override {
-    return fmt::format("files:{},{}", left_pattern_, right_pattern_);
+    return fmt::format("files:{},{} ({} pairs{})", left_pattern_, right_pattern_, left_.size(),
+                       cursor_.loop() ? ", loop" : "");
   }
 
  private:

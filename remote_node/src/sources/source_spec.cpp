@@ -3,7 +3,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <iterator>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "source_impl.h"
 #include "telex/remote/sources.h"
@@ -11,15 +14,83 @@
 namespace telex::remote {
 
 namespace {
-constexpr std::string_view kDepthForms =
-    "openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] | "
-    "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] | "
-    "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | "
-    "synthetic[:SCENE][,animate][,noise=on|off]";
-constexpr std::string_view kStereoForms =
-    "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg] | "
-    "files:LEFT_PATTERN,RIGHT_PATTERN[,fps=F][,loop] | "
-    "bag:FILE,colour=T[,loop][,rate=R|fast] | synthetic[:SCENE][,animate]";
+
+// The registry: one row per scheme, in the order --help lists them (as libcamera registers its
+// pipeline handlers). A spec is split by parse_source_spec; each factory checks its own options
+// and throws std::invalid_argument naming the bad one.
+using DepthFactory = std::unique_ptr<DepthSource> (*)(const SourceSpec&, const SourceOptions&);
+using StereoFactory = std::unique_ptr<StereoSource> (*)(const SourceSpec&, const SourceOptions&);
+
+struct DepthEntry {
+  SourceScheme scheme;
+  DepthFactory make;
+};
+struct StereoEntry {
+  SourceScheme scheme;
+  StereoFactory make;
+};
+
+const DepthEntry kDepthSources[] = {
+    {{"openni", "openni[:URI]", "a PrimeSense/OpenNI2 sensor (URI from `telex devices`)"},
+     detail::make_openni_source},
+    {{"freenect", "freenect[:INDEX]", "Kinect v1 by libfreenect; under fakenect a recording"},
+     detail::make_freenect_source},
+    {{"oni", "oni:PATH[,loop][,realtime|fast]", "an OpenNI .oni recording"},
+     detail::make_oni_source},
+    {{"files", "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop]",
+      "depth images; without loop they play once, from the first station's connection"},
+     detail::make_files_depth_source},
+    {{"bag", "bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast]",
+      "a ROS 1 bag, 16UC1 or 32FC1 (colour=T is the eye view); without loop it plays once, "
+      "from the first station's connection"},
+     detail::make_bag_depth_source},
+    {{"synthetic", "synthetic[:SCENE][,animate][,noise=on|off]", "the synthetic renderer"},
+     detail::make_synthetic_depth_source},
+};
+
+const StereoEntry kStereoSources[] = {
+    {{"v4l2", "v4l2:/dev/videoL,/dev/videoR[,size=WxH][,format=yuyv|mjpeg]", "two USB cameras"},
+     detail::make_v4l2_stereo_source},
+    {{"files", "files:LEFT_PATTERN,RIGHT_PATTERN[,fps=F][,loop]",
+      "image pairs; without loop they play once, when the first station asks for video"},
+     detail::make_files_stereo_source},
+    {{"bag", "bag:FILE,colour=T[,loop][,rate=R|fast]",
+      "a bag's colour topic for both eyes; without loop it plays once, when the first station "
+      "asks for video"},
+     detail::make_bag_colour_source},
+    {{"synthetic", "synthetic[:SCENE][,animate]", "the synthetic renderer"},
+     detail::make_synthetic_stereo_source},
+};
+
+template <typename Entries>
+std::string forms_of(const Entries& table) {
+  std::string out;
+  for (const auto& e : table) out += fmt::format("{}{}", out.empty() ? "" : " | ", e.scheme.form);
+  return out;
+}
+
+template <typename Entries>
+std::string help_of(const Entries& table) {
+  std::string out;
+  for (const auto& e : table)
+    out += fmt::format("{}{}: {}", out.empty() ? "" : " | ", e.scheme.form, e.scheme.help);
+  return out;
+}
+
+template <typename Entries>
+const auto* find_scheme(const Entries& table, std::string_view name) {
+  for (const auto& e : table)
+    if (e.scheme.name == name) return &e;
+  return static_cast<decltype(&table[0])>(nullptr);
+}
+
+template <typename Entries>
+std::string names_of(const Entries& table) {
+  std::string out;
+  for (const auto& e : table) out += fmt::format("{}{}", out.empty() ? "" : ", ", e.scheme.name);
+  return out;
+}
+
 }  // namespace
 
 std::int64_t steady_now_ns() {
@@ -80,28 +151,37 @@ void require_options(const SourceSpec& spec, std::initializer_list<std::string_v
 }
 }  // namespace detail
 
+std::vector<SourceScheme> depth_source_schemes() {
+  std::vector<SourceScheme> out;
+  for (const auto& e : kDepthSources) out.push_back(e.scheme);
+  return out;
+}
+
+std::vector<SourceScheme> stereo_source_schemes() {
+  std::vector<SourceScheme> out;
+  for (const auto& e : kStereoSources) out.push_back(e.scheme);
+  return out;
+}
+
+std::string depth_source_help() { return help_of(kDepthSources); }
+std::string stereo_source_help() { return help_of(kStereoSources); }
+
 std::unique_ptr<DepthSource> make_depth_source(std::string_view spec_text,
                                                const SourceOptions& options) {
   const SourceSpec spec = parse_source_spec(spec_text);
-  if (spec.kind == "openni") return detail::make_openni_source(spec, options);
-  if (spec.kind == "freenect") return detail::make_freenect_source(spec, options);
-  if (spec.kind == "oni") return detail::make_oni_source(spec, options);
-  if (spec.kind == "files") return detail::make_files_depth_source(spec, options);
-  if (spec.kind == "bag") return detail::make_bag_depth_source(spec, options);
-  if (spec.kind == "synthetic") return detail::make_synthetic_depth_source(spec, options);
-  throw std::invalid_argument(fmt::format("unknown depth source '{}' in '{}'; valid: {}", spec.kind,
-                                          spec_text, kDepthForms));
+  if (const auto* e = find_scheme(kDepthSources, spec.kind)) return e->make(spec, options);
+  throw std::invalid_argument(
+      fmt::format("unknown depth source '{}' in '{}'; valid sources: {} ({})", spec.kind, spec_text,
+                  names_of(kDepthSources), forms_of(kDepthSources)));
 }
 
 std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec_text,
                                                  const SourceOptions& options) {
   const SourceSpec spec = parse_source_spec(spec_text);
-  if (spec.kind == "v4l2") return detail::make_v4l2_stereo_source(spec, options);
-  if (spec.kind == "files") return detail::make_files_stereo_source(spec, options);
-  if (spec.kind == "bag") return detail::make_bag_colour_source(spec, options);
-  if (spec.kind == "synthetic") return detail::make_synthetic_stereo_source(spec, options);
-  throw std::invalid_argument(fmt::format("unknown stereo source '{}' in '{}'; valid: {}",
-                                          spec.kind, spec_text, kStereoForms));
+  if (const auto* e = find_scheme(kStereoSources, spec.kind)) return e->make(spec, options);
+  throw std::invalid_argument(
+      fmt::format("unknown stereo source '{}' in '{}'; valid sources: {} ({})", spec.kind,
+                  spec_text, names_of(kStereoSources), forms_of(kStereoSources)));
 }
 
 std::unique_ptr<StereoSource> make_eye_source(std::string_view depth_spec,

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <opencv2/core.hpp>
+#include <span>
 
 namespace telex {
 
@@ -54,5 +55,25 @@ HoleFillResult fill_holes_mode_roi(const cv::Mat1w& depth_mm, const cv::Rect& ro
 // the result equals fill_holes_mode's, bit for bit. Returns the result with an empty `depth_mm`.
 HoleFillResult fill_holes_mode_roi_into(const cv::Mat1w& depth_mm, const cv::Rect& roi,
                                         cv::Mat1w& out_mm, const HoleFillOptions& options = {});
+
+// How a requested region of interest grows before it is filled: by `margin_px` on every side (what
+// a later stage reads around it, e.g. a bilateral filter's radius), then out to whole cells of
+// `align_px` (a tile grid anchored at (0, 0)), always clipped to the image.
+struct RoiWidening {
+  int margin_px = 0;
+  cv::Size align_px{1, 1};
+};
+
+// `roi` clipped to `image`, widened by `widening` and clipped again; empty when `roi` lies outside
+// the image. Throws std::invalid_argument on a negative margin or a non-positive alignment.
+cv::Rect widen_roi(const cv::Rect& roi, cv::Size image, const RoiWidening& widening);
+
+// The ROI fill of the remote's pipeline and the station's surface builder: every one of `rois`,
+// widened (widen_roi), filled by fill_holes_mode_roi_into into `out_mm` (allocated to the input's
+// size; pixels outside every widened ROI are undefined). Inside them the result equals
+// fill_holes_mode's bit for bit. ROIs outside the image are skipped.
+void fill_holes_mode_rois_into(const cv::Mat1w& depth_mm, std::span<const cv::Rect> rois,
+                               const RoiWidening& widening, cv::Mat1w& out_mm,
+                               const HoleFillOptions& options = {});
 
 }  // namespace telex

@@ -59,6 +59,13 @@ struct DaemonConfig {
 // Throws std::invalid_argument naming the first bad value.
 void validate(const DaemonConfig& config);
 
+// The eye view (--stereo, or a bag's colour topic) as the stats line reports it: off (no eye
+// source), held (a source that plays once waits for a station that wants video), none (reading,
+// nothing delivered yet: a camera that never delivers stays here), live (delivering), ended (a
+// finite source played its last frame).
+enum class EyeState : std::uint8_t { Off, Held, None, Live, Ended };
+std::string_view eye_state_name(EyeState state);
+
 struct DaemonStats {
   std::uint64_t frames_in = 0;            // captured
   std::uint64_t frames_slot_dropped = 0;  // replaced in the slot before processing
@@ -93,6 +100,7 @@ struct DaemonStats {
   bool source_ended = false;
   // Threads on the depth path (capture, process, network, head) and how many got SCHED_FIFO.
   int path_threads = 0, realtime_threads = 0;
+  EyeState eyes = EyeState::Off;
 };
 
 // "frames in/out", mean ms per stage, bytes/s, tiles skipped and client state between two
@@ -120,7 +128,9 @@ class RemoteDaemon {
   void set_frame_observer(std::function<void(const ProcessedFrame&)> observer);
 
   // Runs until SIGINT/SIGTERM, the configured duration, or the end of a non-looping recording,
-  // printing the stats line every second. Returns the process exit code.
+  // printing the stats line every second. Returns the process exit code. A source that plays once
+  // (DepthSource::plays_once) starts when the first station connects, and the daemon stays up
+  // after its end while that station is connected.
   int run();
 
  private:
@@ -144,6 +154,12 @@ class RemoteDaemon {
   LatestSlot<StereoFrame> stereo_slot_;
   std::atomic<bool> running_{false};
   std::atomic<bool> source_ended_{false};
+  // Sources that play once wait for these: a station connected, one that wants video.
+  void log_plays_once() const;
+  bool depth_released();
+  bool eyes_released();
+  std::atomic<bool> station_seen_{false}, video_seen_{false};
+  std::atomic<EyeState> eyes_{EyeState::Off};
   std::thread capture_thread_, stereo_thread_, process_thread_, video_thread_, head_thread_;
   // Head teleoperation: the operator's targets (network thread) and the measured poses (head
   // loop) read by the capture thread.

@@ -115,7 +115,8 @@ struct ProcessedFrame {
   cv::Mat1w sent_view_mm;  // what a receiver that got every message of every frame now holds
   std::vector<proto::EncodedTile> tiles;  // tiles to send, increasing index
   // tiles[0, tiles_streamed) went to the tile sink while the part was encoded; the rest and the
-  // manifest go when the part is returned.
+  // manifest go when the part is returned. 0 in the merged set process() returns for a frame sent
+  // in two parts (its parts streamed).
   std::size_t tiles_streamed = 0;
   proto::FrameManifest manifest;
   bool rest_cut = false;  // a Rest cut short for a newer frame: its unsent tiles go with the next
@@ -123,6 +124,7 @@ struct ProcessedFrame {
   std::size_t holes_in = 0, holes_out = 0;  // over the pixels this part processed
   std::size_t pixels_processed = 0;         // pixels through fill, temporal fill and stabiliser
   StageTimes times;
+  double first_part_ms = 0;  // process(): times.total_ms of the frame's first part
 };
 
 // Tiles of `grid` that intersect any of `rois`, as a mask indexed by tile.
@@ -131,31 +133,36 @@ std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
 
 // Single-threaded: owned by the processing thread. Reads no clock except to time its own stages.
 //
-// ROI first: with ROIs requested, process_roi() fills, temporally fills, stabilises, selects and
-// encodes only the tiles that intersect an ROI. On frames where the rest is due (key frames, and
-// every `background_every`th frame) it returns them as FramePart::RoiPart and rest_pending() is
-// true: process_rest() with the same frame then does the other tiles (FramePart::Rest). On other
-// frames the ROI tiles are the whole frame (FramePart::Whole) and no pixel outside them is
-// touched: their fill, temporal history and stabiliser state wait for the next frame whose rest
-// is due. Without ROIs (or without a receiver) process_roi() processes the whole frame at once.
+// process() is the one entry point. ROI first: with ROIs requested, the ROI part fills,
+// temporally fills, stabilises, selects and encodes only the tiles that intersect an ROI. On
+// frames where the rest is due (key frames, and every `background_every`th frame) the other tiles
+// follow as a second part of the same frame (FramePart::Rest). On other frames the ROI tiles are
+// the whole frame and no pixel outside them is touched: their fill, temporal history and
+// stabiliser state wait for the next frame whose rest is due. Without ROIs (or without a
+// receiver) the whole frame is processed at once.
 class FramePipeline {
  public:
   explicit FramePipeline(PipelineConfig config);
-  // Both parts, merged into one message set (tiles in index order, the closing manifest).
-  ProcessedFrame process(const DepthFrame& frame, const FrameRequest& request);
-  ProcessedFrame process_roi(const DepthFrame& frame, const FrameRequest& request);
-  bool rest_pending() const { return pending_.active; }
-  // The rest of the frame process_roi() just returned a RoiPart of; calling it for any other frame
-  // is a bug (TELEX_DEMAND).
-  // `preempt`, polled between stages and between tiles, cuts the rest short when it returns true
-  // (a newer frame is waiting): the tiles not yet encoded stay due and go out with the next
-  // frame's rest (a cut key frame makes the next frame a key frame). Two rests in a row are never
-  // cut, so the background always progresses.
-  ProcessedFrame process_rest(const DepthFrame& frame, const std::function<bool()>& preempt = {});
+  // Receives each message set to send, on the processing thread, as soon as it is finished.
+  using PartHandler = std::function<void(const ProcessedFrame& part)>;
+  // One frame through every stage. Returns the whole frame as one message set: every tile sent
+  // for it in index order, the manifest that closes it, counters and stage times of all its parts
+  // summed (first_part_ms: the time until the first part was done).
+  // With request.frame_parts, a frame with a rest is handed to `on_part` as two parts: the
+  // RoiPart (streamed to the tile sink as it is encoded), then the Rest. `preempt`, polled
+  // between tiles of the rest, cuts it short when it returns true (a newer frame is waiting):
+  // the tiles not yet encoded stay due and go out with the next frame's rest (a cut key frame
+  // makes the next frame a key frame); two rests in a row are never cut, so the background
+  // always progresses. Without frame_parts, `on_part` receives the returned set once, nothing
+  // streams and nothing is cut.
+  ProcessedFrame process(const DepthFrame& frame, const FrameRequest& request,
+                         const PartHandler& on_part = {},
+                         const std::function<bool()>& preempt = {});
   const PipelineConfig& config() const { return config_; }
   // Receives a part's tiles as they are encoded: `part` carries the frame's id, capture time,
   // part, key flag, codec and grid, and tiles[from, part.tiles.size()) are new. Called on the
-  // processing thread, between tiles; the part is not finished (no manifest yet).
+  // processing thread, between tiles; the part is not finished (no manifest yet). Only frames
+  // processed with request.frame_parts stream.
   using TileSink = std::function<void(const ProcessedFrame& part, std::size_t from)>;
   void set_tile_sink(TileSink sink) { sink_ = std::move(sink); }
   // The registration stage alone: `in` itself when the mode is none, else the frame in the eye
@@ -165,7 +172,13 @@ class FramePipeline {
  private:
   ProcessedFrame start_frame(const DepthFrame& frame, const FrameRequest& request,
                              const DepthImage& image);
-  ProcessedFrame process_whole(const DepthFrame& frame, const FrameRequest& request);
+  // The ROI part (a whole frame without ROIs or receiver); pending_ says whether a rest follows.
+  ProcessedFrame first_part(const DepthFrame& frame, const FrameRequest& request);
+  // The rest of the frame first_part() just returned a RoiPart of (TELEX_DEMAND).
+  ProcessedFrame rest_part(const DepthFrame& frame, const std::function<bool()>& preempt);
+  ProcessedFrame whole_frame(const DepthFrame& frame, const FrameRequest& request);
+  // Both parts as one message set, in `rest`.
+  static void merge_into_rest(ProcessedFrame&& roi, ProcessedFrame& rest);
   // Key-frame decision for the next frame sent to a receiver (counts the frame).
   bool next_frame_is_key(cv::Size size, const FrameRequest& request);
 
@@ -173,7 +186,7 @@ class FramePipeline {
   struct TileJob {
     const std::vector<int>* tiles = nullptr;  // increasing index
     // Spatial fill only around these (widened to whole tiles); null: the whole frame.
-    const std::vector<proto::RoiRect>* fill_rois = nullptr;
+    const std::vector<cv::Rect>* fill_rois = nullptr;
     bool new_frame = true;  // the first part of this frame: the temporal fill's clock advances
     bool select = true;     // false: stop after the stabiliser (no receiver)
     bool key = false;       // send every tile, changed or not
@@ -207,6 +220,7 @@ class FramePipeline {
   bool rest_owed_ = false;  // the last rest was cut: the next frame has a rest
   bool key_owed_ = false;   // ...and it was a key frame's: the next frame is a key frame
   bool last_rest_cut_ = false;
+  bool stream_parts_ = false;  // this frame goes out in parts: the tile sink streams them
 };
 
 }  // namespace telex::remote

@@ -66,6 +66,9 @@ class DepthSource {
   virtual double nominal_fps() const = 0;
   // Frames in a recording or file sequence (valid after start()); -1 for live and endless sources.
   virtual std::int64_t frame_count() const { return -1; }
+  // A file sequence or bag without loop: it plays frame_count() frames once, then ends. It paces
+  // from its first read, so the daemon holds it until the first station connects.
+  virtual bool plays_once() const { return false; }
   virtual std::string describe() const = 0;
 };
 
@@ -75,6 +78,9 @@ class StereoSource {
   virtual void start() = 0;
   virtual void stop() = 0;
   virtual ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) = 0;
+  // As DepthSource's.
+  virtual std::int64_t frame_count() const { return -1; }
+  virtual bool plays_once() const { return false; }
   virtual std::string describe() const = 0;
 };
 
@@ -104,15 +110,26 @@ struct SourceOptions {
   std::function<std::optional<glm::dmat3>(std::int64_t capture_ns)> head_orientation;
 };
 
-// Valid depth specs: openni[:URI] | freenect[:INDEX] | oni:PATH[,loop][,realtime|fast] |
-// files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop] |
-// bag:FILE[,topic=T][,info=T][,colour=T][,loop][,rate=R|fast] | synthetic[:SCENE][,animate].
-// A bag source with colour=T also gives the eye view when no stereo source is set.
+// One registered source scheme: its name (the text before ':'), the spec's form and what it is.
+struct SourceScheme {
+  std::string_view name;
+  std::string_view form;  // e.g. "files:PATTERN[,units=mm|tum|kinect-disparity][,fps=F][,loop]"
+  std::string_view help;
+};
+// The registered schemes, in the order --help lists them.
+std::vector<SourceScheme> depth_source_schemes();
+std::vector<SourceScheme> stereo_source_schemes();
+// "FORM: HELP | FORM: HELP | ...": the --source / --stereo help text.
+std::string depth_source_help();
+std::string stereo_source_help();
+
+// A depth source by its spec (depth_source_schemes()). Throws std::invalid_argument on a bad spec;
+// an unknown scheme's message lists the valid ones. A bag source with colour=T also gives the eye
+// view when no stereo source is set.
 std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
                                                const SourceOptions& options = {});
 
-// Valid stereo specs: v4l2:/dev/videoL,/dev/videoR[,WxH][,mjpeg|yuyv] | files:LEFT_GLOB,RIGHT_GLOB
-// | bag:FILE,colour=T[,loop][,rate=R|fast] (both eyes) | synthetic[:SCENE][,animate].
+// A stereo (eye view) source by its spec (stereo_source_schemes()); throws as make_depth_source.
 std::unique_ptr<StereoSource> make_stereo_source(std::string_view spec,
                                                  const SourceOptions& options = {});
 
