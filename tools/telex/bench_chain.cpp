@@ -11,8 +11,8 @@
 #include <string>
 
 #include "bench.h"
-#include "telex/haptics/haptic_model.h"
 #include "telex/common/stage_clock.h"
+#include "telex/haptics/haptic_model.h"
 
 namespace telex::tool::bench {
 namespace {
