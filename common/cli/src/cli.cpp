@@ -187,7 +187,9 @@ std::string suggest(const CLI::App& app, std::string_view unknown) {
   std::string best;
   std::size_t best_d = std::max<std::size_t>(2, word.size() / 3) + 1;
   const auto consider = [&](const std::string& name, const std::string& shown) {
-    const std::size_t d = edit_distance(word, name);
+    // A cut-short name ("--usb" for "--usb-id") counts as one edit away.
+    const bool prefix = word.size() >= 3 && name.rfind(word, 0) == 0;
+    const std::size_t d = prefix ? 1 : edit_distance(word, name);
     if (d < best_d) best_d = d, best = shown;
   };
   for (const CLI::App* a = &app; a != nullptr; a = a->get_parent()) {
