@@ -2,6 +2,8 @@
 // telex-remote's registration flags: text -> RegistrationConfig.
 #include "flags.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -90,6 +92,44 @@ void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, Registration
     if (!given.rotation) reg.X_EyeDepth.rotation = rig.X_RightEyeDepth->rotation;
     if (!given.mode) reg.mode = RegisterMode::Full;
   }
+}
+
+namespace {
+
+// The eye centre X,Y,Z in the depth camera's frame (the inverse of parse_registration's).
+std::string eye_centre_text(const RigidTransform& X_EyeDepth) {
+  const glm::dvec3 c = -(glm::transpose(X_EyeDepth.rotation) * X_EyeDepth.translation_m);
+  return fmt::format("{:.4f},{:.4f},{:.4f}", c.x, c.y, c.z);
+}
+
+std::string intrinsics_text(const Intrinsics& k) {
+  return fmt::format("{:.2f},{:.2f},{:.2f},{:.2f},{},{}", k.fx, k.fy, k.cx, k.cy, k.width,
+                     k.height);
+}
+
+}  // namespace
+
+void show_rig_defaults(CLI::App& app, const Rig& rig) {
+  const auto set = [&](const char* flag, const std::string& text) {
+    if (CLI::Option* opt = app.get_option_no_throw(flag)) opt->default_str(text + " (rig)");
+  };
+  if (rig.eye[index_of(Side::Right)]) set("--register-eye", intrinsics_text(rig.eye[1]->k));
+  if (rig.X_RightEyeDepth) {
+    set("--register", "full");
+    set("--register-baseline", eye_centre_text(*rig.X_RightEyeDepth));
+    set("--register-rotation", "the rig's extrinsics.right_eye_from_depth");
+  }
+}
+
+std::string describe_rig(const Rig& rig) {
+  std::string text = "rig " + rig.path.string() + ":";
+  if (rig.depth) text += " depth " + intrinsics_text(*rig.depth) + ";";
+  if (rig.eye[index_of(Side::Right)])
+    text += " right eye " + intrinsics_text(rig.eye[index_of(Side::Right)]->k) + ";";
+  if (rig.X_RightEyeDepth)
+    text += " eye centre in depth frame " + eye_centre_text(*rig.X_RightEyeDepth) + " m;";
+  text += " robot head joints and limits";
+  return text;
 }
 
 }  // namespace telex::remote

@@ -2,6 +2,8 @@
 // telex-remote's flag values that need more than CLI11's own checks: text -> pipeline config.
 #pragma once
 
+#include <CLI/CLI.hpp>
+#include <string>
 #include <string_view>
 
 #include "telex/common/rig.h"
@@ -29,5 +31,10 @@ struct RegistrationFlagsGiven {
 // extrinsics (extrinsics.right_eye_from_depth), the depth's calibrated intrinsics (depth). With
 // the extrinsics and no --register, the mode becomes full. Flags given win.
 void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, RegistrationConfig& reg);
+
+// What the rig sets, as the registration flags' defaults in --help (docs/RIG.md: `--help` with
+// `--rig` shows the rig's values), and as one line for the start-up log.
+void show_rig_defaults(CLI::App& app, const Rig& rig);
+std::string describe_rig(const Rig& rig);
 
 }  // namespace telex::remote

@@ -3,62 +3,15 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
-#include <nlohmann/json.hpp>
 
 #include "flags.h"
+#include "telex/cli/cli.h"
+#include "telex/cli/processing_flags.h"
 #include "telex/remote/daemon.h"
 
 namespace {
-
-// --config accepts CLI11's ini/toml or a JSON object whose keys are the long option names
-// (nested objects become sections, as in ini).
-class JsonOrIniConfig : public CLI::ConfigINI {
- public:
-  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
-    std::string text((std::istreambuf_iterator<char>(input)), std::istreambuf_iterator<char>());
-    const auto first = text.find_first_not_of(" \t\r\n");
-    if (first == std::string::npos || text[first] != '{') {
-      std::istringstream ini(text);
-      return CLI::ConfigINI::from_config(ini);
-    }
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::exception& e) {
-      throw CLI::ConversionError(fmt::format("--config: invalid JSON: {}", e.what()));
-    }
-    std::vector<CLI::ConfigItem> items;
-    add(j, {}, items);
-    return items;
-  }
-
- private:
-  static void add(const nlohmann::json& j, std::vector<std::string> parents,
-                  std::vector<CLI::ConfigItem>& items) {
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      if (it->is_object()) {
-        auto p = parents;
-        p.push_back(it.key());
-        add(*it, p, items);
-        continue;
-      }
-      CLI::ConfigItem item;
-      item.parents = parents;
-      item.name = it.key();
-      const auto one = [](const nlohmann::json& v) {
-        return v.is_string() ? v.get<std::string>() : v.dump();
-      };
-      if (it->is_array())
-        for (const auto& v : *it) item.inputs.push_back(one(v));
-      else
-        item.inputs.push_back(one(*it));
-      items.push_back(std::move(item));
-    }
-  }
-};
 
 bool parse_size(const std::string& text, int& w, int& h) {
   char x = 0;
@@ -86,10 +39,8 @@ int main(int argc, char** argv) {
   CLI::App app{
       "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
       "operator"};
-  app.config_formatter(std::make_shared<JsonOrIniConfig>());
-  app.set_config("--config", "",
-                 "Read options from FILE (JSON object or ini/toml, keys = long option names)");
-  app.option_defaults()->always_capture_default();
+  telex::cli::prepare(app, "telex-remote");
+  telex::cli::add_strict_config(app, "Read options from FILE");
 
   std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
               size = "640x480", video_size = "0x0";
@@ -152,13 +103,8 @@ int main(int argc, char** argv) {
                "3.5 ms less work here (docs/BENCHMARKS.md, where to fill)");
   app.add_flag("--no-fill", no_fill, "Send holes as they are (the default)")->excludes("--fill");
   app.add_flag("--no-temporal", no_temporal, "With --fill: spatial fill only");
-  app.add_option("--fill-window", cfg.pipeline.hole_fill.window_px,
-                 "Odd window side of the mode fill (3..15)")
-      ->check(CLI::Range(3, 15));
-  app.add_option("--fill-bin", cfg.pipeline.hole_fill.bin_mm, "Depth bin of the mode fill in mm")
-      ->check(CLI::Range(1, 1000));
-  app.add_option("--fill-passes", cfg.pipeline.hole_fill.max_passes, "Passes of the mode fill")
-      ->check(CLI::Range(1, 64));
+  cfg.pipeline.hole_fill = telex::cli::shipping_fill();
+  telex::cli::add_fill_flags(app, cfg.pipeline.hole_fill);
   app.add_option("--temporal-age", cfg.pipeline.temporal.max_age_frames,
                  "Frames a remembered depth stays usable")
       ->check(CLI::Range(1, 1000));
@@ -203,16 +149,10 @@ int main(int argc, char** argv) {
                "Accept a --listen address off loopback without --psk or certificates: anyone on "
                "the network can then move the robot head and watch its cameras and depth");
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n(run with --help for the options)\n";
-    return 2;
-  }
+  if (rig) telex::remote::show_rig_defaults(app, *rig);
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+  telex::cli::log_config_values(app);
+  if (rig) spdlog::info("telex-remote: {}", telex::remote::describe_rig(*rig));
 
   try {
     const auto colon = listen.rfind(':');
@@ -252,9 +192,6 @@ int main(int argc, char** argv) {
     }
     cfg.pipeline.fill = fill && !no_fill;
     cfg.pipeline.temporal_fill = !no_temporal;
-    if (cfg.pipeline.hole_fill.window_px % 2 == 0)
-      throw std::invalid_argument(
-          fmt::format("--fill-window {} must be odd", cfg.pipeline.hole_fill.window_px));
     cfg.stats_line = !no_stats;
     cfg.realtime = !no_realtime;
     telex::proto::validate_tls_flags(!psk_file.empty(), cert_file, key_file, ca_file);

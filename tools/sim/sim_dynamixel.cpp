@@ -1,18 +1,19 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-dynamixel: emulated DYNAMIXEL X-series servos on a pseudo-terminal, for --head
 // dynamixel.
-#include <CLI/CLI.hpp>
 #include <csignal>
 #include <ctime>
 #include <iostream>
 #include <sstream>
 
+#include "telex/cli/cli.h"
 #include "telex/sim/dynamixel_servos.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
       "telex-sim-dynamixel: DYNAMIXEL Protocol 2.0 servos (X series, position mode) on a "
       "pseudo-terminal; prints the device to give telex-remote --head dynamixel:DEV"};
+  telex::cli::prepare(app, "telex-sim-dynamixel");
   std::string ids_text = "1,2,3";
   double duration_s = 0.0;
   int mode = telex::dynamixel::xseries::kPositionMode;
@@ -22,10 +23,9 @@ int main(int argc, char** argv) {
                  "telex-remote refuses)")
       ->capture_default_str()
       ->check(CLI::Range(0, 16));
-  app.add_option("--duration", duration_s, "seconds to run (0 = until SIGINT/SIGTERM)")
-      ->capture_default_str()
+  telex::cli::add(app, "--duration", duration_s, "Run this long (0 = until SIGINT/SIGTERM)", "s")
       ->check(CLI::Range(0.0, 86400.0));
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
 
   try {
     std::vector<std::uint8_t> ids;

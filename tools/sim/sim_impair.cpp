@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "telex/cli/cli.h"
 #include "telex/sim/impairment.h"
 
 namespace asio = boost::asio;
@@ -219,6 +220,7 @@ int main(int argc, char** argv) {
       "telex-sim-impair: UDP proxy between a sender and --forward that applies seeded loss, "
       "delay, jitter, reordering, duplication and bit corruption (both directions), since tc "
       "netem is not available here"};
+  telex::cli::prepare(app, "telex-sim-impair");
   std::string listen_text, forward_text;
   ImpairmentConfig cfg;
   double duration_s = 0.0, stats_every_s = 0.0;
@@ -256,13 +258,13 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--json-summary", json, "print the final counters as JSON on stdout");
   udp::endpoint listen_ep, forward_ep;
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
   try {
-    app.parse(argc, argv);
     listen_ep = parse_endpoint(listen_text, "--listen", true);
     forward_ep = parse_endpoint(forward_text, "--forward", false);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? 0 : 2;
+  } catch (const CLI::ValidationError& e) {
+    std::cerr << "telex-sim-impair: " << e.what() << "\n";
+    return telex::cli::kUsageExit;
   }
 
   try {

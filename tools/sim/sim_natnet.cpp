@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-natnet: a NatNet server that answers connect requests and streams a hand motion.
-#include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
 #include <iostream>
 #include <thread>
 
+#include "telex/cli/cli.h"
 #include "telex/sim/natnet_server.h"
 
 int main(int argc, char** argv) {
@@ -14,16 +14,28 @@ int main(int argc, char** argv) {
   CLI::App app{
       "telex-sim-natnet: NatNet server simulator (answers PING with server info, streams "
       "FRAMEOFDATA with head id 1, right hand id 2, right shoulder id 3)"};
+  telex::cli::prepare(app, "telex-sim-natnet");
   NatNetServerConfig cfg;
   std::string version = "3.1";
   std::string motion = "press";
   double duration_s = 10.0;
   bool loop = true;
   app.add_option("--natnet-version", version, "NatNet layout to stream: 2.x, 3.x or 4.x")
-      ->capture_default_str();
-  app.add_option("--rate", cfg.rate_hz, "frames per second")->capture_default_str();
-  app.add_option("--duration", duration_s, "seconds to stream before exiting")
       ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            try {
+              natnet::parse_version(text);
+              return {};
+            } catch (const std::invalid_argument& e) {
+              return e.what();
+            }
+          },
+          "MAJOR.MINOR"));
+  telex::cli::add(app, "--rate", cfg.rate_hz, "Frames per second", "Hz")
+      ->check(CLI::Range(1.0, 1000.0));
+  telex::cli::add(app, "--duration", duration_s, "Stream this long, then exit (0 = until stopped)",
+                  "s")
       ->check(CLI::Range(0.0, 86400.0));
   app.add_option("--bind", cfg.bind_address, "address of the command socket")
       ->capture_default_str();
@@ -47,7 +59,7 @@ int main(int argc, char** argv) {
                  "from 0.30 m short of it to 0.04 m past it. Default: the fixed 0.25-0.55 m hand "
                  "path")
       ->check(CLI::Range(0.35, 5.0));
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
   if (reach_m > 0.0 && motion != "press") {
     std::cerr << "telex-sim-natnet: --reach moves the press motion; it does not apply to --motion "
               << motion << "\n";
@@ -72,7 +84,9 @@ int main(int argc, char** argv) {
               << (cfg.multicast
                       ? "multicast " + cfg.multicast_group + ":" + std::to_string(cfg.data_port)
                       : std::string("unicast"))
-              << ", " << cfg.rate_hz << " Hz for " << duration_s << " s\n";
+              << ", " << cfg.rate_hz << " Hz "
+              << (duration_s > 0 ? "for " + std::to_string(duration_s) + " s" : "until stopped")
+              << "\n";
     std::atomic<bool> done{false};
     std::thread streamer([&] {
       server.run_for(duration_s);

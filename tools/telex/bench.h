@@ -14,11 +14,11 @@
 #include <vector>
 
 #include "telex/common/bilateral.h"
-#include "telex/haptics/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
 #include "telex/common/synthetic.h"
 #include "telex/common/temporal_fill.h"
+#include "telex/haptics/haptic_surface.h"
 #include "telex/local/surface_builder.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/remote/pipeline.h"

@@ -137,9 +137,12 @@ std::vector<Config> select_configs(std::vector<Config> grid,
   for (const auto& n : names) {
     const auto it =
         std::find_if(grid.begin(), grid.end(), [&](const Config& c) { return c.name == n; });
-    if (it == grid.end())
-      throw std::invalid_argument("telex bench: no configuration '" + n +
-                                  "' in the grid (bench.csv's first column lists them)");
+    if (it == grid.end()) {
+      std::string valid;
+      for (const auto& c : grid) valid += (valid.empty() ? "" : ", ") + c.name;
+      throw std::invalid_argument("telex bench: --config: no configuration '" + n +
+                                  "' in this grid (valid: " + valid + ")");
+    }
     out.push_back(*it);
   }
   return out;

@@ -121,6 +121,11 @@ std::vector<std::size_t> pareto_front(const std::vector<PlotPoint>& points) {
   return front;
 }
 
+bool any_placeable(const PlotSpec& spec, const std::vector<PlotPoint>& points) {
+  return std::any_of(points.begin(), points.end(),
+                     [&](const PlotPoint& p) { return placeable(p, spec.log_x, spec.log_y); });
+}
+
 cv::Mat3b draw_scatter(const PlotSpec& spec, const std::vector<PlotPoint>& points) {
   std::vector<PlotPoint> placed;
   for (const auto& p : points)

@@ -35,6 +35,8 @@ std::vector<std::size_t> pareto_front(const std::vector<PlotPoint>& points);
 // staircase with its points ringed and labelled, and the default point ringed in red. Points that
 // cannot be placed (non-finite, non-positive on a log axis) are left out and counted in the
 // title. Throws std::invalid_argument when no point can be placed.
+// Whether any point can be drawn (finite, positive on a log axis); draw_scatter throws when none.
+bool any_placeable(const PlotSpec& spec, const std::vector<PlotPoint>& points);
 cv::Mat3b draw_scatter(const PlotSpec& spec, const std::vector<PlotPoint>& points);
 
 }  // namespace telex::tool

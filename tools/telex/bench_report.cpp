@@ -175,6 +175,13 @@ void write_plots(const fs::path& dir, const std::vector<Row>& rows) {
   auto total = [](const Sample& v) { return v[kTotalMs]; };
   auto save = [&](const std::string& name, const PlotSpec& spec, const std::vector<PlotPoint>& p) {
     const fs::path file = dir / name;
+    // A --config subset may leave a plot without a point (fill_off has no fill time on a log
+    // axis; roi rows are not synthetic-scene rows): say so and leave that plot out.
+    if (!any_placeable(spec, p)) {
+      std::cerr << "telex bench: " << name
+                << " left out: no chosen configuration has a point on it\n";
+      return;
+    }
     if (!cv::imwrite(file.string(), draw_scatter(spec, p)))
       throw std::runtime_error("cannot write " + file.string());
   };

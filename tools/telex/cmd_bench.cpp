@@ -50,6 +50,13 @@ std::vector<cv::Mat1w> load_real(const std::string& dir, std::string& note) {
   return frames;
 }
 
+// Every configuration of the full grid (--quick runs a subset of them).
+std::vector<std::string> config_names() {
+  std::vector<std::string> names;
+  for (const auto& c : make_grid(false)) names.push_back(c.name);
+  return names;
+}
+
 int run(const Options& o) {
   cv::setNumThreads(1);
   const fs::path out_dir(o.out);
@@ -206,7 +213,8 @@ const RegisterCommand kRegister{
                      "skipped with a note when absent");
       app.add_option("--config", o->configs,
                      "only these configurations of the grid (names as in bench.csv); repeatable")
-          ->delimiter(',');
+          ->delimiter(',')
+          ->check(CLI::IsMember(config_names()));
       app.add_option("--session", o->sessions,
                      "a recorded session FILE.bag (telex-local --record) whose depth joins the "
                      "real-frame rows; repeatable")

@@ -491,7 +491,8 @@ void board_flags(CLI::App& app, std::string& board, double& square_mm, bool requ
   auto* b = app.add_option("--board", board,
                            "chessboard as CxR INNER corners (OpenCV's pattern size: a 10x7-square "
                            "board is 9x6); best one side even, one odd");
-  auto* s = app.add_option("--square-mm", square_mm, "side of one square, millimetres");
+  auto* s = app.add_option("--square-mm", square_mm, "side of one square, millimetres")
+                ->check(CLI::PositiveNumber);
   if (required) {
     b->required();
     s->required();
@@ -563,9 +564,11 @@ const RegisterCommand kRegister{
           "paper-like head) and truth.json, for trying the other subcommands");
       render->add_option("--out", ro->out, "directory to write into")->required();
       board_flags(*render, ro->board, ro->square_mm, false);
-      render->add_option("--views", ro->views, "number of board poses");
+      render->add_option("--views", ro->views, "number of board poses")
+          ->check(CLI::Range(1, 10000));
       render->add_option("--seed", ro->seed, "seed of the poses and the noise");
-      render->add_option("--noise", ro->noise, "image noise sigma, grey levels");
+      render->add_option("--noise", ro->noise, "image noise sigma, grey levels")
+          ->check(CLI::Range(0.0, 128.0));
       render->add_option("--blur-px", ro->blur_px, "Gaussian blur sigma, pixels");
       render->add_option("--depth-noise-mm", ro->depth_noise_mm, "depth map noise sigma, mm");
 

@@ -348,7 +348,8 @@ std::function<int()> add_calibrate_operator(CLI::App& app) {
   glove->add_option("--glove", go->glove,
                     "live glove: 5dt-usb[:HIDPATH] | 5dt-serial:DEV[,wireless] (prompts on "
                     "stderr)");
-  glove->add_option("--sensors", go->sensors, "live: the glove's sensor count (5 or 14)");
+  glove->add_option("--sensors", go->sensors, "live: the glove's sensor count (5 or 14)")
+      ->check(CLI::IsMember({5, 14}));
   glove->add_option("--side", go->side, "which hand")
       ->required()
       ->check(CLI::IsMember({"right", "left"}));

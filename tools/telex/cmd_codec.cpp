@@ -188,6 +188,27 @@ cv::Mat1w load_frame(const std::string& path, const std::string& units) {
   return depth_mm.isContinuous() ? depth_mm : depth_mm.clone();
 }
 
+// Every codec measured, ours first; the names are what --only takes.
+std::vector<Candidate> candidates(int zip_level) {
+  return {
+      ours(proto::Codec::Zip, zip_level),
+      ours(proto::Codec::Fast, zip_level),
+      tiled(proto::Codec::Zip, zip_level, 80, 60),
+      tiled(proto::Codec::Fast, zip_level, 80, 60),
+      zlib_peer(1),
+      zlib_peer(6),
+      zstd_peer(1),
+      png_peer(3),
+      rvl_peer(),
+  };
+}
+
+std::vector<std::string> candidate_names() {
+  std::vector<std::string> names;
+  for (const auto& c : candidates(proto::kDefaultZipLevel)) names.push_back(c.name);
+  return names;
+}
+
 const telex::tool::RegisterCommand kRegister{
     "codec", "Measure depth codecs (ours and peers) on one frame: ratio, speed, losslessness",
     [](CLI::App& app) -> std::function<int()> {
@@ -203,29 +224,19 @@ const telex::tool::RegisterCommand kRegister{
       app.add_flag("--json", *json, "print one JSON object {\"codecs\": [...]}");
       app.add_option("--runs", *runs, "repetitions; times are medians")->check(CLI::Range(1, 1000));
       auto only = std::make_shared<std::vector<std::string>>();
-      app.add_option("--only", *only, "measure only these codec names (default: all)");
+      app.add_option("--only", *only, "measure only these codecs (default: all); repeatable")
+          ->check(CLI::IsMember(candidate_names()))
+          ->delimiter(',');
       app.add_option("--zip-level", *level,
                      "deflate level of our zip codec (0 = Huffman-only, the default)")
           ->check(CLI::Range(0, 9));
       return [=]() {
         const cv::Mat1w frame = load_frame(*in, *units);
-        std::vector<Candidate> cands = {
-            ours(proto::Codec::Zip, *level),
-            ours(proto::Codec::Fast, *level),
-            tiled(proto::Codec::Zip, *level, 80, 60),
-            tiled(proto::Codec::Fast, *level, 80, 60),
-            zlib_peer(1),
-            zlib_peer(6),
-            zstd_peer(1),
-            png_peer(3),
-            rvl_peer(),
-        };
-        if (!only->empty()) {
+        std::vector<Candidate> cands = candidates(*level);
+        if (!only->empty())
           std::erase_if(cands, [&](const Candidate& c) {
             return std::find(only->begin(), only->end(), c.name) == only->end();
           });
-          if (cands.empty()) throw std::invalid_argument("--only matched no codec name");
-        }
         // One warm-up pass per codec so first-touch allocations do not skew the medians.
         for (const auto& c : cands) (void)measure(c, frame, 1);
         std::vector<Measured> results;

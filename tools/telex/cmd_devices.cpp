@@ -36,7 +36,7 @@ int run_devices(const DevicesArgs& a) {
     try {
       extra.push_back(devices::parse_known_device(t));
     } catch (const std::invalid_argument& e) {
-      std::cerr << "telex devices: " << e.what() << "\n";
+      std::cerr << "telex devices: --usb-id: " << e.what() << "\n";
       return 2;
     }
   }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "command.h"
+#include "telex/cli/processing_flags.h"
 #include "telex/common/bilateral.h"
 #include "telex/common/colorize.h"
 #include "telex/common/depth_io.h"
@@ -28,8 +29,8 @@ struct ProcessArgs {
   std::string out_dir;
   bool json = false;
   double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;  // Kinect v1 at 640x480
-  HoleFillOptions fill;
-  BilateralOptions bilateral;
+  HoleFillOptions fill = cli::shipping_fill();
+  BilateralOptions bilateral = cli::shipping_bilateral();
   NormalOptions normals;
   // Registration to the right-eye image (same size and intrinsics as the depth): shift+scale.
   double register_shift_px = 0.0;
@@ -179,23 +180,9 @@ const RegisterCommand kRegister{
       app.add_option("--register-scale", a->register_scale,
                      "Register to the right eye: field-of-view scale about the principal point")
           ->each([a](const std::string&) { a->register_depth = true; });
-      app.add_option("--fill-window", a->fill.window_px, "Hole-fill window side (odd)")
-          ->capture_default_str();
-      app.add_option("--fill-bin-mm", a->fill.bin_mm, "Hole-fill depth bin (mm)")
-          ->capture_default_str();
-      app.add_option("--fill-passes", a->fill.max_passes, "Hole-fill passes")
-          ->capture_default_str();
-      app.add_option("--bilateral-radius", a->bilateral.radius_px, "Bilateral window radius (px)")
-          ->capture_default_str();
-      app.add_option("--sigma-space", a->bilateral.sigma_space_px, "Bilateral spatial sigma (px)")
-          ->capture_default_str();
-      app.add_option("--sigma-depth-mm", a->bilateral.sigma_depth_mm, "Bilateral depth sigma (mm)")
-          ->capture_default_str();
-      app.add_flag("--noise-sigma", a->bilateral.sigma_from_noise_model,
-                   "Depth sigma per pixel from the Nguyen noise model (x --noise-factor)");
-      app.add_option("--noise-factor", a->bilateral.noise_sigma_factor,
-                     "Multiplier of the noise sigma")
-          ->capture_default_str();
+      cli::add_fill_flags(app, a->fill);
+      cli::add_bilateral_radius(app, a->bilateral.radius_px);
+      cli::add_bilateral_sigmas(app, a->bilateral);
       app.add_option("--normal-smooth", a->normals.smooth_radius_px,
                      "Half-width of the derivative box (0 = central differences)")
           ->capture_default_str();

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "command.h"
+#include "telex/cli/processing_flags.h"
 #include "telex/local/recorder.h"
 
 namespace telex::tool {
@@ -18,7 +19,8 @@ struct Options {
   std::optional<double> stiffness, mu_static, mu_dynamic, max_force, max_force_step, ramp,
       stale_limit, damping;
   std::vector<double> friction;
-  std::optional<int> bilateral_radius;
+  int bilateral_radius = cli::shipping_bilateral().radius_px;
+  bool bilateral_radius_given = false;
   bool no_bilateral = false;
 };
 
@@ -39,7 +41,7 @@ int run(const Options& o) {
   if (o.ramp) haptic.startup_ramp_s = *o.ramp;
   if (o.stale_limit) haptic.stale_limit_s = *o.stale_limit;
   if (o.damping) haptic.virtual_damping_Ns_per_m = *o.damping;
-  if (o.bilateral_radius) surface.bilateral_options.radius_px = *o.bilateral_radius;
+  if (o.bilateral_radius_given) surface.bilateral_options.radius_px = o.bilateral_radius;
   if (o.no_bilateral) surface.bilateral = false;
   try {
     haptic.validate();
@@ -101,8 +103,9 @@ const RegisterCommand kRegister{
           ->check(CLI::Range(0.01, 10.0));
       app.add_option("--damping", o->damping, "virtual damping in contact, N s/m")
           ->check(CLI::Range(0.0, 1e4));
-      app.add_option("--bilateral-radius", o->bilateral_radius, "bilateral filter radius, px")
-          ->check(CLI::Range(0, 32));
+      cli::add_bilateral_radius(app, o->bilateral_radius)
+          ->default_str("the session's")
+          ->each([o](const std::string&) { o->bilateral_radius_given = true; });
       app.add_flag("--no-bilateral", o->no_bilateral, "skip the bilateral filter");
       return [o] { return run(*o); };
     }};

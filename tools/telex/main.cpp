@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "command.h"
+#include "telex/cli/cli.h"
 
 namespace telex::tool {
 std::vector<CommandEntry>& command_registry() {
@@ -17,6 +18,7 @@ std::vector<CommandEntry>& command_registry() {
 int main(int argc, char** argv) {
   using namespace telex::tool;
   CLI::App app{"telex: offline tool for the telexistence haptics system"};
+  telex::cli::prepare(app, "telex");
   app.require_subcommand(1);
   auto& reg = command_registry();
   std::sort(reg.begin(), reg.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
@@ -25,13 +27,7 @@ int main(int argc, char** argv) {
     CLI::App* sub = app.add_subcommand(entry.name, entry.description);
     runners.emplace_back(sub, entry.setup(*sub));
   }
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    // CLI11 returns 0 for --help; every real parse error is a usage error: exit 2.
-    return rc == 0 ? 0 : 2;
-  }
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
   for (auto& [sub, run] : runners) {
     if (sub->parsed()) {
       try {

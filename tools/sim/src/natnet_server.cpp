@@ -265,11 +265,13 @@ void NatNetServer::run_for(double duration_s) {
   impl_->start = std::chrono::steady_clock::now();
   impl_->receive();
   impl_->schedule(impl_->start);
-  impl_->deadline.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(duration_s)));
-  impl_->deadline.async_wait([this](boost::system::error_code ec) {
-    if (!ec) impl_->io.stop();
-  });
+  if (duration_s > 0) {
+    impl_->deadline.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(duration_s)));
+    impl_->deadline.async_wait([this](boost::system::error_code ec) {
+      if (!ec) impl_->io.stop();
+    });
+  }
   impl_->io.run();
 }
 

@@ -71,7 +71,8 @@ class NatNetServer {
   NatNetServer(NatNetServerConfig config, NatNetMotion motion);
   ~NatNetServer();
   int command_port() const;  // actually bound
-  // Streams until `duration_s` has passed or stop() is called; blocks the calling thread.
+  // Streams until `duration_s` has passed (0 = no end) or stop() is called; blocks the calling
+  // thread.
   void run_for(double duration_s);
   void stop();  // thread-safe
   NatNetServerStats stats() const;

@@ -1,0 +1,66 @@
+// SPDX-License-Identifier: MIT
+// The command-line contract every telex program keeps: usage errors exit 2 with one message naming
+// the flag, unknown flags get a suggestion, help shows defaults and units, config files are strict.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace telex::cli {
+
+inline constexpr int kUsageExit = 2;
+
+// Makes `app` one of our programs: `program` prefixes every message ("telex-remote"), option
+// defaults are captured for the help, --help-json prints the options as JSON. Call before adding
+// options (the defaults apply to options added later).
+void prepare(CLI::App& app, std::string program);
+
+// The name that prefixes messages for `app`: its program, or "telex bench" for a subcommand.
+std::string program_name(const CLI::App& app);
+
+// Adds an option whose help names its unit: "help [unit]"; the default shows as "=value".
+template <class T>
+CLI::Option* add(CLI::App& app, const std::string& name, T& value, const std::string& help,
+                 std::string_view unit = {}) {
+  const std::string text = unit.empty() ? help : help + " [" + std::string(unit) + "]";
+  return app.add_option(name, value, text)->capture_default_str();
+}
+
+// A validator for odd integers in [lo, hi] (window sides).
+CLI::Validator odd_in(int lo, int hi);
+
+// Adds --config FILE read by the strict loader: TOML (CLI11's) or a JSON object, chosen by the
+// extension (.json) or else the first character ('{'). Keys are the long option names without
+// "--"; an unknown key or a value of the wrong shape is a usage error naming the key and the file.
+void add_strict_config(CLI::App& app, const std::string& help);
+
+// The values a config file set, as (key, value) pairs in file order (empty before parse()).
+std::vector<std::pair<std::string, std::string>> config_values(const CLI::App& app);
+
+// The config file given, or "" (after parse()).
+std::string config_file(const CLI::App& app);
+
+// Parses argv. Returns nothing when the program goes on; else the exit code to return: 0 after
+// --help/--help-all/--help-json, 2 after a usage error (its message already on stderr as
+// "<program>: <flag>: <what is wrong>", with "did you mean --x?" for an unknown flag).
+std::optional<int> parse(CLI::App& app, int argc, const char* const* argv);
+
+// The closest long option or subcommand name of `app` to `unknown` ("" when none is close).
+std::string suggest(const CLI::App& app, std::string_view unknown);
+
+// Every option of `app` (and its subcommands, recursively): names, default, help, group.
+nlohmann::json help_json(const CLI::App& app);
+
+// Logs (spdlog's default logger) the values a config file set, so a run says what it used.
+void log_config_values(const CLI::App& app);
+
+// Points spdlog's default logger at stderr, so stdout carries only a program's output (JSON).
+void logs_to_stderr();
+
+}  // namespace telex::cli

@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: MIT
+// Config files are strict (an unknown key or a wrong shape exits 2 naming the key and the file, in
+// TOML and in JSON), a good one is used and logged, and --json-summary writes only JSON to stdout.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "process.h"
+#include "test_support.h"
+
+namespace telex {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct Outcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+Outcome run(const std::string& binary, const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {test::built_binary(binary).string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  test::Process p(argv, test::scratch_file("out.txt"), test::scratch_file("err.txt"));
+  const auto rc = p.wait(60s);
+  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
+}
+
+std::string write_file(const std::string& name, const std::string& text) {
+  const auto path = test::scratch_file(name);
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+struct ConfigCase {
+  std::string file_name, text, named;  // the file, its text, what the message must name
+};
+
+TEST(RemoteConfig, UnknownKeysAndWrongShapesExitTwoNamingKeyAndFile) {
+  const std::vector<ConfigCase> cases = {
+      {"typo.toml", "duraton = 1\n", "'duraton'"},
+      {"typo.json", R"({"duraton": 1})", "'duraton'"},
+      // JSON chosen by content, whatever the extension.
+      {"typo_json.conf", R"({"no-stat": true})", "'no-stat'"},
+      {"section.toml", "[pipeline]\nfill = true\n", "[pipeline]"},
+      {"flag_not_bool.json", R"({"no-stats": 3})", "'no-stats'"},
+      {"list_for_one.json", R"({"duration": [1, 2]})", "'duration'"},
+      {"negative.toml", "duration = -1\n", "duration"},
+      {"negative.json", R"({"duration": -1})", "duration"},
+      {"not_a_number.toml", "duration = \"soon\"\n", "duration"},
+      {"broken.json", "{\"duration\": ", "not a JSON object"},
+  };
+  for (const auto& c : cases) {
+    const std::string file = write_file(c.file_name, c.text);
+    const Outcome o = run("telex-remote", {"--config", file, "--listen", "127.0.0.1:0"});
+    EXPECT_EQ(o.exit_code, 2) << c.file_name << ": " << o.err;
+    EXPECT_NE(o.err.find(c.named), std::string::npos) << c.file_name << ": " << o.err;
+    EXPECT_NE(o.err.find(file), std::string::npos) << c.file_name << " not named: " << o.err;
+  }
+  // The typo gets a suggestion.
+  const Outcome typo = run("telex-remote", {"--config", write_file("t.toml", "duraton = 1\n")});
+  EXPECT_NE(typo.err.find("did you mean 'duration'?"), std::string::npos) << typo.err;
+}
+
+TEST(RemoteConfig, AGoodFileInEitherFormatIsUsedAndLogged) {
+  const std::vector<ConfigCase> cases = {
+      {"good.toml", "duration = 0.3\nlisten = \"127.0.0.1:0\"\nno-realtime = true\n", ""},
+      {"good.json", R"({"duration": 0.3, "listen": "127.0.0.1:0", "no-realtime": true})", ""},
+  };
+  for (const auto& c : cases) {
+    const std::string file = write_file(c.file_name, c.text);
+    const Outcome o = run("telex-remote", {"--config", file, "--source", "synthetic"});
+    EXPECT_EQ(o.exit_code, 0) << c.file_name << ": " << o.err;
+    EXPECT_NE(o.err.find("from " + file + ": duration=0.3"), std::string::npos) << o.err;
+  }
+}
+
+TEST(RemoteConfig, HelpShowsTheConfigValuesAsDefaults) {
+  const std::string file = write_file("help.toml", "duration = 7.5\n");
+  const Outcome o = run("telex-remote", {"--config", file, "--help"});
+  EXPECT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_NE(o.out.find("=7.5"), std::string::npos) << o.out;
+}
+
+TEST(JsonSummary, StdoutIsOneJsonDocument) {
+  // The proxy forwards nothing here; what matters is that stdout holds only its JSON summary.
+  const Outcome o = run("telex-sim-impair", {"--listen", "127.0.0.1:0", "--forward", "127.0.0.1:9",
+                                             "--duration", "0.2", "--json-summary"});
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  nlohmann::json j;
+  ASSERT_NO_THROW(j = nlohmann::json::parse(o.out)) << o.out;
+  EXPECT_TRUE(j.is_object()) << o.out;
+}
+
+TEST(HelpJson, EveryProgramDescribesItsOptionsAsJson) {
+  for (const char* program :
+       {"telex-remote", "telex", "telex-sim-natnet", "telex-sim-dynamixel", "telex-sim-impair"}) {
+    const Outcome o = run(program, {"--help-json"});
+    ASSERT_EQ(o.exit_code, 0) << program << ": " << o.err;
+    nlohmann::json j;
+    ASSERT_NO_THROW(j = nlohmann::json::parse(o.out)) << program;
+    EXPECT_EQ(j.at("program"), program);
+    EXPECT_FALSE(j.at("options").empty()) << program;
+  }
+}
+
+}  // namespace
+}  // namespace telex
