@@ -32,7 +32,7 @@ TEST(HostilePeer, HeartbeatFloodAndNackStormFromAPeerThatNeverReadsKeepTheRemote
   const auto dir = scratch_dir("hostile_flood");
   RemoteProcess remote(dir, {"--source", "synthetic:moving", "--no-realtime"});
   ASSERT_TRUE(eventually(10s, [&] {
-    return remote.proc.stdout_text().find("listening") != std::string::npos ||
+    return remote.proc.stderr_text().find("listening") != std::string::npos ||
            !remote.proc.running();
   }));
   ASSERT_TRUE(remote.proc.running()) << remote.proc.stderr_text();

@@ -57,7 +57,7 @@ TEST(OniEndToEnd, RemoteProcessSendsTheRecordedFramesExactly) {
   RemoteProcess remote(dir, {"--no-stats", "--source", "oni:" + oni.string() + ",loop", "--no-fill",
                              "--codec", "zip"});
   ASSERT_TRUE(eventually(10s, [&] {
-    return remote.proc.stdout_text().find("listening") != std::string::npos ||
+    return remote.proc.stderr_text().find("listening") != std::string::npos ||
            !remote.proc.running();
   }));
   ASSERT_TRUE(remote.proc.running()) << remote.proc.stderr_text();

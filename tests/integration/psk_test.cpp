@@ -132,7 +132,7 @@ TEST_P(SameKey, ForcesAreThoseOfAnUnkeyedRunAndNothingIsDropped) {
     r.summary = summary_of(local);
     EXPECT_TRUE(r.summary.is_object()) << local.stdout_text();
     r.curve = index_pressure_curve(dir / "forces.csv");
-    EXPECT_EQ(remote.proc.stdout_text().find("TLS 1.3 with --psk") != std::string::npos, keyed);
+    EXPECT_EQ(remote.proc.stderr_text().find("TLS 1.3 with --psk") != std::string::npos, keyed);
     EXPECT_TRUE(remote.proc.running());
     return r;
   };
@@ -209,8 +209,8 @@ TEST_P(KeyMismatch, NoSessionAMessageNamingTheFixAndCounters) {
   ASSERT_TRUE(eventually(5s, [&] {
     return last_counter(remote.proc.stderr_text(), "auth-failed") > 0;
   })) << remote.proc.stderr_text();
-  EXPECT_NE(remote.proc.stdout_text().find(m.remote_says), std::string::npos)
-      << remote.proc.stdout_text();
+  EXPECT_NE(remote.proc.stderr_text().find(m.remote_says), std::string::npos)
+      << remote.proc.stderr_text();
   EXPECT_EQ(last_counter(remote.proc.stderr_text(), "accepted"), 0);
   EXPECT_GT(last_counter(remote.proc.stderr_text(), "rejected"), 0);
   EXPECT_TRUE(remote.proc.running());

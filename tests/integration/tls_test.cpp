@@ -492,7 +492,7 @@ TEST(TlsCertificates, MutualCertificatesServeAndOthersAreRefused) {
     ASSERT_EQ(local.wait(40s).value_or(-1), 0) << local.stderr_text();
     EXPECT_GT(summary_of(local)["surfaces"].get<int>(), 20);
   }
-  EXPECT_NE(remote.proc.stdout_text().find("TLS 1.3 with certificates"), std::string::npos);
+  EXPECT_NE(remote.proc.stderr_text().find("TLS 1.3 with certificates"), std::string::npos);
   {
     Process stranger(
         local_args(remote.port, dir,
@@ -516,7 +516,7 @@ TEST(TlsCertificates, MutualCertificatesServeAndOthersAreRefused) {
     EXPECT_NE(*rc, 0);
     EXPECT_NE(none.stderr_text().find("requires TLS"), std::string::npos) << none.stderr_text();
   }
-  const std::string log = remote.proc.stdout_text();
+  const std::string log = remote.proc.stderr_text();
   EXPECT_NE(log.find("certificate"), std::string::npos) << log;
   EXPECT_NE(log.find("does not speak TLS"), std::string::npos) << log;
   EXPECT_EQ(last_counter(remote.proc.stderr_text(), "accepted"), 1);
@@ -579,7 +579,7 @@ TEST(Insecure, OffLoopbackWithoutAKeyExitsTwoUnlessInsecure) {
     const auto rc = p.wait(30s);
     ASSERT_TRUE(rc.has_value());
     EXPECT_EQ(*rc, 0) << p.stderr_text();
-    EXPECT_NE(p.stdout_text().find("INSECURE (--insecure)"), std::string::npos) << p.stdout_text();
+    EXPECT_NE(p.stderr_text().find("INSECURE (--insecure)"), std::string::npos) << p.stderr_text();
     EXPECT_NE(p.stderr_text().find("| INSECURE link (--insecure)"), std::string::npos)
         << p.stderr_text();
   }
