@@ -591,7 +591,7 @@ TEST(Insecure, OffLoopbackWithoutAKeyExitsTwoUnlessInsecure) {
     const auto rc = p.wait(30s);
     ASSERT_TRUE(rc.has_value());
     EXPECT_EQ(*rc, 0) << p.stderr_text();
-    EXPECT_NE(p.stdout_text().find("INSECURE"), std::string::npos) << p.stdout_text();
+    EXPECT_NE(p.stderr_text().find("INSECURE"), std::string::npos) << p.stderr_text();
   }
   {
     // Nothing listens on this machine's own address at a fresh port: the station tries, warns and
