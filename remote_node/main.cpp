@@ -9,6 +9,8 @@
 #include "flags.h"
 #include "telex/cli/cli.h"
 #include "telex/cli/processing_flags.h"
+#include "telex/common/endpoint.h"
+#include "telex/common/logging.h"
 #include "telex/remote/daemon.h"
 
 namespace {
@@ -22,6 +24,7 @@ bool parse_size(const std::string& text, int& w, int& h) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  telex::init_logging("telex-remote");
   using telex::remote::DaemonConfig;
   DaemonConfig cfg;
   // The rig is read before the flags; the flags given override what it sets.
@@ -33,7 +36,7 @@ int main(int argc, char** argv) {
       rig_file = rig_path->string();
     }
   } catch (const std::exception& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n";
+    spdlog::error("{}", e.what());
     return 2;
   }
   CLI::App app{
@@ -155,17 +158,9 @@ int main(int argc, char** argv) {
   if (rig) spdlog::info("telex-remote: {}", telex::remote::describe_rig(*rig));
 
   try {
-    const auto colon = listen.rfind(':');
-    if (colon == std::string::npos || colon == 0)
-      throw std::invalid_argument(fmt::format("--listen '{}' is not HOST:PORT", listen));
-    cfg.server.host = listen.substr(0, colon);
-    const std::string port_text = listen.substr(colon + 1);
-    std::size_t used = 0;
-    const long port = port_text.empty() ? -1 : std::stol(port_text, &used);
-    if (used != port_text.size() || port < 0 || port > 65535)
-      throw std::invalid_argument(
-          fmt::format("--listen '{}': port '{}' is not 0..65535", listen, port_text));
-    cfg.server.port = static_cast<std::uint16_t>(port);
+    const telex::Endpoint listen_at = telex::parse_endpoint(listen, "--listen", true);
+    cfg.server.host = listen_at.host;
+    cfg.server.port = listen_at.port;
     cfg.server.force_tcp = transport == "tcp";
     cfg.server.client_timeout = std::chrono::milliseconds(client_timeout_ms);
     cfg.pipeline.codec = *telex::proto::parse_codec(codec);
@@ -210,7 +205,7 @@ int main(int argc, char** argv) {
     cfg.insecure = !cfg.server.tls.enabled() && !telex::proto::is_loopback_host(cfg.server.host);
     telex::remote::validate(cfg);
   } catch (const std::exception& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n";
+    spdlog::error("{}", e.what());
     return 2;
   }
 
@@ -218,28 +213,28 @@ int main(int argc, char** argv) {
   try {
     daemon = std::make_unique<telex::remote::RemoteDaemon>(cfg);  // bad source specs are bad flags
   } catch (const std::invalid_argument& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n";
+    spdlog::error("{}", e.what());
     return 2;
   }
   try {
     daemon->start();
   } catch (const std::invalid_argument& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n";
+    spdlog::error("{}", e.what());
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "telex-remote: " << e.what() << "\n";
+    spdlog::error("{}", e.what());
     return 1;
   }
-  spdlog::info("telex-remote: head {}", daemon->head()->name());
+  spdlog::info("head {}", daemon->head()->name());
   std::string path;
   for (const auto& [name, how] : daemon->scheduling())
     path += (path.empty() ? "" : ", ") + name + " " + how;
-  spdlog::info("telex-remote: depth path: {}", path);
-  spdlog::info("telex-remote: {} -> listening on {}:{} ({}, {})", daemon->depth_source().describe(),
+  spdlog::info("depth path: {}", path);
+  spdlog::info("{} -> listening on {}:{} ({}, {})", daemon->depth_source().describe(),
                cfg.server.host, daemon->port(),
                cfg.server.force_tcp ? "tcp" : "udp if the client offers it",
                cfg.server.tls.enabled() ? cfg.server.tls.describe() + ", datagrams sealed"
                                         : "plain: unauthenticated, unencrypted");
-  if (cfg.insecure) spdlog::warn("telex-remote: {}", telex::proto::insecure_warning());
+  if (cfg.insecure) spdlog::warn("{}", telex::proto::insecure_warning());
   return daemon->run();
 }

@@ -528,7 +528,7 @@ int RemoteDaemon::run() {
       if (ec) return;
       const auto now = std::chrono::steady_clock::now();
       if (config_.insecure && now - last_insecure_warning >= 60s) {
-        spdlog::warn("telex-remote: {}", proto::insecure_warning());
+        spdlog::warn("{}", proto::insecure_warning());
         last_insecure_warning = now;
       }
       if (config_.stats_line && now - last >= 1s) {

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "telex/cli/cli.h"
+#include "telex/common/endpoint.h"
 #include "telex/sim/impairment.h"
 
 namespace asio = boost::asio;
@@ -30,24 +31,19 @@ std::int64_t monotonic_ns() {
       .count();
 }
 
-// HOST:PORT with a numeric IPv4/IPv6 address; throws CLI::ValidationError naming the flag.
-udp::endpoint parse_endpoint(const std::string& s, const char* flag, bool port_zero_ok) {
-  const auto colon = s.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == s.size())
-    throw CLI::ValidationError(flag, "expected HOST:PORT, got '" + s + "'");
-  std::string host = s.substr(0, colon);
-  if (host.size() > 2 && host.front() == '[' && host.back() == ']')
-    host = host.substr(1, host.size() - 2);
+// HOST:PORT with a numeric IPv4/IPv6 address ([::1]:PORT); throws CLI::ValidationError naming
+// the flag.
+udp::endpoint parse_udp_endpoint(const std::string& s, const char* flag, bool port_zero_ok) {
+  telex::Endpoint e;
+  try {
+    e = telex::parse_endpoint(s, flag, port_zero_ok);
+  } catch (const std::invalid_argument& error) {
+    throw CLI::ValidationError(error.what());
+  }
   boost::system::error_code ec;
-  const auto addr = asio::ip::make_address(host, ec);
-  if (ec) throw CLI::ValidationError(flag, "'" + host + "' is not a numeric IP address");
-  const std::string port_text = s.substr(colon + 1);
-  char* end = nullptr;
-  const long port = std::strtol(port_text.c_str(), &end, 10);
-  if (*end != '\0' || port < (port_zero_ok ? 0 : 1) || port > 65535)
-    throw CLI::ValidationError(flag, "port must be " + std::string(port_zero_ok ? "0" : "1") +
-                                         "..65535, got '" + port_text + "'");
-  return {addr, static_cast<unsigned short>(port)};
+  const auto addr = asio::ip::make_address(e.host, ec);
+  if (ec) throw CLI::ValidationError(flag, "'" + e.host + "' is not a numeric IP address");
+  return {addr, e.port};
 }
 
 nlohmann::json to_json(const ImpairmentCounters& c) {
@@ -260,8 +256,8 @@ int main(int argc, char** argv) {
   udp::endpoint listen_ep, forward_ep;
   if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
   try {
-    listen_ep = parse_endpoint(listen_text, "--listen", true);
-    forward_ep = parse_endpoint(forward_text, "--forward", false);
+    listen_ep = parse_udp_endpoint(listen_text, "--listen", true);
+    forward_ep = parse_udp_endpoint(forward_text, "--forward", false);
   } catch (const CLI::ValidationError& e) {
     std::cerr << "telex-sim-impair: " << e.what() << "\n";
     return telex::cli::kUsageExit;

@@ -2,6 +2,8 @@
 // telex::cli: parse, usage messages and suggestions, help as JSON, logs on stderr.
 #include "telex/cli/cli.h"
 
+#include "telex/common/logging.h"
+
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -153,11 +155,12 @@ std::string config_origin(const CLI::App& app, const std::string& message, int a
 }  // namespace
 
 void prepare(CLI::App& app, std::string program) {
+  // Logs go to stderr in the daemons' one format, so stdout carries only a program's output.
+  init_logging(program);
   app.name(std::move(program));
   app.option_defaults()->always_capture_default();
   app.add_flag("--help-json")
       ->description("Print every option (names, default, help) as JSON and exit");
-  logs_to_stderr();
 }
 
 std::string program_name(const CLI::App& app) {
@@ -258,13 +261,6 @@ nlohmann::json help_json(const CLI::App& app) {
   j["subcommands"] = nlohmann::json::array();
   for (const CLI::App* s : subcommands_of(app)) j["subcommands"].push_back(help_json(*s));
   return j;
-}
-
-void logs_to_stderr() {
-  auto logger =
-      std::make_shared<spdlog::logger>("", std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
-  logger->set_level(spdlog::default_logger()->level());
-  spdlog::set_default_logger(std::move(logger));
 }
 
 void log_config_values(const CLI::App& app) {

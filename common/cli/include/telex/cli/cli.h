@@ -60,7 +60,4 @@ nlohmann::json help_json(const CLI::App& app);
 // Logs (spdlog's default logger) the values a config file set, so a run says what it used.
 void log_config_values(const CLI::App& app);
 
-// Points spdlog's default logger at stderr, so stdout carries only a program's output (JSON).
-void logs_to_stderr();
-
 }  // namespace telex::cli

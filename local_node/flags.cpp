@@ -1,0 +1,315 @@
+// SPDX-License-Identifier: MIT
+// telex-local's flags: their definitions and what their text becomes.
+#include "flags.h"
+
+#include <openssl/ssl.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <stdexcept>
+
+#include "telex/common/endpoint.h"
+#include "telex/local/view_window.h"
+
+namespace telex::local {
+
+void load_station_rig(int argc, char** argv, StationFlags& f) {
+  if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
+    f.rig_file = rig_path->string();
+    apply_rig(telex::load_rig(*rig_path), f.cfg);
+  }
+}
+
+namespace {
+
+// The remote, the rig and the depth link.
+void add_link_options(CLI::App& app, StationFlags& f) {
+  app.add_option("--rig", f.rig_file,
+                 "rig FILE (docs/RIG.md): marker bodies, head-to-camera offset, body, hands, "
+                 "gloves, eyes, display channels; the flags below override it");
+  app.set_config("--config", "", "read flags from an INI/TOML file (same names as the flags)");
+  app.add_option("--connect", f.connect, "remote node HOST:PORT")->capture_default_str();
+  app.add_option("--transport", f.transport, "depth transport: udp or tcp")
+      ->check(CLI::IsMember({"udp", "tcp"}))
+      ->capture_default_str();
+  app.add_option("--udp-port", f.cfg.client.udp_bind_port, "local UDP port for depth (0 = any)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+  app.add_option("--udp-announce-port", f.cfg.client.udp_announce_port,
+                 "UDP port announced to the remote instead of --udp-port, e.g. an impairment "
+                 "proxy's (0 = the bound port)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+}
+
+// The operator: hand, gloves, tracked bodies, head teleoperation.
+void add_tracking_options(CLI::App& app, StationFlags& f) {
+  app.add_option("--hand", f.cfg.hand_spec,
+                 "fingertips: script:press|stroke|tap|FILE, natnet:SERVER[,unicast][,local=IP], "
+                 "5dt-usb[:PATH], 5dt-serial:DEV")
+      ->capture_default_str();
+  app.add_flag("--repeat", f.cfg.tracker.repeat, "repeat a scripted hand until --duration ends");
+  app.add_option("--glove", f.glove,
+                 "finger bends with a NatNet wrist: 5dt-usb[:PATH] | 5dt-serial:DEV");
+  app.add_option("--glove-calibration", f.cfg.tracker.glove_calibration_path,
+                 "glove calibration JSON");
+  app.add_option("--head-body", f.cfg.tracker.head_body_id, "NatNet rigid body id of the head")
+      ->capture_default_str();
+  app.add_option("--hand-body", f.cfg.tracker.right_hand_body_id,
+                 "NatNet rigid body id of the hand")
+      ->capture_default_str();
+  app.add_option("--shoulder-body", f.cfg.tracker.right_shoulder_body_id,
+                 "NatNet rigid body id of the shoulder (-1 none)")
+      ->capture_default_str();
+  app.add_option("--left-hand-body", f.cfg.tracker.left_hand_body_id,
+                 "NatNet rigid body id of the left hand (-1 none; drawn, or felt with --left-hand)")
+      ->capture_default_str();
+  app.add_option("--left-shoulder-body", f.cfg.tracker.left_shoulder_body_id,
+                 "NatNet rigid body id of the left shoulder (-1 none)")
+      ->capture_default_str();
+  app.add_option("--elbow-bodies", f.elbow_bodies,
+                 "NatNet rigid body ids of the elbow markers LEFT,RIGHT (-1 none)");
+  app.add_flag("--no-head", f.no_head,
+               "no head teleoperation: the operator's head is not sent to the remote, and the "
+               "fingertips are placed with the operator's head even when the remote reports its "
+               "head's pose (the naive transform)");
+  app.add_flag("--head-naive", f.head_naive,
+               "send the head, but place the fingertips with the operator's current head instead "
+               "of the remote head's pose at each frame's capture (for comparison)");
+  app.add_option("--head-rate", f.cfg.head_rate_hz, "head poses sent per second")
+      ->check(CLI::Range(1.0, 1000.0))
+      ->capture_default_str();
+  app.add_option("--deadman", f.cfg.deadman_spec,
+                 "dead-man key or pedal that must be held for the robot head to move: "
+                 "evdev:/dev/input/eventN[,key=KEY_SPACE] (a keyboard or a pedal that acts as "
+                 "one) | hid:VID:PID[,byte=N][,mask=M] (a HID report's bits); its state goes with "
+                 "every head pose, released or a failed device holds the head");
+  app.add_flag("--left-hand", f.cfg.tracker.use_left_hand,
+               "the haptic fingertips are the left hand's (the right hand is drawn)");
+  app.add_option("--other-glove", f.cfg.tracker.other_glove_spec,
+                 "the other hand's glove (that hand is drawn): 5dt-usb[:PATH] | 5dt-serial:DEV");
+  app.add_option("--natnet-cmd-port", f.cfg.tracker.natnet_command_port, "NatNet command port")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  app.add_option("--natnet-data-port", f.cfg.tracker.natnet_data_port, "NatNet data port")
+      ->check(CLI::Range(1, 65535))
+      ->capture_default_str();
+  app.add_option("--natnet-multicast", f.cfg.tracker.natnet_multicast_group,
+                 "NatNet multicast group")
+      ->capture_default_str();
+}
+
+// The haptic display, the force model and the haptic loop.
+void add_haptic_options(CLI::App& app, StationFlags& f) {
+  app.add_option("--haptics", f.cfg.haptics_spec,
+                 "display: sim[:CSV] | gravity-grabber:HIDPATH|VID:PID[:SERIAL] | udp:HOST[:PORT]")
+      ->capture_default_str();
+  app.add_option("--gg-config", f.cfg.display.gravity_grabber_config_path,
+                 "Gravity Grabber calibration JSON (docs/HARDWARE.md)");
+  app.add_option("--max-force", f.cfg.haptic.max_force_N, "force clamp, N")
+      ->check(CLI::Range(0.01, 100.0))
+      ->capture_default_str();
+  app.add_option("--stiffness", f.cfg.haptic.stiffness_N_per_m, "surface stiffness, N/m")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--max-force-step", f.cfg.haptic.max_force_step_N, "force rate limit per tick, N")
+      ->check(CLI::Range(1e-4, 100.0))
+      ->capture_default_str();
+  app.add_option("--mu-static", f.cfg.haptic.mu_static, "static friction coefficient")
+      ->check(CLI::Range(0.0, 5.0))
+      ->capture_default_str();
+  app.add_option("--mu-dynamic", f.cfg.haptic.mu_dynamic, "dynamic friction coefficient")
+      ->check(CLI::Range(0.0, 5.0))
+      ->capture_default_str();
+  app.add_option("--ramp", f.cfg.haptic.startup_ramp_s, "start-up force ramp, s")
+      ->check(CLI::Range(0.0, 60.0))
+      ->capture_default_str();
+  app.add_option("--stale-limit", f.cfg.haptic.stale_limit_s,
+                 "surface/tracking age that fades forces out, s")
+      ->check(CLI::Range(0.01, 10.0))
+      ->capture_default_str();
+  app.add_option("--rate", f.cfg.rate_hz, "haptic loop rate, Hz")
+      ->check(CLI::Range(10.0, 10000.0))
+      ->capture_default_str();
+  app.add_flag("--no-realtime", f.no_realtime,
+               "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
+               "depth network, tracking) and the display supervisor");
+  app.add_flag("--no-supervisor", f.no_supervisor,
+               "no display supervisor (default: a child process that commands zero force on the "
+               "haptic display if the station dies by SIGKILL, abort or a segfault; "
+               "docs/HARDWARE.md)");
+}
+
+// The surface: where it is built, how it is filtered, repair.
+void add_surface_options(CLI::App& app, StationFlags& f) {
+  app.add_flag("--full-frame", f.full_frame,
+               "filter and build normals over the whole frame (default: only near the "
+               "fingertips, the same force error at a fiftieth of the cost, docs/BENCHMARKS.md)");
+  app.add_flag("--roi", f.roi_flag,
+               "the default: filter and build normals only near the fingertips")
+      ->excludes("--full-frame");
+  app.add_flag("--no-fill-here", f.no_fill_here,
+               "do not fill holes on the station (default: fill them in the fingertip windows; "
+               "the remote sends its depth unfilled unless run with --fill)");
+  f.bilateral_radius = f.cfg.surface.bilateral_options.radius_px;
+  app.add_option("--bilateral-radius", f.bilateral_radius,
+                 "bilateral window radius, px (default 6, KinectFusion's 13x13: 4.1 % force error "
+                 "against 9.2 % at radius 2, docs/BENCHMARKS.md)")
+      ->check(CLI::Range(1, 15))
+      ->capture_default_str();
+  app.add_flag("--no-frame-parts", f.no_frame_parts,
+               "take each frame in one part (ROI tiles are otherwise sent and published first)");
+  app.add_flag("--no-repair", f.no_repair,
+               "never ask the remote for lost tiles or key frames (default: a TileNack for the "
+               "fingertip windows' lost tiles, a key frame when a frame cannot be completed; "
+               "docs/PROTOCOL.md 2.5)");
+  app.add_flag("--no-bilateral", f.no_bilateral, "skip the bilateral filter");
+  app.add_option("--max-tile-age", f.cfg.max_tile_age_s,
+                 "a missing tile keeps its value this long, s")
+      ->check(CLI::Range(0.0, 60.0))
+      ->capture_default_str();
+}
+
+// Logs, recording, the view, the run's length, the summary.
+void add_output_options(CLI::App& app, StationFlags& f) {
+  app.add_option("--log-forces", f.cfg.log_forces_csv,
+                 "CSV of forces, one row per finger per tick");
+  app.add_option("--log-tracking", f.cfg.log_tracking_csv,
+                 "CSV of every rigid body as the tracker reported it (tracker frame)");
+  app.add_option("--record", f.cfg.record_bag,
+                 "record the session to a ROS 1 bag FILE.bag: depth as received, tracked bodies, "
+                 "fingertips, forces and display commands (docs/RECORDING.md)");
+  app.add_option("--record-rate", f.cfg.record_rate_hz,
+                 "rate of the recorded forces, display commands and fingertip frames, Hz "
+                 "(the model's inputs are recorded every tick)")
+      ->check(CLI::Range(0.1, 10000.0))
+      ->capture_default_str();
+  app.add_option("--log-every", f.cfg.log_every, "log one tick in N")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--view", f.cfg.view_spec,
+                 "operator view: none | png:DIR (view.png, and the stereo pair left.png, "
+                 "right.png, sbs.png, once a second) | window (the stereo pair side by side in a "
+                 "resizable window; Esc or closing it stops the station) | hmd[:MONITOR] (the "
+                 "same, full screen on a monitor: a name as xrandr lists it or a 0-based index; "
+                 "default the last; an unknown one lists those present). window and hmd need an X "
+                 "display (DISPLAY)")
+      ->check([](const std::string& text) {
+        try {
+          ViewSpec::parse(text);
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      })
+      ->capture_default_str();
+  app.add_option("--view-at", f.cfg.view_at_s,
+                 "with --view png:DIR, write the view once, this many seconds after the hand "
+                 "starts (a scripted hand's time), instead of once a second and at the end: the "
+                 "pictures show that moment of the run")
+      ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--stereo-baseline", f.cfg.stereo_baseline_m,
+                 "distance between the remote's eye cameras in metres (stereo view)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--print-forces", f.cfg.print_forces_hz,
+                 "print forces on stdout at this rate, Hz (0 off)")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  app.add_option("--duration", f.cfg.duration_s, "stop after this many seconds (0 = until Ctrl-C)")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--first-surface-timeout", f.cfg.first_surface_timeout_s,
+                 "give up when no surface arrives within this many seconds")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  app.add_flag("--json-summary", f.json_summary, "print a JSON summary on stdout at exit");
+  app.add_flag("--quiet", f.quiet, "no status line");
+}
+
+// Keys and certificates (docs/PROTOCOL.md).
+void add_security_options(CLI::App& app, StationFlags& f) {
+  app.add_option("--psk", f.psk_file,
+                 "pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "(EC)DHE on TCP, sealed datagrams on UDP; the remote needs the same key");
+  app.add_option("--cert", f.cert_file,
+                 "this station's certificate chain FILE (PEM), instead of --psk; with --key, --ca");
+  app.add_option("--key", f.key_file, "the private key FILE (PEM, mode 0600) of --cert");
+  app.add_option("--ca", f.ca_file,
+                 "CA FILE (PEM): the remote's certificate must chain to it (required, verified)");
+  app.add_flag("--insecure", f.insecure,
+               "accept a --connect address off loopback without --psk or certificates: anyone on "
+               "the network can then move the robot head and watch its cameras and depth");
+}
+
+}  // namespace
+
+void add_station_options(CLI::App& app, StationFlags& f) {
+  add_link_options(app, f);
+  add_tracking_options(app, f);
+  add_haptic_options(app, f);
+  add_surface_options(app, f);
+  add_output_options(app, f);
+  add_security_options(app, f);
+}
+
+void resolve_station_flags(StationFlags& f) {
+  try {
+    const Endpoint remote = parse_endpoint(f.connect, "--connect");
+    f.cfg.client.host = remote.host;
+    f.cfg.client.port = remote.port;
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError(e.what());
+  }
+  if (f.elbow_bodies.empty()) return;
+  int left = -2, right = -2;
+  char comma = 0, extra = 0;
+  if (std::sscanf(f.elbow_bodies.c_str(), "%d%c%d%c", &left, &comma, &right, &extra) != 3 ||
+      comma != ',' || left < -1 || right < -1)
+    throw CLI::ValidationError(
+        "--elbow-bodies", "expected LEFT,RIGHT body ids (-1 none), got '" + f.elbow_bodies + "'");
+  f.cfg.tracker.left_elbow_body_id = left;
+  f.cfg.tracker.right_elbow_body_id = right;
+}
+
+void apply_security_flags(StationFlags& f) {
+  ClientConfig& client = f.cfg.client;
+  proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
+  if (!f.psk_file.empty()) {
+    try {
+      proto::check_key_file_permissions(f.psk_file);
+      client.tls.psk = proto::load_key_file(f.psk_file);
+    } catch (const std::exception& e) {
+      throw std::invalid_argument(std::string("--psk: ") + e.what());
+    }
+  }
+  if (!f.cert_file.empty()) {
+    proto::check_key_file_permissions(f.key_file, "private key file");
+    client.tls.cert = f.cert_file;
+    client.tls.key = f.key_file;
+    client.tls.ca = f.ca_file;
+    // Loaded once here, so an unreadable or mismatched file exits 2 before anything starts.
+    SSL_CTX_free(proto::make_tls_context(client.tls, proto::TlsRole::Client));
+  }
+  const bool loopback = proto::is_loopback_host(client.host);
+  if (!client.tls.enabled() && !loopback && !f.insecure)
+    throw std::invalid_argument(proto::insecure_refusal("--connect", f.connect));
+  f.cfg.insecure = !client.tls.enabled() && !loopback;
+}
+
+void apply_station_switches(StationFlags& f) {
+  StationConfig& cfg = f.cfg;
+  cfg.client.use_udp = f.transport == "udp";
+  cfg.client.frame_parts = !f.no_frame_parts;
+  cfg.client.repair = !f.no_repair;
+  cfg.tracker.glove_spec = f.glove;
+  if (f.no_head) cfg.head_teleop = cfg.head_captured_pose = false;
+  if (f.head_naive) cfg.head_captured_pose = false;
+  cfg.realtime = !f.no_realtime;
+  cfg.surface.bilateral = !f.no_bilateral;
+  cfg.surface.roi = !f.full_frame;
+  cfg.surface.fill_here = !f.no_fill_here;
+  cfg.surface.bilateral_options.radius_px = f.bilateral_radius;
+  cfg.status_line = !f.quiet;
+}
+
+}  // namespace telex::local

@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: MIT
+// telex-local's command line: every flag (CLI11), and what the flags' text becomes in the
+// station's configuration. main.cpp parses with it; the local tests test it.
+#pragma once
+
+#include <string>
+
+#include "telex/local/station.h"
+
+namespace CLI {
+class App;
+}
+
+namespace telex::local {
+
+// The command line's values: the station's configuration and the flags that are not one field of
+// it (they are turned into it by the functions below).
+struct StationFlags {
+  StationConfig cfg;
+  std::string rig_file;
+  std::string connect = "127.0.0.1:7300";
+  std::string transport = "udp";
+  std::string glove;
+  std::string psk_file, cert_file, key_file, ca_file;
+  bool insecure = false;
+  std::string elbow_bodies;
+  bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
+  bool no_head = false, head_naive = false, no_supervisor = false;
+  bool full_frame = false, roi_flag = false, no_fill_here = false;
+  int bilateral_radius = 0;  // set from the configuration when the options are added
+  bool no_frame_parts = false, no_repair = false;
+};
+
+// --rig FILE (docs/RIG.md), read before the flags so any flag given overrides it. Throws
+// std::runtime_error / std::invalid_argument naming the file and the key.
+void load_station_rig(int argc, char** argv, StationFlags& flags);
+
+// Every telex-local option, bound to `flags`: one place, so the set stays the same wherever it is
+// parsed.
+void add_station_options(CLI::App& app, StationFlags& flags);
+
+// After parsing: --connect and --elbow-bodies into the configuration. Throws CLI::ValidationError
+// naming the flag.
+void resolve_station_flags(StationFlags& flags);
+
+// --psk, --cert/--key/--ca and --insecure: the keys loaded and checked, and a plain link off
+// loopback refused without --insecure. Throws std::invalid_argument naming the flag.
+void apply_security_flags(StationFlags& flags);
+
+// The switches (--transport, --no-head, --full-frame, ...) into the configuration.
+void apply_station_switches(StationFlags& flags);
+
+}  // namespace telex::local

@@ -1,0 +1,89 @@
+// SPDX-License-Identifier: MIT
+// What one station run measured: the summary Station::run returns, its JSON (telex-local
+// --json-summary, read by the tests and tools) and its one-line reports.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "telex/local/tracker.h"
+
+namespace telex::local {
+
+// Summary a run returns (and the status line prints), for tests and the benchmark report.
+struct StationSummary {
+  std::uint64_t ticks = 0;
+  double haptic_rate_hz = 0;
+  double period_p99_jitter_us = 0;
+  double period_median_us = 0;
+  std::uint64_t missed_ticks = 0;
+  // The haptic loop's nominal rate and the time from its first deadline to its last: every
+  // deadline is ticked or missed, so ticks + missed_ticks = span * rate + 1 (PeriodicTimer).
+  double nominal_rate_hz = 0;
+  double haptic_span_s = 0;
+  // CLOCK_MONOTONIC (ns) at the logs' time 0: the time_s of --log-forces and --log-tracking rows
+  // is (monotonic - this) / 1e9, so other processes' events can be put on the same time base.
+  std::int64_t log_origin_monotonic_ns = 0;
+  std::uint64_t surfaces = 0;
+  std::uint64_t frames = 0;      // depth frames assembled (closing manifests)
+  std::uint64_t roi_parts = 0;   // frames whose ROI part was published before the rest
+  double latency_median_ms = 0;  // capture (remote clock, offset-corrected) to force output
+  double latency_p99_ms = 0;
+  // Over the surfaces first rendered while a finger was in contact (the force-carrying samples).
+  std::uint64_t contact_latency_samples = 0;
+  double contact_latency_median_ms = 0;
+  double contact_latency_p99_ms = 0;
+  // Of every surface built from a new frame or part: capture to its manifest's arrival, and from
+  // that arrival to the surface's publication.
+  double arrive_median_ms = 0, arrive_p99_ms = 0, build_wait_median_ms = 0, build_wait_p99_ms = 0;
+  double peak_pressure_N = 0;
+  double peak_shear_N = 0;
+  std::string scheduling;  // the haptic thread's
+  // Per thread on the depth-to-force path (surface, network, haptic, tracking): what it got.
+  std::vector<std::pair<std::string, std::string>> thread_scheduling;
+  // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
+  std::uint64_t auth_failed = 0, unsealed = 0, replayed = 0, dropped_malformed = 0;
+  std::uint64_t upstream_dropped = 0;  // messages to the remote dropped behind a stalled write
+  // The depth stream over UDP: datagrams received, and those the reassembler knows were lost.
+  std::uint64_t udp_datagrams = 0, udp_lost = 0;
+  std::uint64_t bytes_in = 0;  // everything the remote sent (TCP and UDP, headers and tags)
+  std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
+  // Repair (FrameAssembler's counters) and tile ages in frame periods at each closed frame: the
+  // tiles under the fingertip windows, and all tiles.
+  std::uint64_t tiles_missing = 0, frames_incomplete = 0, frames_unclosed = 0, tiles_expired = 0;
+  std::uint64_t nacks = 0, tiles_nacked = 0, watched_tiles_nacked = 0, tiles_repaired = 0,
+                repairs_useless = 0;
+  std::uint64_t key_frame_requests = 0;
+  std::uint64_t head_commands = 0;  // head poses sent to the remote (head teleoperation)
+  // ... of them, sent with a tracking sample older than 100 ms (tracking lost: the remote holds),
+  // and with the dead-man released.
+  std::uint64_t head_samples_stale = 0, head_deadman_released = 0;
+  std::uint64_t tile_age_samples = 0, tile_age_watched_samples = 0;
+  double tile_age_watched_median = 0, tile_age_watched_p99 = 0, tile_age_watched_max = 0;
+  double tile_age_all_median = 0, tile_age_all_p99 = 0, tile_age_all_max = 0;
+  // --record: the bag written (empty: not recording), what was written and what the queues
+  // dropped; record_error when writing failed.
+  std::string record_file;
+  std::uint64_t record_ticks = 0, record_surfaces = 0, record_body_frames = 0;
+  std::uint64_t record_dropped_ticks = 0, record_dropped_surfaces = 0, record_dropped_bodies = 0;
+  std::string record_error;
+  // Head poses not sent because a joint target was not finite (never reached with checked poses).
+  std::uint64_t head_commands_invalid = 0;
+  // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
+  TrackerStats tracker;
+
+  // The stream's mean rate over the haptic loop's span (0 before the loop ran).
+  double stream_mbit_per_s() const;
+  // telex-local --json-summary: every key once, here (docs/BENCHMARKS.md and the tests read them).
+  nlohmann::json to_json() const;
+  // The run in one line: ticks, rate, jitter, latencies, peak forces.
+  std::string done_text() const;
+  // --record: what the bag got and what was dropped (and a failure); empty when not recording.
+  std::string record_text() const;
+};
+
+}  // namespace telex::local

@@ -1,0 +1,135 @@
+// SPDX-License-Identifier: MIT
+// The haptic loop: tracker + newest surface -> force model -> display, at the station's rate.
+#include "haptic_loop.h"
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "telex/base/periodic.h"
+
+namespace telex::local {
+namespace {
+
+bool all_finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace
+
+HapticLoop::HapticLoop(const StationConfig& cfg, StationFaults& faults, HapticDisplay& display,
+                       ZeroForceOnExit& display_zero,
+                       TripleBuffer<std::shared_ptr<const Surface>>& surfaces,
+                       TripleBuffer<HandState>& hand_for_surface,
+                       TripleBuffer<HandState>& hand_for_view, bool keep_bodies)
+    : cfg_(cfg),
+      faults_(faults),
+      display_(display),
+      display_zero_(display_zero),
+      surfaces_(surfaces),
+      hand_for_surface_(hand_for_surface),
+      hand_for_view_(hand_for_view),
+      period_ns_(static_cast<std::int64_t>(std::llround(1e9 / cfg.rate_hz))),
+      channel_(cfg.display_channel[index_of(cfg.tracker.use_left_hand ? Side::Left : Side::Right)]),
+      model_(cfg.haptic, kFingerCount),
+      samples_(1 << 14),
+      bodies_(keep_bodies ? 1024 : 1) {}
+
+void HapticLoop::run(std::stop_token stop) {
+  scheduling_ = try_realtime(cfg_.realtime ? kHapticPriority : 0);
+  scheduling_ready_.store(true);
+  try {
+    ticks(stop);
+  } catch (...) {
+    faults_.fail("haptic (telex-haptic)", std::current_exception());
+  }
+  // Release the device: zero force on every finger (the guard does it again after the join).
+  display_zero_.release();
+}
+
+std::string HapticLoop::wait_scheduling() const {
+  while (!scheduling_ready_.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return scheduling_;
+}
+
+void HapticLoop::ticks(std::stop_token stop) {
+  PeriodicTimer timer(period_ns_);
+  std::shared_ptr<const Surface> newest;
+  HandState hand{};
+  std::array<FingertipInput, kFingerCount> in{};
+  std::array<FingertipForce, kFingerCount> out{};
+  std::array<FingerForce, kFingerCount> shown{};
+  TickSample sample{};
+  std::int64_t prev = 0;
+  const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
+  while (!stop.stop_requested()) {
+    const std::int64_t now = timer.wait_next();
+    faults_.check(StationLoop::Haptic);
+    if (prev == 0) t0_ns_.store(now, std::memory_order_release);
+    if (tracker_->poll(now, hand)) {
+      hand_for_surface_.publish(hand);
+      hand_for_view_.publish(hand);
+      // A new sample only from a new tracker frame that held the head: a glove's update or a
+      // frame without the head body repeats the last one, which then ages (PROTOCOL.md 2.6).
+      if (hand.head_valid && hand.bodies_fresh)
+        head_out_.publish({hand.time_ns, ++head_samples_, hand.R_BaseCamera});
+      if (hand.bodies_fresh && hand.body_count > 0) bodies_.push(hand);
+    }
+    surfaces_.take(newest);
+    const bool fresh = now - hand.time_ns <= tracking_stale_ns;
+    const glm::dmat3 from_model = model_tick(now, newest, hand, fresh, in, out);
+    for (int i = 0; i < kFingerCount; ++i) {
+      const auto& f = out[static_cast<std::size_t>(i)];
+      shown[static_cast<std::size_t>(i)] = {channel_[static_cast<std::size_t>(i)], f.normal_force_N,
+                                            f.shear_along_axis_N, f.contact};
+    }
+    display_.write(now, shown);
+    sample.t_ns = now;
+    sample.deadline_ns = timer.deadline_ns();
+    sample.period_ns = prev ? now - prev : period_ns_;
+    prev = now;
+    sample.surface_frame = newest ? newest->frame_id : 0;
+    sample.surface_capture_ns = newest ? newest->capture_ns : 0;
+    sample.forces = out;
+    for (int i = 0; i < kFingerCount; ++i) {
+      sample.tracked[static_cast<std::size_t>(i)] = in[static_cast<std::size_t>(i)].tracked;
+      sample.p_CameraFingertip[static_cast<std::size_t>(i)] =
+          from_model * in[static_cast<std::size_t>(i)].p_ModelFingertip;
+      sample.axis_Camera[static_cast<std::size_t>(i)] =
+          from_model * in[static_cast<std::size_t>(i)].axis_Model;
+    }
+    samples_.push(sample);
+    missed_.store(timer.missed(), std::memory_order_relaxed);
+  }
+}
+
+glm::dmat3 HapticLoop::model_tick(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest,
+                                  const HandState& hand, bool fresh,
+                                  std::array<FingertipInput, kFingerCount>& in,
+                                  std::array<FingertipForce, kFingerCount>& out) {
+  // The model's frame: the head base's when the surface carries the head's pose at capture
+  // (the robot head lags the operator's; each surface is placed by its own pose), else the
+  // camera's. The fingertips go there from the camera of the operator's head; a hand without a
+  // head (scripted) is taken to be in the newest surface's camera.
+  const bool in_base = cfg_.head_captured_pose && hand.head_valid && newest && newest->head_valid;
+  const glm::dmat3 to_model =
+      in_base ? hand.R_BaseCamera : (newest ? newest->R_ModelCamera : glm::dmat3(1.0));
+  for (int i = 0; i < kFingerCount; ++i) {
+    const auto& tip = hand.tips[static_cast<std::size_t>(i)];
+    // The tracker's poses are checked; a fingertip that still is not finite is not touched,
+    // and its value never reaches the model's state.
+    if (!all_finite(tip.p_CameraFingertip) || !all_finite(tip.axis_Camera)) {
+      in[static_cast<std::size_t>(i)] = {glm::dvec3(0.0), glm::dvec3(0.0, 0.0, 1.0), false};
+      continue;
+    }
+    in[static_cast<std::size_t>(i)] = {to_model * tip.p_CameraFingertip, to_model * tip.axis_Camera,
+                                       tip.valid && fresh};
+  }
+  model_.tick(now_ns, newest, in, out);
+  // Logs, recording and view take the tick re-expressed in the newest surface's camera.
+  const glm::dmat3 from_model = newest ? glm::transpose(newest->R_ModelCamera) : glm::dmat3(1.0);
+  if (newest && newest->R_ModelCamera != glm::dmat3(1.0)) reexpress(from_model, out);
+  return from_model;
+}
+
+}  // namespace telex::local

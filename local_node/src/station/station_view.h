@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: MIT
+// The operator view (--view png:DIR | window | hmd): the eyes' video as received, the newest
+// surface and depth, the 2D view, the stereo pair drawn on its own thread, and the window on the
+// main thread.
+#pragma once
+
+#include <array>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <stop_token>
+#include <string>
+#include <vector>
+
+#include "faults.h"
+#include "telex/base/latest_slot.h"
+#include "telex/base/triple_buffer.h"
+#include "telex/local/station.h"
+#include "telex/local/stereo_view.h"
+#include "telex/local/surface_client.h"
+#include "telex/local/view_window.h"
+
+namespace telex::local {
+
+class StationView {
+ public:
+  // Opens the window (--view window | hmd) now, so a missing display or an unknown monitor stops
+  // the start before anything connects.
+  StationView(const StationConfig& cfg, StationFaults& faults);
+
+  // Creates the PNG folder, and shows the window's waiting picture.
+  void open();
+  // The eyes' video from the network thread.
+  void bind(ClientEvents& events);
+  bool stereo() const { return spec_.stereo(); }
+  bool window() const { return window_ != nullptr; }
+
+  // Surface thread: what the view draws (a frame's rest that changed nothing only its depth).
+  void show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm);
+  void show_depth(const cv::Mat1w& depth_mm);
+  // Haptic thread -> view: the hand.
+  TripleBuffer<HandState>& hand_in() { return hand_in_; }
+
+  // Main thread. The stereo view is handed what the main thread knows (forces, status): once a
+  // second for PNGs, at video rate for a window.
+  void request_stereo(const std::array<FingertipForce, kFingerCount>& forces,
+                      const std::string& status);
+  // --view png:DIR: the 2D view now, the stereo pair on the view thread. With --view-at only the
+  // moment it names is written (`at_moment`).
+  void write_files(const std::array<FingertipForce, kFingerCount>& forces,
+                   const std::string& status, bool at_moment = false);
+  // The window's turn: the newest stereo pair or the window's events. True once the operator
+  // closed it (the station then stops as on a signal; `stop` is set).
+  bool pump_window(std::atomic<bool>& stop);
+  // At the end: what the window showed.
+  void log_window_counts() const;
+
+  // The view thread's body (started by the station when stereo()).
+  void run_stereo(std::stop_token stop);
+
+ private:
+  // Eye 0 (left) or 1 (right): the received frame captured nearest to `want_capture_ns` (0: the
+  // newest), decoded; *offset_ns is its capture time minus the one wanted.
+  cv::Mat3b eye_image(int eye, std::int64_t want_capture_ns = 0, std::int64_t* offset_ns = nullptr);
+  cv::Mat3b render_2d(const std::array<FingertipForce, kFingerCount>& forces,
+                      const std::string& status);
+  // The stereo pair for one request, or false when there is no surface to draw yet.
+  bool render_stereo(StereoView& view, StereoViewInputs& in);
+  void write_stereo_files(const StereoViewImages& v) const;
+
+  const StationConfig& cfg_;
+  StationFaults& faults_;
+  const ViewSpec spec_;
+  // GLFW's window, used on the main thread only.
+  std::unique_ptr<ViewWindow> window_;
+
+  std::mutex video_mu_;
+  struct EyeFrame {
+    std::int64_t capture_ns = 0;  // sender clock, as the depth frames'
+    std::vector<std::uint8_t> jpeg;
+  };
+  std::array<std::deque<EyeFrame>, 2> eye_frames_;  // by eye (0 left, 1 right): the last 8
+
+  std::mutex surface_mu_;
+  std::shared_ptr<const Surface> surface_;
+  cv::Mat1w depth_mm_;
+
+  TripleBuffer<HandState> hand_in_;
+  HandState hand_{};  // main thread
+
+  // Main thread -> view thread, and on a screen the view thread's pairs back, newest wins.
+  LatestSlot<cv::Mat3b> sbs_for_window_;
+  std::mutex stereo_mu_;
+  std::condition_variable_any stereo_cv_;
+  struct StereoRequest {
+    HandState hand{};
+    std::array<FingertipForce, kFingerCount> forces{};
+    std::string status;
+    bool pending = false;
+  } stereo_request_;             // guarded by stereo_mu_
+  bool warned_one_eye_ = false;  // view thread
+};
+
+}  // namespace telex::local

@@ -1,0 +1,126 @@
+// SPDX-License-Identifier: MIT
+// The station's summary as JSON and as the lines telex-local logs at exit.
+#include "telex/local/station_summary.h"
+
+#include <fmt/format.h>
+
+namespace telex::local {
+
+double StationSummary::stream_mbit_per_s() const {
+  return haptic_span_s > 0.0 ? static_cast<double>(bytes_in) * 8e-6 / haptic_span_s : 0.0;
+}
+
+namespace {
+
+nlohmann::json tracker_json(const TrackerStats& t) {
+  return {{"frames_in", t.frames_in},
+          {"frames_dropped", t.frames_dropped},
+          {"parse_errors", t.parse_errors},
+          {"io_errors", t.io_errors},
+          {"foreign_datagrams", t.foreign_datagrams},
+          {"rejected_nonfinite", t.rejected_nonfinite},
+          {"rejected_quaternion", t.rejected_quaternion},
+          {"rejected_too_fast", t.rejected_too_fast},
+          {"frames_rejected", t.frames_rejected},
+          {"thread_faults", t.thread_faults}};
+}
+
+}  // namespace
+
+nlohmann::json StationSummary::to_json() const {
+  nlohmann::json threads = nlohmann::json::object();
+  for (const auto& [name, how] : thread_scheduling) threads[name] = how;
+  nlohmann::json j{{"ticks", ticks},
+                   {"haptic_rate_hz", haptic_rate_hz},
+                   {"period_median_us", period_median_us},
+                   {"period_p99_jitter_us", period_p99_jitter_us},
+                   {"missed_ticks", missed_ticks},
+                   {"nominal_rate_hz", nominal_rate_hz},
+                   {"haptic_span_s", haptic_span_s},
+                   {"log_origin_monotonic_ns", log_origin_monotonic_ns},
+                   {"surfaces", surfaces},
+                   {"frames", frames},
+                   {"roi_parts", roi_parts},
+                   {"latency_median_ms", latency_median_ms},
+                   {"latency_p99_ms", latency_p99_ms},
+                   {"contact_latency_samples", contact_latency_samples},
+                   {"contact_latency_median_ms", contact_latency_median_ms},
+                   {"contact_latency_p99_ms", contact_latency_p99_ms},
+                   {"arrive_median_ms", arrive_median_ms},
+                   {"arrive_p99_ms", arrive_p99_ms},
+                   {"build_wait_median_ms", build_wait_median_ms},
+                   {"build_wait_p99_ms", build_wait_p99_ms},
+                   {"peak_pressure_N", peak_pressure_N},
+                   {"peak_shear_N", peak_shear_N},
+                   {"scheduling", scheduling},
+                   {"thread_scheduling", threads},
+                   {"auth_failed", auth_failed},
+                   {"unsealed", unsealed},
+                   {"replayed", replayed},
+                   {"dropped_malformed", dropped_malformed},
+                   {"upstream_dropped", upstream_dropped},
+                   {"udp_datagrams", udp_datagrams},
+                   {"udp_lost", udp_lost},
+                   {"bytes_in", bytes_in},
+                   // The stream's mean rate over the run (the remote's stats line gives each
+                   // second's): issue 16's 10 Mbit/s goal.
+                   {"stream_mbit_per_s", stream_mbit_per_s()},
+                   {"udp_messages_by_fragments", udp_messages_by_fragments},
+                   // Repair (docs/PROTOCOL.md 2.5) and tile ages in frame periods (issue 16).
+                   {"tiles_missing", tiles_missing},
+                   {"frames_incomplete", frames_incomplete},
+                   {"frames_unclosed", frames_unclosed},
+                   {"tiles_expired", tiles_expired},
+                   {"nacks", nacks},
+                   {"tiles_nacked", tiles_nacked},
+                   {"watched_tiles_nacked", watched_tiles_nacked},
+                   {"tiles_repaired", tiles_repaired},
+                   {"repairs_useless", repairs_useless},
+                   {"key_frame_requests", key_frame_requests},
+                   {"head_commands", head_commands},
+                   {"head_samples_stale", head_samples_stale},
+                   {"head_deadman_released", head_deadman_released},
+                   {"tile_age_watched_samples", tile_age_watched_samples},
+                   {"tile_age_watched_median_frames", tile_age_watched_median},
+                   {"tile_age_watched_p99_frames", tile_age_watched_p99},
+                   {"tile_age_watched_max_frames", tile_age_watched_max},
+                   {"tile_age_samples", tile_age_samples},
+                   {"tile_age_all_median_frames", tile_age_all_median},
+                   {"tile_age_all_p99_frames", tile_age_all_p99},
+                   {"tile_age_all_max_frames", tile_age_all_max},
+                   {"head_commands_invalid", head_commands_invalid},
+                   // The tracker's frames and what its checks dropped (docs/HARDWARE.md, NatNet).
+                   {"tracker", tracker_json(tracker)}};
+  if (!record_file.empty())
+    j["record"] = {{"file", record_file},
+                   {"ticks", record_ticks},
+                   {"surfaces", record_surfaces},
+                   {"body_frames", record_body_frames},
+                   {"dropped_ticks", record_dropped_ticks},
+                   {"dropped_surfaces", record_dropped_surfaces},
+                   {"dropped_bodies", record_dropped_bodies},
+                   {"error", record_error}};
+  return j;
+}
+
+std::string StationSummary::done_text() const {
+  return fmt::format(
+      "done: {} ticks at {:.2f} Hz (p99 jitter {:.0f} us, {} missed), {} surfaces, "
+      "capture-to-force latency median {:.2f} ms p99 {:.2f} ms (in contact: median {:.2f} ms "
+      "p99 {:.2f} ms over {}), peak pressure {:.2f} N, peak shear {:.2f} N",
+      ticks, haptic_rate_hz, period_p99_jitter_us, missed_ticks, surfaces, latency_median_ms,
+      latency_p99_ms, contact_latency_median_ms, contact_latency_p99_ms, contact_latency_samples,
+      peak_pressure_N, peak_shear_N);
+}
+
+std::string StationSummary::record_text() const {
+  if (record_file.empty()) return {};
+  return fmt::format(
+      "recorded {}: {} ticks, {} surfaces, {} body frames; dropped {} ticks, {} surfaces, {} body "
+      "frames{}{}",
+      record_file, record_ticks, record_surfaces, record_body_frames, record_dropped_ticks,
+      record_dropped_surfaces, record_dropped_bodies,
+      record_error.empty() ? "" : "; RECORDING FAILED: ", record_error);
+}
+
+}  // namespace telex::local

@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: MIT
+// telex-local's flags (local_node/flags.cpp): parsed into the station's configuration, and bad
+// values named.
+#include <gtest/gtest.h>
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "flags.h"
+
+namespace telex::local {
+namespace {
+
+// Parses `args` as telex-local would; throws what the parser or the resolution throws.
+StationFlags parse(std::vector<std::string> args) {
+  StationFlags flags;
+  CLI::App app{"test"};
+  add_station_options(app, flags);
+  args.insert(args.begin(), "telex-local");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  app.parse(static_cast<int>(argv.size()), argv.data());
+  resolve_station_flags(flags);
+  apply_station_switches(flags);
+  return flags;
+}
+
+TEST(StationFlags, DefaultsConnectToTheLocalRemoteOverUdp) {
+  const StationFlags f = parse({});
+  EXPECT_EQ(f.cfg.client.host, "127.0.0.1");
+  EXPECT_EQ(f.cfg.client.port, 7300);
+  EXPECT_TRUE(f.cfg.client.use_udp);
+  EXPECT_TRUE(f.cfg.surface.roi);
+  EXPECT_TRUE(f.cfg.head_teleop);
+}
+
+TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
+  const StationFlags f = parse({"--connect", "[::1]:7000", "--transport", "tcp", "--full-frame",
+                                "--no-head", "--elbow-bodies", "7,-1", "--quiet"});
+  EXPECT_EQ(f.cfg.client.host, "::1");
+  EXPECT_EQ(f.cfg.client.port, 7000);
+  EXPECT_FALSE(f.cfg.client.use_udp);
+  EXPECT_FALSE(f.cfg.surface.roi);
+  EXPECT_FALSE(f.cfg.head_teleop);
+  EXPECT_FALSE(f.cfg.head_captured_pose);
+  EXPECT_EQ(f.cfg.tracker.left_elbow_body_id, 7);
+  EXPECT_EQ(f.cfg.tracker.right_elbow_body_id, -1);
+  EXPECT_FALSE(f.cfg.status_line);
+}
+
+TEST(StationFlags, BadValuesNameTheFlag) {
+  const struct {
+    std::vector<std::string> args;
+    const char* flag;
+  } cases[] = {
+      {{"--connect", "robot"}, "--connect"},
+      {{"--connect", "robot:70000"}, "--connect"},
+      {{"--connect", "::1:7000"}, "--connect"},
+      {{"--elbow-bodies", "3"}, "--elbow-bodies"},
+      {{"--rate", "5"}, "--rate"},
+      {{"--transport", "sctp"}, "--transport"},
+  };
+  for (const auto& c : cases) {
+    try {
+      parse(c.args);
+      ADD_FAILURE() << c.args[1] << " was accepted";
+    } catch (const CLI::ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.flag), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace telex::local
