@@ -3,12 +3,17 @@
 #include "flags.h"
 
 #include <openssl/ssl.h>
+#include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <stdexcept>
 
+#include "telex/cli/cli.h"
+#include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
+#include "telex/local/tracker.h"
 #include "telex/local/view_window.h"
 
 namespace telex::local {
@@ -17,17 +22,42 @@ void load_station_rig(int argc, char** argv, StationFlags& f) {
   if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
     f.rig_file = rig_path->string();
     apply_rig(telex::load_rig(*rig_path), f.cfg);
+    // The options below are added after this, so --help shows the rig's values as defaults.
+    spdlog::info(
+        "rig {}: marker bodies, head-to-camera offset, body, hands, gloves, eyes and "
+        "display channels from the file (flags given override them)",
+        f.rig_file);
   }
 }
 
 namespace {
+
+// --view png:DIR: the directory exists or is made now, or the error names --view.
+void check_view_dir(const std::string& view_spec) {
+  ViewSpec v;
+  try {
+    v = ViewSpec::parse(view_spec);
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError("--view", e.what());
+  }
+  if (v.kind != ViewSpec::Kind::Png) return;
+  std::error_code ec;
+  std::filesystem::create_directories(v.dir, ec);
+  if (ec || !std::filesystem::is_directory(v.dir))
+    throw CLI::ValidationError("--view", "png:" + v.dir.string() +
+                                             ": cannot create the directory (" +
+                                             (ec ? ec.message() : "not a directory") + ")");
+}
 
 // The remote, the rig and the depth link.
 void add_link_options(CLI::App& app, StationFlags& f) {
   app.add_option("--rig", f.rig_file,
                  "rig FILE (docs/RIG.md): marker bodies, head-to-camera offset, body, hands, "
                  "gloves, eyes, display channels; the flags below override it");
-  app.set_config("--config", "", "read flags from an INI/TOML file (same names as the flags)");
+  telex::cli::add_strict_config(
+      app,
+      "read flags from a TOML or JSON file (keys = the long flag names; an unknown key or a "
+      "wrong type is an error naming the key and the file)");
   app.add_option("--connect", f.connect, "remote node HOST:PORT")->capture_default_str();
   app.add_option("--transport", f.transport, "depth transport: udp or tcp")
       ->check(CLI::IsMember({"udp", "tcp"}))
@@ -152,11 +182,7 @@ void add_surface_options(CLI::App& app, StationFlags& f) {
                "do not fill holes on the station (default: fill them in the fingertip windows; "
                "the remote sends its depth unfilled unless run with --fill)");
   f.bilateral_radius = f.cfg.surface.bilateral_options.radius_px;
-  app.add_option("--bilateral-radius", f.bilateral_radius,
-                 "bilateral window radius, px (default 6, KinectFusion's 13x13: 4.1 % force error "
-                 "against 9.2 % at radius 2, docs/BENCHMARKS.md)")
-      ->check(CLI::Range(1, 15))
-      ->capture_default_str();
+  telex::cli::add_bilateral_radius(app, f.bilateral_radius);
   app.add_flag("--no-frame-parts", f.no_frame_parts,
                "take each frame in one part (ROI tiles are otherwise sent and published first)");
   app.add_flag("--no-repair", f.no_repair,
@@ -260,6 +286,13 @@ void resolve_station_flags(StationFlags& f) {
   } catch (const std::invalid_argument& e) {
     throw CLI::ValidationError(e.what());
   }
+  // Every spec is checked before anything starts (a remote connects, a device opens).
+  try {
+    check_hand_spec(f.cfg.hand_spec);
+  } catch (const std::invalid_argument& e) {
+    throw CLI::ValidationError("--hand", e.what());
+  }
+  check_view_dir(f.cfg.view_spec);
   if (f.elbow_bodies.empty()) return;
   int left = -2, right = -2;
   char comma = 0, extra = 0;

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "flags.h"
+#include "telex/cli/cli.h"
 #include "telex/common/logging.h"
 #include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
@@ -65,13 +66,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
+  telex::cli::prepare(app, "telex-local");
   add_station_options(app, flags);
+  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+  telex::cli::log_config_values(app);
   try {
-    app.parse(argc, argv);
     resolve_station_flags(flags);
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? 0 : 2;
+    spdlog::error("{}", e.what());
+    return telex::cli::kUsageExit;
   }
   try {
     apply_security_flags(flags);

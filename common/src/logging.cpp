@@ -8,7 +8,8 @@
 namespace telex {
 
 void init_logging(const std::string& program) {
-  // Not registered by name: a second call (the cli library's prepare() makes one) replaces the first.
+  // Not registered by name: a second call (the cli library's prepare() makes one) replaces the
+  // first.
   auto logger = std::make_shared<spdlog::logger>(
       program, std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
   logger->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%n] [%^%l%$] %v");

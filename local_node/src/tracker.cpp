@@ -263,6 +263,33 @@ std::unique_ptr<HandTracker> make_natnet(const std::string& spec, const TrackerC
 
 }  // namespace
 
+namespace {
+const char* const kHandForms =
+    "script:press|stroke|tap|FILE, natnet:SERVER_IP[,options], 5dt-usb[:HIDPATH], "
+    "5dt-serial:DEV";
+}  // namespace
+
+void check_hand_spec(const std::string& spec) {
+  if (spec.rfind("script:", 0) == 0) {
+    const std::string what = spec.substr(7);
+    const auto names = HandScript::builtin_names();
+    if (std::find(names.begin(), names.end(), what) != names.end()) return;
+    if (what.empty())
+      throw std::invalid_argument("tracker spec 'script:' needs press, stroke, tap or a file");
+    if (!std::filesystem::exists(what))
+      throw std::invalid_argument("tracker spec '" + spec + "': no built-in script and no file " +
+                                  what + " (built-in: press, stroke, tap)");
+    return;
+  }
+  if (spec.rfind("natnet:", 0) == 0) {
+    parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", {});
+    return;
+  }
+  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0) return;
+  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) return;
+  throw std::invalid_argument("tracker spec '" + spec + "' is not one of " + kHandForms);
+}
+
 std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const TrackerConfig& config) {
   if (spec.rfind("script:", 0) == 0) {
     const std::string what = spec.substr(7);
@@ -280,10 +307,7 @@ std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const Tracker
         open_glove(spec, config.glove_calibration_path,
                    config.glove_range[index_of(config.use_left_hand ? Side::Left : Side::Right)]),
         config);
-  throw std::invalid_argument(
-      "tracker spec '" + spec +
-      "' is not one of script:press|stroke|tap|FILE, natnet:SERVER_IP[,options], "
-      "5dt-usb[:HIDPATH], 5dt-serial:DEV");
+  throw std::invalid_argument("tracker spec '" + spec + "' is not one of " + kHandForms);
 }
 
 }  // namespace telex::local

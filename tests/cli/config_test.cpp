@@ -7,8 +7,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "daemons.h"
 #include "process.h"
 #include "test_support.h"
 
@@ -86,6 +88,51 @@ TEST(RemoteConfig, HelpShowsTheConfigValuesAsDefaults) {
   EXPECT_NE(o.out.find("=7.5"), std::string::npos) << o.out;
 }
 
+TEST(StationConfig, UnknownKeysAndBadValuesExitTwoNamingKeyAndFileInEitherFormat) {
+  const std::vector<ConfigCase> cases = {
+      {"typo.toml", "stiffnes = 300\n", "'stiffnes'"},
+      {"typo.json", R"({"stiffnes": 300})", "'stiffnes'"},
+      {"negative.toml", "stiffness = -5\n", "stiffness"},
+      {"negative.json", R"({"stiffness": -5})", "stiffness"},
+  };
+  for (const auto& c : cases) {
+    const std::string file = write_file(c.file_name, c.text);
+    const Outcome o = run("telex-local", {"--config", file, "--duration", "0.1"});
+    EXPECT_EQ(o.exit_code, 2) << c.file_name << ": " << o.err;
+    EXPECT_NE(o.err.find(c.named), std::string::npos) << c.file_name << ": " << o.err;
+    EXPECT_NE(o.err.find(file), std::string::npos) << c.file_name << " not named: " << o.err;
+  }
+}
+
+TEST(StationSpecs, AreCheckedBeforeAnythingStarts) {
+  // No remote is listening: a bad spec must be named before the station tries to connect.
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--hand", "leap"}, "--hand: tracker spec 'leap'"},
+      {{"--hand", "natnet:1.2.3.4,bogus"}, "unknown option 'bogus'"},
+      {{"--hand", "script:no_such_script.csv"}, "no file no_such_script.csv"},
+      {{"--view", "png:/proc/nope/x"}, "--view: png:/proc/nope/x: cannot create"},
+      {{"--view", "goggles"}, "--view"},
+  };
+  for (const auto& [args, says] : cases) {
+    std::vector<std::string> argv = args;
+    argv.insert(argv.end(), {"--connect", "127.0.0.1:1", "--duration", "5"});
+    const Outcome o = run("telex-local", argv);
+    EXPECT_EQ(o.exit_code, 2) << args[1] << ": " << o.err;
+    EXPECT_NE(o.err.find(says), std::string::npos) << args[1] << ": " << o.err;
+    EXPECT_EQ(o.err.find("connecting"), std::string::npos) << args[1] << ": started anyway";
+  }
+}
+
+TEST(JsonSummary, TheStationsStdoutIsOneJsonDocument) {
+  test::RemoteProcess remote(test::scratch_dir("remote"), {"--source", "synthetic:plane"});
+  const Outcome o = run("telex-local", {"--connect", "127.0.0.1:" + std::to_string(remote.port),
+                                        "--haptics", "sim", "--duration", "1", "--json-summary"});
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  nlohmann::json j;
+  ASSERT_NO_THROW(j = nlohmann::json::parse(o.out)) << o.out;
+  EXPECT_GT(j.value("surfaces", 0), 0) << o.out;
+}
+
 TEST(JsonSummary, StdoutIsOneJsonDocument) {
   // The proxy forwards nothing here; what matters is that stdout holds only its JSON summary.
   const Outcome o = run("telex-sim-impair", {"--listen", "127.0.0.1:0", "--forward", "127.0.0.1:9",
@@ -97,8 +144,8 @@ TEST(JsonSummary, StdoutIsOneJsonDocument) {
 }
 
 TEST(HelpJson, EveryProgramDescribesItsOptionsAsJson) {
-  for (const char* program :
-       {"telex-remote", "telex", "telex-sim-natnet", "telex-sim-dynamixel", "telex-sim-impair"}) {
+  for (const char* program : {"telex-remote", "telex-local", "telex", "telex-sim-natnet",
+                              "telex-sim-dynamixel", "telex-sim-impair"}) {
     const Outcome o = run(program, {"--help-json"});
     ASSERT_EQ(o.exit_code, 0) << program << ": " << o.err;
     nlohmann::json j;

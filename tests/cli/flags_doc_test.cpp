@@ -17,9 +17,8 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// The programs whose flags the table holds, besides telex's own. telex-local joins with one entry
-// once it has --help-json (telex::cli::prepare).
-const std::vector<std::string> kPrograms = {"telex-remote", "telex-sim-natnet",
+// The programs whose flags the table holds, besides telex's own.
+const std::vector<std::string> kPrograms = {"telex-remote", "telex-local", "telex-sim-natnet",
                                             "telex-sim-dynamixel", "telex-sim-impair"};
 
 TEST(FlagsDoc, CheckedInFileIsCurrent) {

@@ -2,8 +2,6 @@
 // telex::cli: parse, usage messages and suggestions, help as JSON, logs on stderr.
 #include "telex/cli/cli.h"
 
-#include "telex/common/logging.h"
-
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -11,6 +9,8 @@
 #include <cstring>
 #include <iostream>
 #include <regex>
+
+#include "telex/common/logging.h"
 
 namespace telex::cli {
 namespace {

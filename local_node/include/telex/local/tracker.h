@@ -12,8 +12,8 @@
 #include <string>
 
 #include "telex/base/thread_fault.h"
-#include "telex/haptics/body.h"
 #include "telex/common/rig.h"
+#include "telex/haptics/body.h"
 #include "telex/local/hand_model.h"
 
 namespace telex::local {
@@ -170,5 +170,9 @@ class HandTracker {
 // Throws std::invalid_argument naming the spec and the valid forms; std::runtime_error when a
 // device cannot be opened (the message names it and says what to try).
 std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const TrackerConfig& config);
+
+// The spec's grammar alone, before anything starts (no device is opened, a script file is only
+// checked to exist): throws std::invalid_argument as make_tracker would.
+void check_hand_spec(const std::string& spec);
 
 }  // namespace telex::local
