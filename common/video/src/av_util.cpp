@@ -5,7 +5,9 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
+#include <opencv2/imgproc.hpp>
 
 extern "C" {
 #include <libavutil/error.h>
@@ -86,6 +88,38 @@ void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& 
   std::uint8_t* dst[4] = {eye_bgr.data, nullptr, nullptr, nullptr};
   const int dst_strides[4] = {static_cast<int>(eye_bgr.step[0]), 0, 0, 0};
   sws_scale(sws, src, src_strides, 0, frame->height, dst, dst_strides);
+}
+
+namespace {
+// Copies between a contiguous I420 picture (Y, then U, then V) and columns [x_px, x_px + w) of
+// a YUV420P frame.
+template <bool kToFrame>
+void copy_i420(std::uint8_t* i420, int w, int h, const AVFrame* frame, int x_px) {
+  const int widths[3] = {w, w / 2, w / 2}, heights[3] = {h, h / 2, h / 2};
+  const int xs[3] = {x_px, x_px / 2, x_px / 2};
+  for (int p = 0; p < 3; ++p) {
+    for (int y = 0; y < heights[p]; ++y) {
+      std::uint8_t* row =
+          frame->data[p] + static_cast<std::ptrdiff_t>(y) * frame->linesize[p] + xs[p];
+      if constexpr (kToFrame)
+        std::memcpy(row, i420, static_cast<std::size_t>(widths[p]));
+      else
+        std::memcpy(i420, row, static_cast<std::size_t>(widths[p]));
+      i420 += widths[p];
+    }
+  }
+}
+}  // namespace
+
+void eye_into_yuv420p(const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px, cv::Mat& i420) {
+  cv::cvtColor(eye_bgr, i420, cv::COLOR_BGR2YUV_I420);
+  copy_i420<true>(i420.data, eye_bgr.cols, eye_bgr.rows, frame, x_px);
+}
+
+void yuv420p_into_eye(const AVFrame* frame, int x_px, cv::Mat& i420, cv::Mat3b& eye_bgr) {
+  i420.create(eye_bgr.rows * 3 / 2, eye_bgr.cols, CV_8UC1);
+  copy_i420<false>(i420.data, eye_bgr.cols, eye_bgr.rows, frame, x_px);
+  cv::cvtColor(i420, eye_bgr, cv::COLOR_YUV2BGR_I420);
 }
 
 bool has_idr_slice(std::span<const std::uint8_t> annex_b) {

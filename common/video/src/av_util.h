@@ -52,6 +52,11 @@ void eye_into_frame(SwsContext* sws, const cv::Mat3b& eye_bgr, AVFrame* frame, i
 // Converts columns [x_px, x_px + eye_bgr.cols) of `frame` into `eye_bgr` (already sized).
 void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& eye_bgr);
 
+// The same for YUV420P pictures through OpenCV's BT.601 limited-range conversion (a third of
+// libswscale's time here), by way of `i420`, a contiguous scratch picture.
+void eye_into_yuv420p(const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px, cv::Mat& i420);
+void yuv420p_into_eye(const AVFrame* frame, int x_px, cv::Mat& i420, cv::Mat3b& eye_bgr);
+
 // Whether an Annex B access unit holds an IDR slice (NAL type 5): decodable alone. x264's
 // intra-refresh recovery points are flagged key frames too, but are not.
 bool has_idr_slice(std::span<const std::uint8_t> annex_b);

@@ -37,6 +37,7 @@ struct EyeDecoder::Impl {
   std::optional<std::uint32_t> last_seq;
   int eye_width_px = 0, eye_height_px = 0;
   cv::Mat3b scratch_left, scratch_right;
+  cv::Mat i420;
 
   ~Impl() { sws_freeContext(sws); }
 
@@ -73,6 +74,10 @@ struct EyeDecoder::Impl {
 
   void to_eye(int x_px, cv::Mat3b& eye) {
     eye.create(eye_height_px, eye_width_px);
+    if (frame->format == AV_PIX_FMT_YUV420P) {
+      av::yuv420p_into_eye(frame.get(), x_px, i420, eye);
+      return;
+    }
     sws = sws_getCachedContext(
         sws, eye_width_px, eye_height_px, static_cast<AVPixelFormat>(frame->format), eye_width_px,
         eye_height_px, AV_PIX_FMT_BGR24, SWS_FAST_BILINEAR, nullptr, nullptr, nullptr);

@@ -65,8 +65,13 @@ class H264Encoder final : public EyeEncoder {
     const cv::Size eye(config_.eye_width_px, config_.eye_height_px);
     if (left_bgr.size() != eye || right_bgr.size() != eye) return fail(EncodeStatus::BadInput);
     if (av_frame_make_writable(sw_frame_.get()) < 0) return fail(EncodeStatus::EncoderError);
-    av::eye_into_frame(sws_.get(), left_bgr, sw_frame_.get(), 0);
-    av::eye_into_frame(sws_.get(), right_bgr, sw_frame_.get(), config_.eye_width_px);
+    if (hw_frames_) {
+      av::eye_into_frame(sws_.get(), left_bgr, sw_frame_.get(), 0);
+      av::eye_into_frame(sws_.get(), right_bgr, sw_frame_.get(), config_.eye_width_px);
+    } else {
+      av::eye_into_yuv420p(left_bgr, sw_frame_.get(), 0, i420_);
+      av::eye_into_yuv420p(right_bgr, sw_frame_.get(), config_.eye_width_px, i420_);
+    }
     AVFrame* frame = sw_frame_.get();
     if (hw_frames_) {
       av_frame_unref(hw_frame_.get());
@@ -132,6 +137,9 @@ class H264Encoder final : public EyeEncoder {
       av_dict_set(&opts, "tune", "zerolatency", 0);
       av_dict_set(&opts, "intra-refresh", "1", 0);
       av_dict_set(&opts, "forced-idr", "1", 0);
+      // ultrafast turns the deblocking filter off; on it costs ~1 ms a pair and buys the SSIM
+      // goal at 4 Mbit/s (docs/BENCHMARKS.md "The eyes' codec").
+      av_dict_set(&opts, "x264-params", "deblock=1,0,0", 0);
     } else if (config.encoder == "h264_nvenc") {
       av_dict_set(&opts, "preset", "p1", 0);
       av_dict_set(&opts, "tune", "ull", 0);
@@ -187,7 +195,8 @@ class H264Encoder final : public EyeEncoder {
   av::CodecContextPtr ctx_;
   av::FramePtr sw_frame_, hw_frame_;
   av::PacketPtr packet_;
-  av::SwsPtr sws_;
+  av::SwsPtr sws_;  // NV12 for VA-API; YUV420P goes through i420_
+  cv::Mat i420_;
   std::int64_t next_pts_ = 0;
   std::deque<PendingPair> pending_;
 };
