@@ -73,6 +73,31 @@ void round_trip(const std::string& encoder, double min_psnr_db) {
 TEST(EyeCodec, H264RoundTripKeepsEachEyeInItsPlace) { round_trip("libx264", 30.0); }
 TEST(EyeCodec, MjpegRoundTripKeepsEachEyeInItsPlace) { round_trip("mjpeg", 30.0); }
 
+// Sides that are no multiple of the 16-pixel macroblock (the coded picture is larger) still come
+// back exactly.
+TEST(EyeCodec, EyesOfUnalignedSizeComeBackExactly) {
+  for (const std::string name : {"libx264", "mjpeg"}) {
+    EncoderConfig c = config(name);
+    c.eye_width_px = 330;
+    c.eye_height_px = 250;
+    auto enc = EyeEncoder::create(c);
+    EyeDecoder dec;
+    DecodedPair out;
+    for (int i = 0; i < 5; ++i) {
+      cv::Mat3b left, right;
+      render_moving_eyes(i, cv::Size(330, 250), 1.0, left, right);
+      Bytes bytes;
+      ASSERT_EQ(enc->encode(left, right, 0, 0, bytes), EncodeStatus::Ok) << name;
+      ASSERT_EQ(dec.decode(bytes, out), DecodeStatus::Ok) << name << " pair " << i;
+      ASSERT_EQ(out.left_bgr.size(), cv::Size(330, 250));
+      ASSERT_EQ(out.right_bgr.size(), cv::Size(330, 250));
+      if (i > 0) {
+        EXPECT_GT(psnr_db(right, out.right_bgr), 28.0) << name << " pair " << i;
+      }
+    }
+  }
+}
+
 TEST(EyeCodec, H264FirstPairIsIntraAndTheRestAreNot) {
   auto enc = EyeEncoder::create(config("libx264"));
   for (int i = 0; i < 40; ++i) {

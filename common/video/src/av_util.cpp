@@ -72,22 +72,37 @@ std::string error_text(int av_error) {
   return buf;
 }
 
-void eye_into_frame(SwsContext* sws, const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px) {
+namespace {
+// A BGR scratch picture of at least w x h with 64 bytes of slack per row and one spare row.
+cv::Mat3b padded_view(cv::Mat3b& padded, int w, int h) {
+  const int cols = w + 64 / 3 + 1;
+  if (padded.cols < cols || padded.rows < h + 1) padded.create(h + 1, cols);
+  return padded(cv::Rect(0, 0, w, h));
+}
+}  // namespace
+
+void eye_into_frame(SwsContext* sws, const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px,
+                    cv::Mat3b& padded) {
+  cv::Mat3b src_view = padded_view(padded, eye_bgr.cols, eye_bgr.rows);
+  eye_bgr.copyTo(src_view);
   std::uint8_t* dst[4];
   int dst_strides[4];
   offset_planes(frame, x_px, dst, dst_strides);
-  const std::uint8_t* src[4] = {eye_bgr.data, nullptr, nullptr, nullptr};
-  const int src_strides[4] = {static_cast<int>(eye_bgr.step[0]), 0, 0, 0};
+  const std::uint8_t* src[4] = {src_view.data, nullptr, nullptr, nullptr};
+  const int src_strides[4] = {static_cast<int>(src_view.step[0]), 0, 0, 0};
   sws_scale(sws, src, src_strides, 0, eye_bgr.rows, dst, dst_strides);
 }
 
-void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& eye_bgr) {
+void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& eye_bgr,
+                    cv::Mat3b& padded) {
   std::uint8_t* src[4];
   int src_strides[4];
   offset_planes(frame, x_px, src, src_strides);
-  std::uint8_t* dst[4] = {eye_bgr.data, nullptr, nullptr, nullptr};
-  const int dst_strides[4] = {static_cast<int>(eye_bgr.step[0]), 0, 0, 0};
+  cv::Mat3b dst_view = padded_view(padded, eye_bgr.cols, eye_bgr.rows);
+  std::uint8_t* dst[4] = {dst_view.data, nullptr, nullptr, nullptr};
+  const int dst_strides[4] = {static_cast<int>(dst_view.step[0]), 0, 0, 0};
   sws_scale(sws, src, src_strides, 0, frame->height, dst, dst_strides);
+  dst_view.copyTo(eye_bgr);
 }
 
 namespace {

@@ -48,9 +48,13 @@ std::string error_text(int av_error);
 
 // Converts `eye_bgr` into `frame` (a planar or semi-planar YUV picture) at columns
 // [x_px, x_px + eye width): one eye into its half without building the packed BGR picture.
-void eye_into_frame(SwsContext* sws, const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px);
+// libswscale reads and writes whole SIMD words past a row's end, so the BGR side goes through
+// `padded`, a scratch picture with room to spare.
+void eye_into_frame(SwsContext* sws, const cv::Mat3b& eye_bgr, AVFrame* frame, int x_px,
+                    cv::Mat3b& padded);
 // Converts columns [x_px, x_px + eye_bgr.cols) of `frame` into `eye_bgr` (already sized).
-void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& eye_bgr);
+void frame_into_eye(SwsContext* sws, const AVFrame* frame, int x_px, cv::Mat3b& eye_bgr,
+                    cv::Mat3b& padded);
 
 // The same for YUV420P pictures through OpenCV's BT.601 limited-range conversion (a third of
 // libswscale's time here), by way of `i420`, a contiguous scratch picture.

@@ -38,6 +38,7 @@ struct EyeDecoder::Impl {
   int eye_width_px = 0, eye_height_px = 0;
   cv::Mat3b scratch_left, scratch_right;
   cv::Mat i420;
+  cv::Mat3b padded_bgr;
 
   ~Impl() { sws_freeContext(sws); }
 
@@ -56,8 +57,9 @@ struct EyeDecoder::Impl {
   // Sends `bytes` as one packet and takes one picture of exactly w x h pixels into `frame`.
   DecodeStatus decode_picture(AVCodecContext* ctx, std::span<const std::uint8_t> bytes, int w,
                               int h) {
-    // Bounds what a lying bitstream can make the decoder allocate.
-    ctx->max_pixels = static_cast<std::int64_t>(w) * h;
+    // Bounds what a lying bitstream can make the decoder allocate (with room for the decoder's
+    // own alignment of the width and the coded height's macroblock rows).
+    ctx->max_pixels = static_cast<std::int64_t>(w + 128) * (h + 32);
     padded.assign(bytes.begin(), bytes.end());
     padded.resize(bytes.size() + AV_INPUT_BUFFER_PADDING_SIZE, 0);
     packet->data = padded.data();
@@ -81,7 +83,7 @@ struct EyeDecoder::Impl {
     sws = sws_getCachedContext(
         sws, eye_width_px, eye_height_px, static_cast<AVPixelFormat>(frame->format), eye_width_px,
         eye_height_px, AV_PIX_FMT_BGR24, SWS_FAST_BILINEAR, nullptr, nullptr, nullptr);
-    av::frame_into_eye(sws, frame.get(), x_px, eye);
+    av::frame_into_eye(sws, frame.get(), x_px, eye, padded_bgr);
   }
 };
 

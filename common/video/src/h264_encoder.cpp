@@ -66,8 +66,8 @@ class H264Encoder final : public EyeEncoder {
     if (left_bgr.size() != eye || right_bgr.size() != eye) return fail(EncodeStatus::BadInput);
     if (av_frame_make_writable(sw_frame_.get()) < 0) return fail(EncodeStatus::EncoderError);
     if (hw_frames_) {
-      av::eye_into_frame(sws_.get(), left_bgr, sw_frame_.get(), 0);
-      av::eye_into_frame(sws_.get(), right_bgr, sw_frame_.get(), config_.eye_width_px);
+      av::eye_into_frame(sws_.get(), left_bgr, sw_frame_.get(), 0, padded_bgr_);
+      av::eye_into_frame(sws_.get(), right_bgr, sw_frame_.get(), config_.eye_width_px, padded_bgr_);
     } else {
       av::eye_into_yuv420p(left_bgr, sw_frame_.get(), 0, i420_);
       av::eye_into_yuv420p(right_bgr, sw_frame_.get(), config_.eye_width_px, i420_);
@@ -97,8 +97,9 @@ class H264Encoder final : public EyeEncoder {
     const std::span<const std::uint8_t> au(packet_->data, static_cast<std::size_t>(packet_->size));
     out.assign(kHeaderBytes, 0);
     out.insert(out.end(), au.begin(), au.end());
-    av_packet_unref(packet_.get());
-    finish_pair(pair.frame_id, pair.capture_ns, av::has_idr_slice(au), out);
+    const bool is_intra = av::has_idr_slice(au);
+    av_packet_unref(packet_.get());  // `au` dangles from here
+    finish_pair(pair.frame_id, pair.capture_ns, is_intra, out);
     return EncodeStatus::Ok;
   }
 
@@ -197,6 +198,7 @@ class H264Encoder final : public EyeEncoder {
   av::PacketPtr packet_;
   av::SwsPtr sws_;  // NV12 for VA-API; YUV420P goes through i420_
   cv::Mat i420_;
+  cv::Mat3b padded_bgr_;
   std::int64_t next_pts_ = 0;
   std::deque<PendingPair> pending_;
 };
