@@ -40,8 +40,9 @@ struct EncoderConfig {
   // x264 preset: "ultrafast" (with deblocking on) measured best: the SSIM goal at 4 Mbit/s in the
   // least time (docs/BENCHMARKS.md "The eyes' codec").
   std::string preset = "ultrafast";
-  // One intra-refresh wave sweeps the picture in this many frames (x264 keyint): a loss heals
-  // by itself within it, without the burst of a key frame.
+  // One intra-refresh wave sweeps the picture in this many frames (x264 keyint): the picture
+  // heals by itself within it after a loss, without the burst of a periodic key frame. (The
+  // decoder still reports MissingReference until the IDR a request_intra() brings.)
   int intra_refresh_frames = 30;
   int threads = 2;        // encoder threads (x264 sliced threads: no added latency)
   int jpeg_quality = 80;  // mjpeg only, as the remote daemon's MJPEG today
