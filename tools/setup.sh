@@ -12,6 +12,7 @@ PACKAGES=(
   zlib1g-dev libzstd-dev libpng-dev
   libboost-dev libboost-system-dev
   libglm-dev
+  libavcodec-dev libavutil-dev libswscale-dev
   libepoxy-dev libegl-dev libegl1 libegl-mesa0 libgl1-mesa-dri
   libglfw3-dev libxrandr2 libx11-dev xvfb
   libhidapi-dev libusb-1.0-0-dev libfreenect-dev libfreenect-bin

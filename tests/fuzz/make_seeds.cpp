@@ -24,6 +24,7 @@
 #include "telex/proto/messages.h"
 #include "telex/proto/seal.h"
 #include "telex/proto/tls.h"
+#include "telex/video/frame_header.h"
 
 namespace {
 
@@ -316,6 +317,31 @@ int main(int argc, char** argv) {
     write(out / "dynamixel_fuzz", "instructions_small", cat({{0x23}, instructions}));
     write(out / "dynamixel_fuzz", "mixed_with_garbage",
           cat({{0x40}, Bytes{0x00, 0xFF, 0xFF, 0xFD, 0xFD, 0x13}, instructions, status}));
+  }
+  // video_header_fuzz: one whole encoded pair (header + payload).
+  {
+    namespace video = telex::video;
+    const auto pair = [](video::VideoCodec codec, bool intra, const Bytes& payload) {
+      video::EncodedFrameHeader h;
+      h.frame_id = 41;
+      h.encode_seq = 7;
+      h.capture_ns = 1'700'000'000'123'456'789;
+      h.codec = codec;
+      h.is_intra = intra;
+      h.eye_width_px = 1280;
+      h.eye_height_px = 720;
+      h.payload_bytes = static_cast<std::uint32_t>(payload.size());
+      Bytes b;
+      video::serialize_header(h, b);
+      return cat({b, payload});
+    };
+    write(out / "video_header_fuzz", "h264_idr",
+          pair(video::VideoCodec::H264, true, Bytes{0, 0, 0, 1, 0x65, 0x88, 0x84}));
+    write(out / "video_header_fuzz", "h264_p",
+          pair(video::VideoCodec::H264, false, Bytes{0, 0, 0, 1, 0x41, 0x9a}));
+    write(out / "video_header_fuzz", "mjpeg",
+          pair(video::VideoCodec::Mjpeg, true, Bytes{2, 0, 0, 0, 0xff, 0xd8, 0xff, 0xd8}));
+    write(out / "video_header_fuzz", "empty_payload", pair(video::VideoCodec::H264, false, {}));
   }
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;
