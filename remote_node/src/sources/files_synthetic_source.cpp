@@ -4,9 +4,11 @@
 #include <glob.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -180,69 +182,87 @@ class FilesDepthSource final : public DepthSource {
   Intrinsics intrinsics_;
 };
 
+// What the synthetic depth and eye sources share: the scene by name, its time (from the frame
+// count, not the wall clock, so a run is reproducible), the pace and the camera.
+struct SyntheticClock {
+  SyntheticClock(std::string name, bool animate_scene, const SourceOptions& options)
+      : scene_name(std::move(name)),
+        animate(animate_scene),
+        fps(options.synthetic_fps),
+        pacer(options.synthetic_fps),
+        intrinsics(kinect_v1_intrinsics(options.width, options.height)) {}
+  void start() {
+    scene = synth::Scene::named(scene_name);  // throws naming the valid scenes
+    frames = 0;
+    pacer.reset();
+  }
+  // The next frame's scene time once it is due within `timeout`; nothing at the timeout.
+  std::optional<double> due(std::chrono::milliseconds timeout) {
+    if (!pacer.wait_due(timeout)) return std::nullopt;
+    return animate ? static_cast<double>(frames) / fps : 0.0;
+  }
+  std::string name_suffix() const { return scene_name + (animate ? ",animate" : ""); }
+
+  std::string scene_name;
+  bool animate;
+  double fps;
+  Pacer pacer;
+  Intrinsics intrinsics;
+  synth::Scene scene;
+  std::uint64_t frames = 0;
+};
+
 class SyntheticDepthSource final : public DepthSource {
  public:
   SyntheticDepthSource(std::string scene_name, bool animate, bool noise,
                        const SourceOptions& options)
-      : scene_name_(std::move(scene_name)),
-        animate_(animate),
-        fps_(options.synthetic_fps),
-        pacer_(options.synthetic_fps),
-        intrinsics_(kinect_v1_intrinsics(options.width, options.height)),
+      : clock_(std::move(scene_name), animate, options),
         head_orientation_(options.head_orientation) {
     sensor_ = noise ? synth::SensorModel{} : synth::SensorModel::ideal();
     sensor_.seed = options.seed;
   }
 
   void start() override {
-    scene_ = synth::Scene::named(scene_name_);  // throws naming the valid scenes
+    clock_.start();
     // The incremental renderer re-casts only what moved: a static scene costs the sensor pass
     // alone per frame, with output identical to render() (SyntheticRenderer tests).
-    renderer_.emplace(intrinsics_, sensor_);
-    frames_ = 0;
-    pacer_.reset();
+    renderer_.emplace(clock_.intrinsics, sensor_);
   }
   void stop() override {}
 
   ReadResult<DepthFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<DepthFrame> out;
-    if (!pacer_.wait_due(timeout)) return out;
-    // Scene time follows the frame count, not the wall clock, so a run is reproducible.
-    const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
-    if (!renderer_) renderer_.emplace(intrinsics_, sensor_);
+    const std::optional<double> due = clock_.due(timeout);
+    if (!due) return out;
+    const double t_s = *due;
+    if (!renderer_) renderer_.emplace(clock_.intrinsics, sensor_);
     const std::int64_t capture_ns = steady_now_ns();
-    synth::Scene scene = scene_.at_time(t_s);
+    synth::Scene scene = clock_.scene.at_time(t_s);
     // On a driven head the scene stays in the head base's frame: the camera turns (a full render:
     // every object moved in the camera's frame).
     if (head_orientation_)
       if (const auto R_BaseCamera = head_orientation_(capture_ns))
         scene = scene.seen_from(glm::transpose(*R_BaseCamera));
-    auto rendered = renderer_->render(scene, frames_);
+    auto rendered = renderer_->render(scene, clock_.frames);
     out.frame.image = std::move(rendered.depth);
     out.frame.capture_ns = capture_ns;
-    out.frame.frame_id = ++frames_;
+    out.frame.frame_id = ++clock_.frames;
     out.frame.scene_time_s = t_s;
     out.status = ReadStatus::Frame;
     return out;
   }
 
-  Intrinsics intrinsics() const override { return intrinsics_; }
-  double nominal_fps() const override { return fps_; }
+  Intrinsics intrinsics() const override { return clock_.intrinsics; }
+  double nominal_fps() const override { return clock_.fps; }
   std::string describe() const override {
-    return fmt::format("synthetic:{}{} ({}x{} @ {} fps)", scene_name_, animate_ ? ",animate" : "",
-                       intrinsics_.width, intrinsics_.height, fps_);
+    return fmt::format("synthetic:{} ({}x{} @ {} fps)", clock_.name_suffix(),
+                       clock_.intrinsics.width, clock_.intrinsics.height, clock_.fps);
   }
 
  private:
-  std::string scene_name_;
-  bool animate_;
-  double fps_;
-  Pacer pacer_;
-  Intrinsics intrinsics_;
+  SyntheticClock clock_;
   synth::SensorModel sensor_;
-  synth::Scene scene_;
   std::optional<synth::Renderer> renderer_;
-  std::uint64_t frames_ = 0;
   std::function<std::optional<glm::dmat3>(std::int64_t)> head_orientation_;
 };
 
@@ -299,49 +319,39 @@ class FilesStereoSource final : public StereoSource {
 class SyntheticStereoSource final : public StereoSource {
  public:
   SyntheticStereoSource(std::string scene_name, bool animate, const SourceOptions& options)
-      : scene_name_(std::move(scene_name)),
-        animate_(animate),
-        fps_(options.synthetic_fps),
-        pacer_(options.synthetic_fps),
-        intrinsics_(kinect_v1_intrinsics(options.width, options.height)) {}
+      : clock_(std::move(scene_name), animate, options) {}
   void start() override {
-    scene_ = synth::Scene::named(scene_name_);
-    frames_ = 0;
+    clock_.start();
     still_.reset();
   }
   void stop() override {}
   ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<StereoFrame> out;
-    if (!pacer_.wait_due(timeout)) return out;
-    const double t_s = animate_ ? static_cast<double>(frames_) / fps_ : 0.0;
+    const std::optional<double> due = clock_.due(timeout);
+    if (!due) return out;
+    const double t_s = *due;
     // A still scene is ray-cast once (two full renders cost far more than a frame period); each
     // frame then gets its own copy.
     std::optional<StereoViews> moving;
-    if (animate_)
-      moving = render_stereo_views(scene_.at_time(t_s), intrinsics_);
+    if (clock_.animate)
+      moving = render_stereo_views(clock_.scene.at_time(t_s), clock_.intrinsics);
     else if (!still_)
-      still_ = render_stereo_views(scene_.at_time(0.0), intrinsics_);
-    const StereoViews& views = animate_ ? *moving : *still_;
+      still_ = render_stereo_views(clock_.scene.at_time(0.0), clock_.intrinsics);
+    const StereoViews& views = clock_.animate ? *moving : *still_;
     out.frame.left_bgr = views.left_bgr.clone();
     out.frame.right_bgr = views.right_bgr.clone();
     out.frame.capture_ns = steady_now_ns();
-    out.frame.frame_id = ++frames_;
+    out.frame.frame_id = ++clock_.frames;
     out.status = ReadStatus::Frame;
     return out;
   }
   std::string describe() const override {
-    return fmt::format("synthetic:{}{} stereo", scene_name_, animate_ ? ",animate" : "");
+    return fmt::format("synthetic:{} stereo", clock_.name_suffix());
   }
 
  private:
-  std::string scene_name_;
-  bool animate_;
-  double fps_;
-  Pacer pacer_;
-  Intrinsics intrinsics_;
-  synth::Scene scene_;
+  SyntheticClock clock_;
   std::optional<StereoViews> still_;
-  std::uint64_t frames_ = 0;
 };
 
 // The default scene animates; a named static scene animates only when asked.
