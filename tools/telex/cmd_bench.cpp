@@ -57,6 +57,173 @@ std::vector<std::string> config_names() {
   return names;
 }
 
+// What the grid runs on: synthetic scenes, the real desk frames and recorded sessions.
+struct Datasets {
+  std::vector<std::string> scenes;
+  int seeds = 0;
+  int frames_per_seq = 0;
+  std::vector<cv::Mat1w> real;
+  std::string real_note;
+  // Recorded sessions (telex-local --record): their depth as received, frames spread evenly.
+  std::vector<std::pair<std::string, std::vector<local::RecordedSurface>>> sessions;
+};
+
+Datasets load_datasets(const Options& o) {
+  Datasets d;
+  d.scenes = o.quick ? std::vector<std::string>{"tilted", "box"}
+                     : std::vector<std::string>{"plane", "tilted", "sphere", "box", "desk"};
+  d.seeds = o.quick ? 1 : 3;
+  d.frames_per_seq = o.quick ? 2 : 4;
+  d.real = load_real(o.real, d.real_note);
+  if (!o.json) std::cerr << "telex bench: real desk frames " << d.real_note << "\n";
+  for (const auto& path : o.sessions) {
+    d.sessions.emplace_back("session:" + fs::path(path).stem().string(),
+                            local::read_session_depth(path, o.quick ? 4 : 12));
+    if (!o.json)
+      std::cerr << "telex bench: " << d.sessions.back().first << ": "
+                << d.sessions.back().second.size() << " frames from " << path << "\n";
+  }
+  return d;
+}
+
+// The grid's resolutions, in the order they first appear.
+std::vector<std::pair<int, int>> resolutions_of(const std::vector<Config>& grid) {
+  std::vector<std::pair<int, int>> resolutions;
+  for (const auto& c : grid)
+    if (std::find(resolutions.begin(), resolutions.end(), std::pair{c.width, c.height}) ==
+        resolutions.end())
+      resolutions.emplace_back(c.width, c.height);
+  return resolutions;
+}
+
+using Sequences = std::vector<std::pair<std::string, std::vector<Frame>>>;
+
+// Each synthetic scene rendered at w x h, one sequence per sensor seed.
+void add_synthetic(const Datasets& d, int w, int h, Sequences& sequences) {
+  const Intrinsics k = kinect_v1_intrinsics(w, h);
+  for (const auto& name : d.scenes) {
+    const synth::Scene scene = synth::Scene::named(name);
+    for (int seed = 1; seed <= d.seeds; ++seed) {
+      synth::SensorModel sensor;
+      sensor.seed = static_cast<std::uint64_t>(seed);
+      synth::Renderer renderer(k, sensor);
+      std::vector<Frame> seq;
+      for (int i = 0; i < d.frames_per_seq; ++i)
+        seq.push_back(synthetic_frame(
+            renderer.render(scene.at_time(i / kFrameRateHz), static_cast<std::uint64_t>(i)),
+            static_cast<std::uint32_t>(i)));
+      sequences.emplace_back(name, std::move(seq));
+    }
+  }
+}
+
+// The real desk frames and the recorded sessions, scaled with nearest neighbour to w x h.
+void add_real(const Datasets& d, int w, int h, Sequences& sequences) {
+  if (!d.real.empty()) {
+    const Intrinsics real_k = Intrinsics{525.0, 525.0, 320.0, 240.0, 640, 480}.scaled(w, h);
+    std::vector<Frame> seq;
+    for (std::size_t i = 0; i < d.real.size(); ++i) {
+      cv::Mat1w m;
+      cv::resize(d.real[i], m, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
+      // The README gives about 0.25 s between the recorded frames.
+      seq.push_back(real_frame(m, real_k, static_cast<std::uint32_t>(i), 250.0 * i));
+    }
+    sequences.emplace_back("real_desk", std::move(seq));
+  }
+  for (const auto& [name, frames] : d.sessions) {
+    std::vector<Frame> seq;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      cv::Mat1w m;
+      cv::resize(frames[i].depth_mm, m, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
+      seq.push_back(real_frame(m, frames[i].intrinsics.scaled(w, h), static_cast<std::uint32_t>(i),
+                               static_cast<double>(frames[i].built_ns - frames[0].built_ns) / 1e6));
+    }
+    sequences.emplace_back(name, std::move(seq));
+  }
+}
+
+// samples[config index][dataset]
+using Samples = std::vector<std::map<std::string, std::vector<Sample>>>;
+
+// Every configuration over every sequence at its resolution.
+Samples run_grid(const std::vector<Config>& grid, const Datasets& d, bool quiet) {
+  Samples samples(grid.size());
+  for (const auto& [w, h] : resolutions_of(grid)) {
+    Sequences sequences;
+    add_synthetic(d, w, h, sequences);
+    add_real(d, w, h, sequences);
+    for (std::size_t ci = 0; ci < grid.size(); ++ci) {
+      const Config& c = grid[ci];
+      if (c.width != w || c.height != h) continue;
+      if (!quiet) std::cerr << "  " << c.name << " (" << describe(c) << ")\n";
+      local::SurfacePool pool;
+      for (const auto& [name, seq] : sequences) {
+        ChainState state(c);
+        for (const auto& f : seq) samples[ci][name].push_back(run_chain(c, f, state, pool));
+      }
+    }
+  }
+  return samples;
+}
+
+// Per configuration: the synthetic scenes pooled, each scene, the real desk, each session.
+std::vector<Row> aggregate_rows(const std::vector<Config>& grid, const Datasets& d,
+                                Samples& samples) {
+  std::vector<Row> rows;
+  for (std::size_t ci = 0; ci < grid.size(); ++ci) {
+    std::vector<Sample> pooled;
+    for (const auto& name : d.scenes)
+      pooled.insert(pooled.end(), samples[ci][name].begin(), samples[ci][name].end());
+    rows.push_back(aggregate(grid[ci], "synthetic", pooled));
+    for (const auto& name : d.scenes) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
+    if (samples[ci].count("real_desk"))
+      rows.push_back(aggregate(grid[ci], "real_desk", samples[ci]["real_desk"]));
+    for (const auto& [name, frames] : d.sessions)
+      if (samples[ci].count(name)) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
+  }
+  return rows;
+}
+
+// Synthetic rows have ground truth for every metric: a non-finite one is a bug in the chain.
+void demand_finite(const std::vector<Row>& rows) {
+  for (const auto& r : rows)
+    if (r.dataset != "real_desk" && r.dataset.rfind("session:", 0) != 0)
+      for (int m : {kDepthRmse, kNormalMean, kForceErr, kTotalMs, kBytes})
+        if (!std::isfinite(r.value[m]))
+          throw std::logic_error("config " + r.config->name + " on " + r.dataset + ": " +
+                                 kMetricNames[m] + " is not finite");
+}
+
+// The hole count that decides whether a fill pass is needed, against the fill itself: on a
+// hole-free plane, the sensor model's plane and desk, and the first real desk frame.
+std::vector<SkipRow> fill_skip_rows(bool quick, const std::vector<cv::Mat1w>& real) {
+  std::vector<SkipRow> skip;
+  const int reps = quick ? 5 : 21;
+  const Intrinsics k = kinect_v1_intrinsics();
+  skip.push_back(measure_fill_skip(
+      "plane, ideal sensor (no holes)",
+      synth::render(synth::Scene::named("plane"), k, synth::SensorModel::ideal()).depth.depth_mm,
+      reps));
+  skip.push_back(measure_fill_skip(
+      "plane, sensor model",
+      synth::render(synth::Scene::named("plane"), k, synth::SensorModel{}).depth.depth_mm, reps));
+  skip.push_back(measure_fill_skip(
+      "desk, sensor model",
+      synth::render(synth::Scene::named("desk"), k, synth::SensorModel{}).depth.depth_mm, reps));
+  if (!real.empty()) skip.push_back(measure_fill_skip("real desk_0", real[0], reps));
+  return skip;
+}
+
+void write_results(const fs::path& out_dir, const Results& res, bool json) {
+  write_csv(out_dir / "bench.csv", res.rows);
+  write_markdown(out_dir / "bench.md", res);
+  write_plots(out_dir, res.rows);
+  if (json)
+    std::cout << results_json(res, out_dir).dump(2) << "\n";
+  else
+    print_summary(res, out_dir);
+}
+
 int run(const Options& o) {
   cv::setNumThreads(1);
   const fs::path out_dir(o.out);
@@ -68,132 +235,19 @@ int run(const Options& o) {
     std::cerr << e.what() << "\n";
     return 2;  // a bad flag
   }
-  const std::vector<std::string> scenes =
-      o.quick ? std::vector<std::string>{"tilted", "box"}
-              : std::vector<std::string>{"plane", "tilted", "sphere", "box", "desk"};
-  const int seeds = o.quick ? 1 : 3;
-  const int frames_per_seq = o.quick ? 2 : 4;
-  std::string real_note;
-  const std::vector<cv::Mat1w> real = load_real(o.real, real_note);
-  if (!o.json) std::cerr << "telex bench: real desk frames " << real_note << "\n";
-  // Recorded sessions (telex-local --record): their depth as received, frames spread evenly.
-  std::vector<std::pair<std::string, std::vector<local::RecordedSurface>>> sessions;
-  for (const auto& path : o.sessions) {
-    sessions.emplace_back("session:" + fs::path(path).stem().string(),
-                          local::read_session_depth(path, o.quick ? 4 : 12));
-    if (!o.json)
-      std::cerr << "telex bench: " << sessions.back().first << ": " << sessions.back().second.size()
-                << " frames from " << path << "\n";
-  }
-
-  // samples[config index][dataset]
-  std::vector<std::map<std::string, std::vector<Sample>>> samples(grid.size());
-  std::vector<std::pair<int, int>> resolutions;
-  for (const auto& c : grid)
-    if (std::find(resolutions.begin(), resolutions.end(), std::pair{c.width, c.height}) ==
-        resolutions.end())
-      resolutions.emplace_back(c.width, c.height);
-
-  for (const auto& [w, h] : resolutions) {
-    const Intrinsics k = kinect_v1_intrinsics(w, h);
-    std::vector<std::pair<std::string, std::vector<Frame>>> sequences;
-    for (const auto& name : scenes) {
-      const synth::Scene scene = synth::Scene::named(name);
-      for (int seed = 1; seed <= seeds; ++seed) {
-        synth::SensorModel sensor;
-        sensor.seed = static_cast<std::uint64_t>(seed);
-        synth::Renderer renderer(k, sensor);
-        std::vector<Frame> seq;
-        for (int i = 0; i < frames_per_seq; ++i)
-          seq.push_back(synthetic_frame(
-              renderer.render(scene.at_time(i / kFrameRateHz), static_cast<std::uint64_t>(i)),
-              static_cast<std::uint32_t>(i)));
-        sequences.emplace_back(name, std::move(seq));
-      }
-    }
-    if (!real.empty()) {
-      const Intrinsics real_k = Intrinsics{525.0, 525.0, 320.0, 240.0, 640, 480}.scaled(w, h);
-      std::vector<Frame> seq;
-      for (std::size_t i = 0; i < real.size(); ++i) {
-        cv::Mat1w d;
-        cv::resize(real[i], d, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
-        // The README gives about 0.25 s between the recorded frames.
-        seq.push_back(real_frame(d, real_k, static_cast<std::uint32_t>(i), 250.0 * i));
-      }
-      sequences.emplace_back("real_desk", std::move(seq));
-    }
-    for (const auto& [name, frames] : sessions) {
-      std::vector<Frame> seq;
-      for (std::size_t i = 0; i < frames.size(); ++i) {
-        cv::Mat1w d;
-        cv::resize(frames[i].depth_mm, d, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
-        seq.push_back(
-            real_frame(d, frames[i].intrinsics.scaled(w, h), static_cast<std::uint32_t>(i),
-                       static_cast<double>(frames[i].built_ns - frames[0].built_ns) / 1e6));
-      }
-      sequences.emplace_back(name, std::move(seq));
-    }
-    for (std::size_t ci = 0; ci < grid.size(); ++ci) {
-      const Config& c = grid[ci];
-      if (c.width != w || c.height != h) continue;
-      if (!o.json) std::cerr << "  " << c.name << " (" << describe(c) << ")\n";
-      local::SurfacePool pool;
-      for (const auto& [name, seq] : sequences) {
-        ChainState state(c);
-        for (const auto& f : seq) samples[ci][name].push_back(run_chain(c, f, state, pool));
-      }
-    }
-  }
-
-  std::vector<Row> rows;
-  for (std::size_t ci = 0; ci < grid.size(); ++ci) {
-    std::vector<Sample> pooled;
-    for (const auto& name : scenes)
-      pooled.insert(pooled.end(), samples[ci][name].begin(), samples[ci][name].end());
-    rows.push_back(aggregate(grid[ci], "synthetic", pooled));
-    for (const auto& name : scenes) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
-    if (samples[ci].count("real_desk"))
-      rows.push_back(aggregate(grid[ci], "real_desk", samples[ci]["real_desk"]));
-    for (const auto& [name, frames] : sessions)
-      if (samples[ci].count(name)) rows.push_back(aggregate(grid[ci], name, samples[ci][name]));
-  }
-  for (const auto& r : rows)
-    if (r.dataset != "real_desk" && r.dataset.rfind("session:", 0) != 0)
-      for (int m : {kDepthRmse, kNormalMean, kForceErr, kTotalMs, kBytes})
-        if (!std::isfinite(r.value[m]))
-          throw std::logic_error("config " + r.config->name + " on " + r.dataset + ": " +
-                                 kMetricNames[m] + " is not finite");
+  const Datasets d = load_datasets(o);
+  Samples samples = run_grid(grid, d, o.json);
 
   Results res;
-  res.rows = std::move(rows);
+  res.rows = aggregate_rows(grid, d, samples);
+  demand_finite(res.rows);
   res.roi = roi_rows(res.rows);
   res.roi_timing = measure_roi_timing(o.quick);
   res.stream = run_stream(o.quick ? 6 : 30, {{0.0, 2}, {3.0, 1}, {5.0, 1}, {3.0, 2}, {5.0, 2}});
-  {
-    const int reps = o.quick ? 5 : 21;
-    const Intrinsics k = kinect_v1_intrinsics();
-    res.skip.push_back(measure_fill_skip(
-        "plane, ideal sensor (no holes)",
-        synth::render(synth::Scene::named("plane"), k, synth::SensorModel::ideal()).depth.depth_mm,
-        reps));
-    res.skip.push_back(measure_fill_skip(
-        "plane, sensor model",
-        synth::render(synth::Scene::named("plane"), k, synth::SensorModel{}).depth.depth_mm, reps));
-    res.skip.push_back(measure_fill_skip(
-        "desk, sensor model",
-        synth::render(synth::Scene::named("desk"), k, synth::SensorModel{}).depth.depth_mm, reps));
-    if (!real.empty()) res.skip.push_back(measure_fill_skip("real desk_0", real[0], reps));
-  }
+  res.skip = fill_skip_rows(o.quick, d.real);
   res.quick = o.quick;
-  res.real_note = real_note;
-
-  write_csv(out_dir / "bench.csv", res.rows);
-  write_markdown(out_dir / "bench.md", res);
-  write_plots(out_dir, res.rows);
-  if (o.json)
-    std::cout << results_json(res, out_dir).dump(2) << "\n";
-  else
-    print_summary(res, out_dir);
+  res.real_note = d.real_note;
+  write_results(out_dir, res, o.json);
   return 0;
 }
 

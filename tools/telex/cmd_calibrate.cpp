@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "calibrate_cli.h"
+#include "calibrate_report.h"
 #include "command.h"
 #include "telex/calib/board.h"
 #include "telex/calib/calibrate.h"
@@ -192,13 +193,6 @@ nlohmann::json intrinsics_summary(const calib::CameraCalibration& c) {
           {"rms_px", c.rms_px}};
 }
 
-std::vector<double> rotation_vector_deg(const glm::dmat3& r) {
-  const cv::Vec3d v = calib::rotation_vector_rad(r);
-  return {v[0] * kDeg, v[1] * kDeg, v[2] * kDeg};
-}
-
-std::vector<double> vec(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
-
 // ---- stereo ------------------------------------------------------------------------------------
 
 struct StereoOptions {
@@ -298,11 +292,40 @@ Intrinsics intrinsics_from_flag(const std::vector<double>& v) {
   return k;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+// The rig calibrated against: it must hold the right eye already.
+Rig load_rig_with_right_eye(const std::string& path) {
+  Rig rig;
+  try {
+    rig = load_rig(path);
+  } catch (const RigError& e) {
+    throw FlagError(e.what());
+  }
+  if (!rig.eye[1])
+    throw FlagError("rig " + path +
+                    " has no eyes.right: calibrate the eyes first (telex calibrate stereo --out " +
+                    path + ")");
+  return rig;
+}
+
+// --depth-intrinsics, else the rig's `depth` key.
+Intrinsics depth_intrinsics_of(const DepthEyeOptions& o, const Rig& rig) {
+  if (!o.depth_intrinsics.empty()) return intrinsics_from_flag(o.depth_intrinsics);
+  if (rig.depth) return *rig.depth;
+  throw FlagError(
+      "no depth intrinsics: give --depth-intrinsics FX,FY,CX,CY,W,H or a `depth` "
+      "key in " +
+      o.rig);
+}
+
+// The depth sensor's pose in the right eye, and its intrinsics when they came from the flag.
+void write_depth_eye_rig(const std::string& out, const calib::DepthEyeCalibration& c,
+                         const Intrinsics& depth, bool depth_from_flag) {
+  nlohmann::json patch;
+  patch["extrinsics"]["right_eye_from_depth"] = transform_json(c.X_RightEyeDepth);
+  if (depth_from_flag)
+    patch["depth"] = {{"width", depth.width}, {"height", depth.height}, {"fx_px", depth.fx},
+                      {"fy_px", depth.fy},    {"cx_px", depth.cx},      {"cy_px", depth.cy}};
+  update_rig_file(out, patch);
 }
 
 int run_depth_eye(const DepthEyeOptions& o) {
@@ -315,31 +338,14 @@ int run_depth_eye(const DepthEyeOptions& o) {
     depth_files = expand(o.depth, "--depth");
     same_count(ir, "--ir", depth_files, "--depth");
   }
-  Rig rig;
-  try {
-    rig = load_rig(o.rig);
-  } catch (const RigError& e) {
-    throw FlagError(e.what());
-  }
-  if (!rig.eye[1])
-    throw FlagError("rig " + o.rig +
-                    " has no eyes.right: calibrate the eyes first (telex calibrate stereo --out " +
-                    o.rig + ")");
+  const Rig rig = load_rig_with_right_eye(o.rig);
   const CameraModel right_eye = *rig.eye[1];
   if (!o.out.empty() && o.out != o.rig) check_out(o.out);
-  Intrinsics depth;
-  if (!o.depth_intrinsics.empty())
-    depth = intrinsics_from_flag(o.depth_intrinsics);
-  else if (rig.depth)
-    depth = *rig.depth;
-  else
-    throw FlagError(
-        "no depth intrinsics: give --depth-intrinsics FX,FY,CX,CY,W,H or a `depth` "
-        "key in " +
-        o.rig);
+  const Intrinsics depth = depth_intrinsics_of(o, rig);
+  const bool depth_from_flag = !o.depth_intrinsics.empty();
   std::vector<SizeCheck> sizes{
       {"IR", cv::Size(depth.width, depth.height),
-       o.depth_intrinsics.empty() ? "the rig's depth intrinsics" : "--depth-intrinsics"},
+       depth_from_flag ? "--depth-intrinsics" : "the rig's depth intrinsics"},
       {"right", cv::Size(right_eye.k.width, right_eye.k.height), "the rig's eyes.right"}};
   check_view_count(ir, "--ir", o.min_views);
   const PairedCorners p = detect_views("depth-eye", {ir, right}, {"IR", "right"}, sizes, board);
@@ -352,78 +358,14 @@ int run_depth_eye(const DepthEyeOptions& o) {
   const calib::DepthEyeCalibration c =
       calib::calibrate_depth_eye(p.corners[0], p.corners[1], board, depth, right_eye, maps, opt);
 
-  nlohmann::json patch;
-  patch["extrinsics"]["right_eye_from_depth"] = transform_json(c.X_RightEyeDepth);
-  if (!o.depth_intrinsics.empty())
-    patch["depth"] = {{"width", depth.width}, {"height", depth.height}, {"fx_px", depth.fx},
-                      {"fy_px", depth.fy},    {"cx_px", depth.cx},      {"cy_px", depth.cy}};
   const std::string out = o.out.empty() ? o.rig : o.out;
-  update_rig_file(out, patch);
-
-  const std::vector<double> rot_deg = rotation_vector_deg(c.X_RightEyeDepth.rotation);
-  const double angle_deg = cv::norm(calib::rotation_vector_rad(c.X_RightEyeDepth.rotation)) * kDeg;
-  nlohmann::json planes;
-  if (!maps.empty()) {
-    std::vector<double> offset, angle, fit;
-    for (const auto& pl : c.planes)
-      if (pl.used) {
-        offset.push_back(pl.offset_to_ir_plane_mm);
-        angle.push_back(pl.angle_to_ir_plane_deg);
-        fit.push_back(pl.fit_rms_mm);
-      }
-    planes = {{"views", offset.size()},
-              {"offset_to_ir_plane_mm_median", median(offset)},
-              {"angle_to_ir_plane_deg_median", median(angle)},
-              {"fit_rms_mm_median", median(fit)}};
-    if (c.X_RightEyeDepth_from_planes) {
-      const RigidTransform& x = *c.X_RightEyeDepth_from_planes;
-      planes["from_planes"] = {
-          {"translation_m", vec(x.translation_m)},
-          {"rotation_deg", rotation_vector_deg(x.rotation)},
-          {"differs_mm", glm::length(x.translation_m - c.X_RightEyeDepth.translation_m) * 1e3},
-          {"differs_deg",
-           calib::rotation_angle_between_rad(x.rotation, c.X_RightEyeDepth.rotation) * kDeg}};
-    }
-  }
-  if (o.json) {
-    nlohmann::json j{{"translation_m", vec(c.X_RightEyeDepth.translation_m)},
-                     {"rotation_deg", rot_deg},
-                     {"rotation_angle_deg", angle_deg},
-                     {"residual_mm", c.residual_mm},
-                     {"rms_px", c.rms_px},
-                     {"views", ir.size()},
-                     {"views_used", p.used.size()},
-                     {"skipped", p.not_found},
-                     {"view_residual_mm", c.view_residual_mm},
-                     {"rig", out}};
-    if (!planes.is_null()) j["depth_planes"] = planes;
-    std::cout << j.dump(2) << "\n";
-  } else {
-    const glm::dvec3 t = c.X_RightEyeDepth.translation_m;
-    std::printf("views: %zu of %zu used\n", p.used.size(), ir.size());
-    std::printf(
-        "depth in the right eye: t = [%.2f %.2f %.2f] mm, rotation vector [%.3f %.3f %.3f] "
-        "deg (%.3f deg)\n",
-        t.x * 1e3, t.y * 1e3, t.z * 1e3, rot_deg[0], rot_deg[1], rot_deg[2], angle_deg);
-    std::printf(
-        "residual %.2f mm (board corners via the depth pose vs the eye's), reprojection "
-        "RMS %.3f px\n",
-        c.residual_mm, c.rms_px);
-    if (!planes.is_null()) {
-      std::printf(
-          "depth maps: board plane vs the IR pose's plane: median offset %.2f mm, angle "
-          "%.3f deg, fit RMS %.2f mm (%d views)\n",
-          planes["offset_to_ir_plane_mm_median"].get<double>(),
-          planes["angle_to_ir_plane_deg_median"].get<double>(),
-          planes["fit_rms_mm_median"].get<double>(), planes["views"].get<int>());
-      if (planes.contains("from_planes"))
-        std::printf("from the planes alone: differs by %.2f mm and %.3f deg\n",
-                    planes["from_planes"]["differs_mm"].get<double>(),
-                    planes["from_planes"]["differs_deg"].get<double>());
-    }
-    std::printf("wrote extrinsics.right_eye_from_depth%s into %s\n",
-                o.depth_intrinsics.empty() ? "" : " and depth", out.c_str());
-  }
+  write_depth_eye_rig(out, c, depth, depth_from_flag);
+  DepthEyeResult result{c, ir.size(), p.used.size(), p.not_found, {}, out, depth_from_flag};
+  if (!maps.empty()) result.planes = depth_plane_summary(c);
+  if (o.json)
+    print_depth_eye_json(result);
+  else
+    print_depth_eye_text(result);
   return 0;
 }
 

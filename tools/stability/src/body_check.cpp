@@ -214,13 +214,23 @@ ArmTruth arm_forward(const BodyDims& dims, Side side, const glm::dvec3& shoulder
   return t;
 }
 
-std::vector<BodyCaseResult> run_body_check(std::uint64_t seed) {
-  std::vector<BodyCaseResult> out;
-  std::mt19937_64 rng(seed);
-  const auto side_name = [](Side s) { return s == Side::Right ? "right" : "left"; };
+namespace {
 
-  // Generated arms with known elbows: 12 by the forearm axis, 6 by an elbow marker, 4 with the
-  // wrist body's orientation 1 deg off, 4 by the posture rule alone.
+// ---- generated arms with known elbows ----------------------------------------------------------
+
+const char* cue_name(Cue cue) {
+  return cue == Cue::ForearmAxis ? "forearm-axis"
+         : cue == Cue::Marker    ? "elbow-marker"
+         : cue == Cue::NoisyAxis ? "forearm-axis-1deg-off"
+                                 : "posture-rule";
+}
+
+const char* side_name(Side s) { return s == Side::Right ? "right" : "left"; }
+
+// 12 by the forearm axis, 6 by an elbow marker, 4 with the wrist body's orientation 1 deg off, 4
+// by the posture rule alone; sides alternate.
+std::vector<BodyCaseResult> generated_cases(std::mt19937_64& rng) {
+  std::vector<BodyCaseResult> out;
   const std::pair<Cue, int> plan[] = {
       {Cue::ForearmAxis, 12}, {Cue::Marker, 6}, {Cue::NoisyAxis, 4}, {Cue::Posture, 4}};
   for (const auto& [cue, count] : plan) {
@@ -229,79 +239,77 @@ std::vector<BodyCaseResult> run_body_check(std::uint64_t seed) {
       Generated g = random_arm(rng);
       // The posture rule's cases: arms in the rule's own natural range (elbow hanging).
       if (cue == Cue::Posture) g.swivel = 80.0 * kDeg + 20.0 * kDeg * (k % 2);
-      const char* cue_name = cue == Cue::ForearmAxis ? "forearm-axis"
-                             : cue == Cue::Marker    ? "elbow-marker"
-                             : cue == Cue::NoisyAxis ? "forearm-axis-1deg-off"
-                                                     : "posture-rule";
       out.push_back(generated_case(
-          fmt::format("{}-{}-{:02d}-az{:.0f}-el{:.0f}-flex{:.0f}", cue_name, side_name(side), k,
-                      g.azimuth / kDeg, g.elevation / kDeg, g.flexion / kDeg),
+          fmt::format("{}-{}-{:02d}-az{:.0f}-el{:.0f}-flex{:.0f}", cue_name(cue), side_name(side),
+                      k, g.azimuth / kDeg, g.elevation / kDeg, g.flexion / kDeg),
           side, g, cue, rng));
     }
   }
+  return out;
+}
 
+// ---- singular geometry -------------------------------------------------------------------------
+
+const glm::dvec3 kShoulderRight = shoulder_of(Side::Right);
+
+// The right wrist at `target`, its forearm axis along shoulder -> target: unreachable, so the arm
+// must point at the wrist with the elbow on the shoulder-wrist segment.
+BodyCaseResult beyond_reach_case(const char* name, const glm::dvec3& target) {
   const BodyDims dims;
-  const double reach = dims.upper_arm_m + dims.forearm_m;
-  const Side R = Side::Right;
-  const glm::dvec3 sr = shoulder_of(R);
+  const glm::dvec3& sr = kShoulderRight;
+  Body body(dims);
+  ArmTruth t;
+  t.shoulder = sr;
+  t.wrist = target;
+  t.wrist_pose = {target, rotation_between(dims.forearm_axis_wrist, glm::normalize(target - sr))};
+  body.update(inputs_for(Side::Right, t, 0));
+  Tally tally;
+  tally.r.name = name;
+  tally.see(body, Side::Right);
+  const ArmState& a = body.state().arms[index_of(Side::Right)];
+  const glm::dvec3 n = glm::normalize(target - sr);
+  const double off_line = glm::length((a.elbow - sr) - n * glm::dot(a.elbow - sr, n));
+  tally.r.criteria =
+      "finite; reported unreachable; elbow on the shoulder-wrist line (straight arm)";
+  tally.r.pass = tally.r.nonfinite == 0 && !a.reachable && off_line < 1e-9 &&
+                 a.elbow_from == ElbowFrom::Straight;
+  tally.r.note =
+      fmt::format("elbow {:.2g} m off the line; from {}", off_line, elbow_from_name(a.elbow_from));
+  return tally.r;
+}
 
-  // Singular: the arm fully straight (flexion 0) by the forearm axis.
-  {
-    BodyCaseResult r = generated_case("straight-arm-forward-right", R, {90 * kDeg, 0, 0, 0, 0},
-                                      Cue::ForearmAxis, rng);
-    out.push_back(r);
-  }
-  // Beyond reach: twice the arm's length away, along and off the axes.
-  for (const auto& [name, target] :
-       {std::pair{"wrist-beyond-reach-forward", sr + glm::dvec3{0.0, 0.0, -2.0 * reach}},
-        std::pair{"wrist-beyond-reach-diagonal", sr + glm::dvec3{1.0, 1.0, -1.0} * reach}}) {
-    Body body(dims);
-    ArmTruth t;
-    t.shoulder = sr;
-    t.wrist = target;
-    t.wrist_pose = {target, rotation_between(dims.forearm_axis_wrist, glm::normalize(target - sr))};
-    body.update(inputs_for(R, t, 0));
-    Tally tally;
-    tally.r.name = name;
-    tally.see(body, R);
-    const ArmState& a = body.state().arms[index_of(R)];
-    // The arm points at the wrist: the elbow on the shoulder-wrist segment.
-    const glm::dvec3 n = glm::normalize(target - sr);
-    const double off_line = glm::length((a.elbow - sr) - n * glm::dot(a.elbow - sr, n));
-    tally.r.criteria =
-        "finite; reported unreachable; elbow on the shoulder-wrist line (straight arm)";
-    tally.r.pass = tally.r.nonfinite == 0 && !a.reachable && off_line < 1e-9 &&
-                   a.elbow_from == ElbowFrom::Straight;
-    tally.r.note = fmt::format("elbow {:.2g} m off the line; from {}", off_line,
-                               elbow_from_name(a.elbow_from));
-    out.push_back(tally.r);
-  }
-  // The wrist exactly at the shoulder, and 1 um from it.
-  for (const auto& [name, offset] :
-       {std::pair{"wrist-at-shoulder", glm::dvec3{0.0}},
-        std::pair{"wrist-1um-from-shoulder", glm::dvec3{1e-6, 0.0, 0.0}}}) {
-    Body body(dims);
-    ArmTruth t;
-    t.shoulder = sr;
-    t.wrist = sr + offset;
-    t.wrist_pose = {t.wrist, {1.0, 0.0, 0.0, 0.0}};
-    body.update(inputs_for(R, t, 0));
-    Tally tally;
-    tally.r.name = name;
-    tally.see(body, R);
-    const ArmState& a = body.state().arms[index_of(R)];
-    const double e1 = std::abs(glm::length(a.elbow - sr) - dims.upper_arm_m);
-    tally.r.criteria = "finite; reported unreachable; upper arm keeps its length";
-    tally.r.pass = tally.r.nonfinite == 0 && !a.reachable && a.visible && e1 < 1e-6;
-    tally.r.note = fmt::format("upper arm length error {:.2g} m", e1);
-    out.push_back(tally.r);
-  }
-  // Targets on the posture rule's axis: the arm swept straight down through the vertical and
-  // straight up through it, and a circle around the downward vertical, with no forearm axis and
-  // no marker (the rule alone). A flip would move the elbow by up to 2 r in one update.
+// The right wrist `offset` from the shoulder: unreachable, the upper arm keeps its length.
+BodyCaseResult wrist_near_shoulder_case(const char* name, const glm::dvec3& offset) {
+  const BodyDims dims;
+  const glm::dvec3& sr = kShoulderRight;
+  Body body(dims);
+  ArmTruth t;
+  t.shoulder = sr;
+  t.wrist = sr + offset;
+  t.wrist_pose = {t.wrist, {1.0, 0.0, 0.0, 0.0}};
+  body.update(inputs_for(Side::Right, t, 0));
+  Tally tally;
+  tally.r.name = name;
+  tally.see(body, Side::Right);
+  const ArmState& a = body.state().arms[index_of(Side::Right)];
+  const double e1 = std::abs(glm::length(a.elbow - sr) - dims.upper_arm_m);
+  tally.r.criteria = "finite; reported unreachable; upper arm keeps its length";
+  tally.r.pass = tally.r.nonfinite == 0 && !a.reachable && a.visible && e1 < 1e-6;
+  tally.r.note = fmt::format("upper arm length error {:.2g} m", e1);
+  return tally.r;
+}
+
+// Targets on the posture rule's axis: the arm swept straight down through the vertical and
+// straight up through it, and a circle around the downward vertical, with no forearm axis and
+// no marker (the rule alone). A flip would move the elbow by up to 2 r in one update.
+std::vector<BodyCaseResult> posture_axis_sweeps() {
+  const BodyDims dims;
+  const Side R = Side::Right;
+  const glm::dvec3& sr = kShoulderRight;
   const double len = 0.5;
   const glm::dvec3 pole = glm::normalize(Body(dims).posture_pull(R, {1.0, 0.0, 0.0})) * len;
   const glm::dvec3 across = glm::normalize(glm::cross(pole, glm::dvec3{0.0, 0.0, 1.0})) * 0.2;
+  std::vector<BodyCaseResult> out;
   out.push_back(sweep_case("swivel-axis-sweep-through-pole", R, sr + pole - across,
                            sr + pole + across, 400, false, 0.01,
                            "wrist passes exactly through the posture rule's pole"));
@@ -314,16 +322,40 @@ std::vector<BodyCaseResult> run_body_check(std::uint64_t seed) {
   out.push_back(sweep_case("straight-reach-sweep-with-axis", R, sr + glm::dvec3{0.0, -0.2, -0.3},
                            sr + glm::dvec3{0.0, 0.2, -0.95}, 400, true, 0.02,
                            "wrist moves out of reach along the forearm axis"));
+  return out;
+}
 
-  // Hostile values: NaN and Inf in the wrist, the shoulder and the orientation; a zero
-  // quaternion. Held while the last valid pose is younger than 200 ms, then hidden.
-  struct Hostile {
-    const char* name;
-    std::function<void(BodyInputs&)> spoil;
-  };
+// The arm fully straight (flexion 0) by the forearm axis; beyond reach, along and off the axes;
+// the wrist exactly at the shoulder and 1 um from it; sweeps through the posture rule's axis.
+std::vector<BodyCaseResult> singular_cases(std::mt19937_64& rng) {
+  const BodyDims dims;
+  const double reach = dims.upper_arm_m + dims.forearm_m;
+  const glm::dvec3& sr = kShoulderRight;
+  std::vector<BodyCaseResult> out;
+  out.push_back(generated_case("straight-arm-forward-right", Side::Right, {90 * kDeg, 0, 0, 0, 0},
+                               Cue::ForearmAxis, rng));
+  out.push_back(
+      beyond_reach_case("wrist-beyond-reach-forward", sr + glm::dvec3{0.0, 0.0, -2.0 * reach}));
+  out.push_back(
+      beyond_reach_case("wrist-beyond-reach-diagonal", sr + glm::dvec3{1.0, 1.0, -1.0} * reach));
+  out.push_back(wrist_near_shoulder_case("wrist-at-shoulder", glm::dvec3{0.0}));
+  out.push_back(wrist_near_shoulder_case("wrist-1um-from-shoulder", glm::dvec3{1e-6, 0.0, 0.0}));
+  for (auto& r : posture_axis_sweeps()) out.push_back(std::move(r));
+  return out;
+}
+
+// ---- hostile values ----------------------------------------------------------------------------
+
+struct Hostile {
+  const char* name;
+  std::function<void(BodyInputs&)> spoil;
+};
+
+// NaN and Inf in the wrist, the shoulder and the orientation; a zero quaternion; missing bodies.
+std::vector<Hostile> hostile_inputs() {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
-  const std::vector<Hostile> hostile = {
+  return {
       {"nan-wrist-position", [nan](BodyInputs& in) { in.wrist[1]->p_m.x = nan; }},
       {"inf-shoulder-position", [inf](BodyInputs& in) { in.shoulder[1]->p_m.y = inf; }},
       {"nan-wrist-orientation", [nan](BodyInputs& in) { in.wrist[1]->q.w = nan; }},
@@ -334,63 +366,85 @@ std::vector<BodyCaseResult> run_body_check(std::uint64_t seed) {
       {"missing-wrist-body", [](BodyInputs& in) { in.wrist[1].reset(); }},
       {"missing-shoulder-body", [](BodyInputs& in) { in.shoulder[1].reset(); }},
   };
-  for (const auto& h : hostile) {
-    Body body(dims);
-    const ArmTruth t = arm_forward(dims, R, sr, 60 * kDeg, -20 * kDeg, 70 * kDeg, 90 * kDeg, 0.0);
-    Tally tally;
-    tally.r.name = h.name;
-    body.update(inputs_for(R, t, 0));
-    tally.see(body, R);
-    const glm::dvec3 good_elbow = body.state().arms[1].elbow;
-    bool held_ok = true, hidden_ok = true;
-    double moved = 0.0;
-    // Bad inputs for 300 ms at 100 Hz: shown (held) up to 200 ms, hidden after.
-    for (int k = 1; k <= 30; ++k) {
-      BodyInputs in = inputs_for(R, t, k * kTick_ns);
-      h.spoil(in);
-      body.update(in);
-      tally.see(body, R);
-      const ArmState& a = body.state().arms[1];
-      if (k <= 20) {
-        held_ok = held_ok && a.visible && a.held;
-        moved = std::max(moved, glm::length(a.elbow - good_elbow));
-      } else {
-        hidden_ok = hidden_ok && !a.visible;
-      }
-    }
-    // And back: the next valid input shows the arm again.
-    body.update(inputs_for(R, t, 31 * kTick_ns));
-    tally.see(body, R);
-    const bool back = body.state().arms[1].visible && !body.state().arms[1].held;
-    tally.r.criteria =
-        "finite; last valid pose held (unchanged) up to 200 ms, hidden after, shown "
-        "again with the next valid input";
-    tally.r.pass = tally.r.nonfinite == 0 && held_ok && moved == 0.0 && hidden_ok && back;
-    tally.r.note =
-        fmt::format("held {}, hidden after 200 ms {}, back {}", held_ok, hidden_ok, back);
-    out.push_back(tally.r);
-  }
-  // Far from the origin (a tracking volume whose origin is 10 km away) and tiny arms: finite,
-  // determined elbows still within tolerance.
-  {
-    BodyDims far_dims;
-    Body body(far_dims);
-    const glm::dvec3 far_shoulder = sr + glm::dvec3{1e4, 0.0, -1e4};
-    const ArmTruth t =
-        arm_forward(far_dims, R, far_shoulder, 45 * kDeg, 10 * kDeg, 60 * kDeg, 30 * kDeg, 0.3);
-    BodyInputs in = inputs_for(R, t, 0);
-    in.shoulder[0]->p_m += glm::dvec3{1e4, 0.0, -1e4};
-    in.head->p_m += glm::dvec3{1e4, 0.0, -1e4};
+}
+
+// Held while the last valid pose is younger than 200 ms, then hidden; shown again with the next
+// valid input.
+BodyCaseResult hostile_case(const Hostile& h) {
+  const BodyDims dims;
+  const Side R = Side::Right;
+  Body body(dims);
+  const ArmTruth t =
+      arm_forward(dims, R, kShoulderRight, 60 * kDeg, -20 * kDeg, 70 * kDeg, 90 * kDeg, 0.0);
+  Tally tally;
+  tally.r.name = h.name;
+  body.update(inputs_for(R, t, 0));
+  tally.see(body, R);
+  const glm::dvec3 good_elbow = body.state().arms[1].elbow;
+  bool held_ok = true, hidden_ok = true;
+  double moved = 0.0;
+  // Bad inputs for 300 ms at 100 Hz: shown (held) up to 200 ms, hidden after.
+  for (int k = 1; k <= 30; ++k) {
+    BodyInputs in = inputs_for(R, t, k * kTick_ns);
+    h.spoil(in);
     body.update(in);
-    Tally tally;
-    tally.r.name = "tracking-origin-10km-away";
     tally.see(body, R);
-    tally.elbow_error(glm::length(body.state().arms[1].elbow - t.elbow));
-    tally.r.criteria = "finite; elbow error <= 10 mm";
-    tally.r.pass = tally.r.nonfinite == 0 && *tally.r.elbow_error_m <= kElbowTolerance_m;
-    tally.r.note = fmt::format("elbow error {:.3g} mm", *tally.r.elbow_error_m * 1e3);
-    out.push_back(tally.r);
+    const ArmState& a = body.state().arms[1];
+    if (k <= 20) {
+      held_ok = held_ok && a.visible && a.held;
+      moved = std::max(moved, glm::length(a.elbow - good_elbow));
+    } else {
+      hidden_ok = hidden_ok && !a.visible;
+    }
   }
+  body.update(inputs_for(R, t, 31 * kTick_ns));
+  tally.see(body, R);
+  const bool back = body.state().arms[1].visible && !body.state().arms[1].held;
+  tally.r.criteria =
+      "finite; last valid pose held (unchanged) up to 200 ms, hidden after, shown "
+      "again with the next valid input";
+  tally.r.pass = tally.r.nonfinite == 0 && held_ok && moved == 0.0 && hidden_ok && back;
+  tally.r.note = fmt::format("held {}, hidden after 200 ms {}, back {}", held_ok, hidden_ok, back);
+  return tally.r;
+}
+
+// Far from the origin (a tracking volume whose origin is 10 km away): finite, determined elbows
+// still within tolerance.
+BodyCaseResult far_origin_case() {
+  const Side R = Side::Right;
+  BodyDims far_dims;
+  Body body(far_dims);
+  const glm::dvec3 far_shoulder = kShoulderRight + glm::dvec3{1e4, 0.0, -1e4};
+  const ArmTruth t =
+      arm_forward(far_dims, R, far_shoulder, 45 * kDeg, 10 * kDeg, 60 * kDeg, 30 * kDeg, 0.3);
+  BodyInputs in = inputs_for(R, t, 0);
+  in.shoulder[0]->p_m += glm::dvec3{1e4, 0.0, -1e4};
+  in.head->p_m += glm::dvec3{1e4, 0.0, -1e4};
+  body.update(in);
+  Tally tally;
+  tally.r.name = "tracking-origin-10km-away";
+  tally.see(body, R);
+  tally.elbow_error(glm::length(body.state().arms[1].elbow - t.elbow));
+  tally.r.criteria = "finite; elbow error <= 10 mm";
+  tally.r.pass = tally.r.nonfinite == 0 && *tally.r.elbow_error_m <= kElbowTolerance_m;
+  tally.r.note = fmt::format("elbow error {:.3g} mm", *tally.r.elbow_error_m * 1e3);
+  return tally.r;
+}
+
+std::vector<BodyCaseResult> hostile_cases() {
+  std::vector<BodyCaseResult> out;
+  for (const auto& h : hostile_inputs()) out.push_back(hostile_case(h));
+  out.push_back(far_origin_case());
+  return out;
+}
+
+}  // namespace
+
+std::vector<BodyCaseResult> run_body_check(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<BodyCaseResult> out = generated_cases(rng);
+  for (auto& r : singular_cases(rng)) out.push_back(std::move(r));
+  for (auto& r : hostile_cases()) out.push_back(std::move(r));
   return out;
 }
 
