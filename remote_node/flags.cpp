@@ -1,14 +1,22 @@
 // SPDX-License-Identifier: MIT
-// telex-remote's registration flags: text -> RegistrationConfig.
+// telex-remote's flags: their definitions, and what their text becomes (the registration flags:
+// text -> RegistrationConfig).
 #include "flags.h"
 
 #include <fmt/format.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "telex/cli/cli.h"
+#include "telex/cli/processing_flags.h"
+#include "telex/common/endpoint.h"
 
 namespace telex::remote {
 
@@ -130,6 +138,246 @@ std::string describe_rig(const Rig& rig) {
     text += " eye centre in depth frame " + eye_centre_text(*rig.X_RightEyeDepth) + " m;";
   text += " robot head joints and limits";
   return text;
+}
+
+void load_remote_rig(int argc, char** argv, RemoteFlags& f) {
+  if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
+    f.rig = telex::load_rig(*rig_path);
+    f.rig_file = rig_path->string();
+  }
+}
+
+namespace {
+
+// The rig and the sources.
+void add_source_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--rig", f.rig_file,
+                 "Rig FILE (docs/RIG.md): the depth and eye cameras' calibration and the "
+                 "depth-to-right-eye extrinsics (registration becomes full), the robot head's "
+                 "joints; the flags below override it");
+  app.add_option("--source", f.cfg.depth_source, "Depth source: " + depth_source_help());
+  app.add_option("--stereo", f.cfg.stereo_source,
+                 "Stereo video source (empty = none): " + stereo_source_help());
+}
+
+// Where the operator connects, and how depth and video reach it.
+void add_link_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--listen", f.listen, "TCP control endpoint HOST:PORT");
+  app.add_option("--transport", f.transport,
+                 "Depth/video transport when the client offers UDP: udp | tcp")
+      ->check(CLI::IsMember({"udp", "tcp"}));
+}
+
+// The depth pipeline's encoding: codec, tiles, key frames, stabilisation.
+void add_pipeline_options(CLI::App& app, RemoteFlags& f) {
+  PipelineConfig& p = f.cfg.pipeline;
+  app.add_option("--codec", f.codec, "Preferred depth codec: raw | zip | fast")
+      ->check(CLI::IsMember({"raw", "zip", "fast"}));
+  app.add_option("--zip-level", p.zip_level, "Deflate level of the zip codec (0 = Huffman only)")
+      ->check(CLI::Range(0, 9));
+  app.add_option("--tile", f.tile, "Tile size WxH in pixels");
+  app.add_option("--key-every", p.key_frame_every, "Frames between key frames")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--stream-tiles", p.stream_tiles,
+                 "Send a frame's tiles in batches of N as they are encoded, ahead of its manifest "
+                 "(0 = each part at once)")
+      ->check(CLI::Range(0, 4096));
+  app.add_option("--background-every", p.background_every,
+                 "While an ROI is requested, tiles outside it are considered every Nth frame")
+      ->check(CLI::Range(1, 1000));
+  app.add_option(
+         "--stabilise", p.stabilise_k_sigma,
+         "Hold a pixel's last sent depth while within K sensor-noise sigmas (0 = off, bit-exact)")
+      ->check(CLI::Range(0.0, 100.0));
+}
+
+// Depth registered into the right-eye camera (the rig may set these; show_rig_defaults).
+void add_registration_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--register", f.register_mode,
+                 "Register depth into the right-eye camera before fill: none | shift | full. "
+                 "none (default): OpenNI sources deliver hardware-registered depth already")
+      ->check(CLI::IsMember({"none", "shift", "full"}));
+  app.add_option("--register-baseline", f.register_baseline,
+                 "Eye camera centre X,Y,Z in the depth camera's frame, metres (x right, y down, "
+                 "z forward)");
+  app.add_option("--register-rotation", f.register_rotation,
+                 "Eye camera rotation RX,RY,RZ in degrees (about x, then y, then z) relative to "
+                 "the depth camera; shift mode ignores it");
+  app.add_option("--register-eye", f.register_eye,
+                 "Eye camera intrinsics FX,FY,CX,CY,W,H in pixels (empty = the depth source's)");
+  app.add_option("--register-nominal", f.cfg.pipeline.registration.nominal_depth_m,
+                 "Depth in metres at which shift registration is exact")
+      ->check(CLI::Range(0.05, 100.0));
+}
+
+// Hole filling here (off by default: the station fills).
+void add_fill_options(CLI::App& app, RemoteFlags& f) {
+  app.add_flag("--fill", f.fill,
+               "Fill holes here (spatial, then temporal) before sending. Off by default: the "
+               "station fills what it needs, the same force error for 18 % fewer bytes and "
+               "3.5 ms less work here (docs/BENCHMARKS.md, where to fill)");
+  app.add_flag("--no-fill", f.no_fill, "Send holes as they are (the default)")->excludes("--fill");
+  app.add_flag("--no-temporal", f.no_temporal, "With --fill: spatial fill only");
+  f.cfg.pipeline.hole_fill = telex::cli::shipping_fill();
+  telex::cli::add_fill_flags(app, f.cfg.pipeline.hole_fill);
+  app.add_option("--temporal-age", f.cfg.pipeline.temporal.max_age_frames,
+                 "Frames a remembered depth stays usable")
+      ->check(CLI::Range(1, 1000));
+}
+
+// Synthetic sources' frames and the video sent.
+void add_frame_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--fps", f.cfg.source_options.synthetic_fps, "Frame rate of synthetic sources");
+  app.add_option("--size", f.size, "Render size WxH of synthetic sources");
+  app.add_option("--seed", f.cfg.source_options.seed, "Noise seed of synthetic sources");
+  app.add_option("--jpeg-quality", f.cfg.jpeg_quality, "JPEG quality of the video (1..100)");
+  app.add_option("--video-size", f.video_size,
+                 "Video size WxH sent to the operator (0x0 = source size)");
+}
+
+// The operator's session and the daemon's run.
+void add_run_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--client-timeout-ms", f.client_timeout_ms,
+                 "Drop an operator silent for this long")
+      ->check(CLI::Range(100, 600000));
+  app.add_option("--max-queued-frames", f.cfg.server.max_queued_frames,
+                 "Frames queued per client before the oldest is dropped")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--duration", f.cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--no-stats", f.no_stats, "No stats line every second");
+  app.add_flag("--no-realtime", f.no_realtime,
+               "Do not try SCHED_FIFO for the threads from capture to the network and the head "
+               "loop (the default keeps other programs on this machine from delaying depth)");
+}
+
+// The robot head.
+void add_head_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--head", f.cfg.head,
+                 "Robot head driver: none | sim[,tau_ms=80] (first-order servos) | "
+                 "dynamixel:DEV[,ids=1,2,3][,baud=57600] (Protocol 2.0 servos yaw, pitch, roll) | "
+                 "udp:HOST:PORT (a lab's own head controller; docs/PROTOCOL.md)");
+  app.add_flag("--require-deadman", f.cfg.require_deadman,
+               "Move the head only while the station reports its dead-man input pressed "
+               "(telex-local --deadman); a station without one holds the head still");
+  app.add_option("--log-head", f.cfg.head_log_csv,
+                 "CSV of the head loop, one row per loop: measured pose, command, the operator "
+                 "sample's id and age, the dead-man state and why the head holds (docs/PROTOCOL.md "
+                 "2.6)");
+}
+
+// TLS: a pre-shared key or certificates, or --insecure off loopback.
+void add_security_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option("--psk", f.psk_file,
+                 "Pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "(EC)DHE on TCP, sealed datagrams on UDP; the station needs the same key");
+  app.add_option(
+      "--cert", f.cert_file,
+      "This remote's certificate chain FILE (PEM), instead of --psk; with --key and --ca");
+  app.add_option("--key", f.key_file, "The private key FILE (PEM, mode 0600) of --cert");
+  app.add_option("--ca", f.ca_file,
+                 "CA FILE (PEM): the station's certificate must chain to it (required, verified)");
+  app.add_flag("--insecure", f.insecure,
+               "Accept a --listen address off loopback without --psk or certificates: anyone on "
+               "the network can then move the robot head and watch its cameras and depth");
+}
+
+}  // namespace
+
+void add_remote_options(CLI::App& app, RemoteFlags& f) {
+  telex::cli::add_strict_config(app, "Read options from FILE");
+  add_source_options(app, f);
+  add_link_options(app, f);
+  add_pipeline_options(app, f);
+  add_registration_options(app, f);
+  add_fill_options(app, f);
+  add_frame_options(app, f);
+  add_run_options(app, f);
+  add_head_options(app, f);
+  add_security_options(app, f);
+  if (f.rig) show_rig_defaults(app, *f.rig);
+}
+
+namespace {
+
+bool parse_size(const std::string& text, int& w, int& h) {
+  char x = 0;
+  std::istringstream in(text);
+  return static_cast<bool>(in >> w >> x >> h) && x == 'x' && in.peek() == EOF;
+}
+
+// --listen, --transport, --client-timeout-ms, --codec.
+void resolve_link(RemoteFlags& f) {
+  DaemonConfig& cfg = f.cfg;
+  const Endpoint listen_at = parse_endpoint(f.listen, "--listen", true);
+  cfg.server.host = listen_at.host;
+  cfg.server.port = listen_at.port;
+  cfg.server.force_tcp = f.transport == "tcp";
+  cfg.server.client_timeout = std::chrono::milliseconds(f.client_timeout_ms);
+  cfg.pipeline.codec = *proto::parse_codec(f.codec);
+}
+
+// --tile, --size, --video-size: WxH.
+void resolve_sizes(RemoteFlags& f) {
+  DaemonConfig& cfg = f.cfg;
+  if (!parse_size(f.tile, cfg.pipeline.tile_width, cfg.pipeline.tile_height))
+    throw std::invalid_argument(fmt::format("--tile '{}' is not WxH", f.tile));
+  if (!parse_size(f.size, cfg.source_options.width, cfg.source_options.height) ||
+      cfg.source_options.width < 16 || cfg.source_options.height < 16 ||
+      cfg.source_options.width > 4096 || cfg.source_options.height > 4096)
+    throw std::invalid_argument(fmt::format("--size '{}' is not WxH within 16..4096", f.size));
+  if (!parse_size(f.video_size, cfg.video_width, cfg.video_height))
+    throw std::invalid_argument(fmt::format("--video-size '{}' is not WxH", f.video_size));
+}
+
+// The registration flags, then the rig (the flags given win) and the rig's robot head.
+void resolve_registration(const CLI::App& app, RemoteFlags& f) {
+  DaemonConfig& cfg = f.cfg;
+  cfg.pipeline.registration =
+      parse_registration(f.register_mode, f.register_baseline, f.register_rotation, f.register_eye,
+                         cfg.pipeline.registration.nominal_depth_m);
+  if (!f.rig) return;
+  apply_rig(*f.rig,
+            {app.count("--register") > 0, app.count("--register-baseline") > 0,
+             app.count("--register-rotation") > 0, app.count("--register-eye") > 0},
+            cfg.pipeline.registration);
+  cfg.robot_head = f.rig->robot_head;
+  cfg.head_limits = head_limits_from(f.rig->robot_head);
+}
+
+// --psk, --cert/--key/--ca and --insecure: the keys loaded and checked, and a plain link off
+// loopback refused without --insecure.
+void resolve_security(RemoteFlags& f) {
+  ServerConfig& server = f.cfg.server;
+  proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
+  if (!f.psk_file.empty()) {
+    proto::check_key_file_permissions(f.psk_file);
+    server.tls.psk = proto::load_key_file(f.psk_file);
+  }
+  if (!f.cert_file.empty()) {
+    proto::check_key_file_permissions(f.key_file, "private key file");
+    server.tls.cert = f.cert_file;
+    server.tls.key = f.key_file;
+    server.tls.ca = f.ca_file;
+  }
+  const bool loopback = proto::is_loopback_host(server.host);
+  if (!server.tls.enabled() && !loopback && !f.insecure)
+    throw std::invalid_argument(proto::insecure_refusal("--listen", f.listen));
+  f.cfg.insecure = !server.tls.enabled() && !loopback;
+}
+
+}  // namespace
+
+void resolve_remote_flags(const CLI::App& app, RemoteFlags& f) {
+  resolve_link(f);
+  resolve_sizes(f);
+  resolve_registration(app, f);
+  f.cfg.pipeline.fill = f.fill && !f.no_fill;
+  f.cfg.pipeline.temporal_fill = !f.no_temporal;
+  f.cfg.stats_line = !f.no_stats;
+  f.cfg.realtime = !f.no_realtime;
+  resolve_security(f);
+  validate(f.cfg);
 }
 
 }  // namespace telex::remote

@@ -1,15 +1,47 @@
 // SPDX-License-Identifier: MIT
-// telex-remote's flag values that need more than CLI11's own checks: text -> pipeline config.
+// telex-remote's command line: every flag (CLI11), and what the flags' text becomes in the
+// daemon's configuration. main.cpp parses with it; the remote tests test it.
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 
 #include "telex/common/rig.h"
+#include "telex/remote/daemon.h"
 #include "telex/remote/pipeline.h"
 
 namespace telex::remote {
+
+// The command line's values: the daemon's configuration and the flags that are not one field of
+// it (resolve_remote_flags turns them into it).
+struct RemoteFlags {
+  DaemonConfig cfg;
+  std::optional<Rig> rig;  // --rig, read before the flags
+  std::string rig_file;
+  std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
+              size = "640x480", video_size = "0x0";
+  int client_timeout_ms = 3000;
+  std::string register_mode = "none", register_baseline = "0.025,0,0", register_rotation = "0,0,0",
+              register_eye;
+  bool fill = false, no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
+  std::string psk_file, cert_file, key_file, ca_file;
+  bool insecure = false;
+};
+
+// --rig FILE (docs/RIG.md), read before the flags so any flag given overrides it. Throws
+// std::runtime_error / std::invalid_argument naming the file and the key.
+void load_remote_rig(int argc, char** argv, RemoteFlags& flags);
+
+// Every telex-remote option, bound to `flags`, in --help's order; with a rig, its values as the
+// registration flags' defaults.
+void add_remote_options(CLI::App& app, RemoteFlags& flags);
+
+// After parsing: the flags' text (endpoints, sizes, registration, keys, switches) and the rig into
+// flags.cfg, then the whole configuration validated. `app` tells which registration flags were
+// given. Throws std::invalid_argument (or the key loader's std::runtime_error) naming the flag.
+void resolve_remote_flags(const CLI::App& app, RemoteFlags& flags);
 
 // "none" | "shift" | "full"; throws std::invalid_argument naming the valid values.
 RegisterMode parse_register_mode(std::string_view text);
