@@ -9,7 +9,6 @@
 
 #include "flags.h"
 #include "telex/cli/cli.h"
-#include "telex/common/logging.h"
 #include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
 
@@ -56,15 +55,11 @@ int run_station(const StationConfig& cfg, bool json_summary) {
 
 int main(int argc, char** argv) {
   using namespace telex::local;
-  telex::init_logging("telex-local");
   StationFlags flags;
   // The rig sets the defaults before the flags are read, so any flag given overrides it.
-  try {
-    load_station_rig(argc, argv, flags);
-  } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  }
+  if (const auto rc = telex::cli::load_before_flags("telex-local",
+                                                    [&] { load_station_rig(argc, argv, flags); }))
+    return *rc;
   CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
   telex::cli::prepare(app, "telex-local");
   add_station_options(app, flags);

@@ -8,7 +8,6 @@
 
 #include "flags.h"
 #include "telex/cli/cli.h"
-#include "telex/common/logging.h"
 #include "telex/remote/daemon.h"
 
 namespace {
@@ -35,15 +34,11 @@ void log_started(RemoteDaemon& daemon, const DaemonConfig& cfg) {
 
 int main(int argc, char** argv) {
   using namespace telex::remote;
-  telex::init_logging("telex-remote");
   RemoteFlags flags;
   // The rig is read before the flags; the flags given override what it sets.
-  try {
-    load_remote_rig(argc, argv, flags);
-  } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  }
+  if (const auto rc = telex::cli::load_before_flags("telex-remote",
+                                                    [&] { load_remote_rig(argc, argv, flags); }))
+    return *rc;
   CLI::App app{
       "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
       "operator"};
@@ -51,7 +46,7 @@ int main(int argc, char** argv) {
   add_remote_options(app, flags);
   if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
   telex::cli::log_config_values(app);
-  if (flags.rig) spdlog::info("telex-remote: {}", describe_rig(*flags.rig));
+  if (flags.rig) spdlog::info("{}", describe_rig(*flags.rig));
   try {
     resolve_remote_flags(app, flags);
   } catch (const std::exception& e) {

@@ -154,6 +154,18 @@ std::string config_origin(const CLI::App& app, const std::string& message, int a
 
 }  // namespace
 
+std::optional<int> load_before_flags(const std::string& program,
+                                     const std::function<void()>& load) {
+  init_logging(program);
+  try {
+    load();
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return kUsageExit;
+  }
+  return std::nullopt;
+}
+
 void prepare(CLI::App& app, std::string program) {
   // Logs go to stderr in the daemons' one format, so stdout carries only a program's output.
   init_logging(program);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -20,6 +21,11 @@ inline constexpr int kUsageExit = 2;
 // defaults are captured for the help, --help-json prints the options as JSON. Call before adding
 // options (the defaults apply to options added later).
 void prepare(CLI::App& app, std::string program);
+
+// A daemon's first step, before its flags: sets up logging for `program` and runs `load` (reading
+// the rig the flags' defaults come from). An exception from it is a usage error: logged, and 2
+// returned; nothing when it went well.
+std::optional<int> load_before_flags(const std::string& program, const std::function<void()>& load);
 
 // The name that prefixes messages for `app`: its program, or "telex bench" for a subcommand.
 std::string program_name(const CLI::App& app);
