@@ -64,7 +64,6 @@ int main(int argc, char** argv) {
   telex::cli::prepare(app, "telex-local");
   add_station_options(app, flags);
   if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
-  telex::cli::log_config_values(app);
   try {
     resolve_station_flags(flags);
   } catch (const CLI::ParseError& e) {

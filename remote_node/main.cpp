@@ -45,7 +45,6 @@ int main(int argc, char** argv) {
   telex::cli::prepare(app, "telex-remote");
   add_remote_options(app, flags);
   if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
-  telex::cli::log_config_values(app);
   if (flags.rig) spdlog::info("{}", describe_rig(*flags.rig));
   try {
     resolve_remote_flags(app, flags);

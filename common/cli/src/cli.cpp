@@ -247,6 +247,7 @@ std::optional<int> parse(CLI::App& app, int argc, const char* const* argv) {
               << "\n(run " << program_name(*at) << " --help for the options)\n";
     return kUsageExit;
   }
+  log_config_values(app);  // a run says what its config file set
   return std::nullopt;
 }
 

@@ -54,7 +54,8 @@ std::string config_file(const CLI::App& app);
 
 // Parses argv. Returns nothing when the program goes on; else the exit code to return: 0 after
 // --help/--help-all/--help-json, 2 after a usage error (its message already on stderr as
-// "<program>: <flag>: <what is wrong>", with "did you mean --x?" for an unknown flag).
+// "<program>: <flag>: <what is wrong>", with "did you mean --x?" for an unknown flag). When it goes
+// on, the values a config file set are logged (log_config_values).
 std::optional<int> parse(CLI::App& app, int argc, const char* const* argv);
 
 // The closest long option or subcommand name of `app` to `unknown` ("" when none is close).
