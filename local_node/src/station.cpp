@@ -102,6 +102,7 @@ class Station::Run {
   std::vector<std::pair<std::string, std::string>> thread_scheduling_;
   std::string haptic_scheduling_;
   std::uint64_t surfaces_at_last_status_ = 0;
+  std::int64_t last_status_ns_ = 0;
   std::string last_status_ = "starting";
   int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
 
@@ -250,6 +251,9 @@ void Station::Run::main_loop() {
   std::int64_t next_status = monotonic_ns() + 1'000'000'000;
   std::int64_t next_view = 0;
   stats_.start_printing(monotonic_ns());
+  // The first status line's rate counts from here, not from the frames built while waiting.
+  surfaces_at_last_status_ = surface_.frames_built();
+  last_status_ns_ = monotonic_ns();
   bool view_at_written = false;
   while (!stop_.load()) {
     std::this_thread::sleep_for(milliseconds(5));
@@ -320,9 +324,13 @@ void Station::Run::drain_bodies() {
 
 // Once a second: the status line and the view PNG.
 void Station::Run::print_status() {
-  const std::uint64_t built = surface_.surfaces_built();
-  const double fps = static_cast<double>(built - surfaces_at_last_status_);
+  // Frames per second, as the source counts them: a frame's ROI part and rest are one frame.
+  const std::uint64_t built = surface_.frames_built();
+  const std::int64_t now_ns = monotonic_ns();
+  const double fps = static_cast<double>(built - surfaces_at_last_status_) /
+                     std::max(1e-3, static_cast<double>(now_ns - last_status_ns_) / 1e9);
   surfaces_at_last_status_ = built;
+  last_status_ns_ = now_ns;
   const std::string text =
       stats_.status_text(fps, surface_.build_ms(), client_->state(), haptic_.tracker());
   if (cfg_.status_line) {

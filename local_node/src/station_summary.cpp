@@ -104,6 +104,10 @@ nlohmann::json StationSummary::to_json() const {
 }
 
 std::string StationSummary::done_text() const {
+  // Stopped before the first surface (Ctrl-C while connecting): no rates to report.
+  if (ticks == 0)
+    return fmt::format("done: stopped before the haptic loop started ({} surfaces received)",
+                       surfaces);
   return fmt::format(
       "done: {} ticks at {:.2f} Hz (p99 jitter {:.0f} us, {} missed), {} surfaces, "
       "capture-to-force latency median {:.2f} ms p99 {:.2f} ms (in contact: median {:.2f} ms "

@@ -147,6 +147,9 @@ bool SurfaceStage::rest_changes_nothing(const AssembledFrame& frame,
 }
 
 void SurfaceStage::build(AssembledFrame& frame, std::vector<cv::Rect> windows) {
+  // A frame's ROI part, rest and repairs are several builds of one capture: the status line's
+  // rate counts captures, as a source's fps does.
+  if (frame.capture_ns != built_capture_ns_) frames_built_.fetch_add(1);
   built_capture_ns_ = frame.capture_ns;
   // Snapshot ids are the station's own sequence: a restarted remote numbers its frames from the
   // start again, and the haptic model ignores snapshots that go backwards.

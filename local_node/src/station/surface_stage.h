@@ -49,6 +49,8 @@ class SurfaceStage {
   TripleBuffer<HandState>& hand_in() { return hand_in_; }
 
   std::uint64_t surfaces_built() const { return surfaces_built_.load(); }
+  // Distinct captures built (a frame's parts and repairs count once).
+  std::uint64_t frames_built() const { return frames_built_.load(); }
   double first_centre_depth_m() const { return first_centre_depth_m_.load(); }
   double build_ms() const { return build_ms_.load(); }
   // Frames, repair counters, tile ages and latencies; once the network and surface threads have
@@ -95,6 +97,7 @@ class SurfaceStage {
   // triple buffer's + the view's), so a frame neither allocates nor zeroes ~5 MB.
   SurfacePool pool_{16};
   std::atomic<std::uint64_t> surfaces_built_{0};
+  std::atomic<std::uint64_t> frames_built_{0};
   std::atomic<double> first_centre_depth_m_{0.0};
   std::atomic<double> build_ms_{0.0};
   // Where a new capture's latency goes (read after the thread is joined): capture to the frame's
