@@ -103,6 +103,7 @@ class Station::Run {
   std::string haptic_scheduling_;
   std::uint64_t surfaces_at_last_status_ = 0;
   std::int64_t last_status_ns_ = 0;
+  std::uint64_t eyes_at_last_status_ = 0;
   std::string last_status_ = "starting";
   int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
 
@@ -330,9 +331,20 @@ void Station::Run::print_status() {
   const double fps = static_cast<double>(built - surfaces_at_last_status_) /
                      std::max(1e-3, static_cast<double>(now_ns - last_status_ns_) / 1e9);
   surfaces_at_last_status_ = built;
+  const std::uint64_t eyes = view_.eye_frames_received();
+  const double eye_fps = static_cast<double>(eyes - eyes_at_last_status_) /
+                         std::max(1e-3, static_cast<double>(now_ns - last_status_ns_) / 1e9);
+  eyes_at_last_status_ = eyes;
   last_status_ns_ = now_ns;
-  const std::string text =
+  std::string text =
       stats_.status_text(fps, surface_.build_ms(), client_->state(), haptic_.tracker());
+  // The eyes, when the view shows them: a remote whose eye source ended or never delivered says
+  // so here, not only as a grey background.
+  if (view_.stereo())
+    text += eye_fps > 0.0 ? fmt::format(" | eyes {:.1f} images/s", eye_fps)
+                          : std::string(
+                                " | eyes none (no video from the remote: its --stereo "
+                                "source ended or never delivered, see its stats line)");
   if (cfg_.status_line) {
     std::string forces;
     const TickSample& last = stats_.last();

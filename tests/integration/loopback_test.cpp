@@ -320,5 +320,30 @@ TEST(LocalFlags, WindowViewWithoutDisplaySaysWhatToDo) {
   EXPECT_NE(local.stderr_text().find("--view png:DIR"), std::string::npos) << local.stderr_text();
 }
 
+// The station's status line says whether the eyes arrive: a remote with no eye source (or one
+// that ended) reads "eyes none", not only a grey background in the view.
+TEST(Loopback, TheStatusLineSaysWhetherTheEyesArrive) {
+  for (const bool eyes : {true, false}) {
+    const auto dir = scratch_dir(eyes ? "status_eyes" : "status_no_eyes");
+    std::vector<std::string> remote_args{"--source", "synthetic:plane"};
+    if (eyes) remote_args.insert(remote_args.end(), {"--stereo", "synthetic:plane"});
+    RemoteProcess remote(dir, remote_args);
+    Process local(local_args(remote.port, dir,
+                             {"--hand", "script:press", "--duration", "3.5", "--view",
+                              "png:" + (dir / "view").string()}),
+                  dir / "local.out", dir / "local.err");
+    const auto rc = local.wait(30s);
+    ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+    ASSERT_EQ(*rc, 0) << local.stderr_text();
+    const std::string err = local.stderr_text();
+    if (eyes) {
+      EXPECT_NE(err.find(" images/s"), std::string::npos) << err;
+    } else {
+      EXPECT_NE(err.find("eyes none (no video from the remote"), std::string::npos) << err;
+      EXPECT_EQ(err.find(" images/s"), std::string::npos) << err;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace telex::test

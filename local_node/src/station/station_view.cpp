@@ -52,6 +52,7 @@ void StationView::bind(ClientEvents& events) {
     auto& q = eye_frames_[v.eye == 0 ? 0 : 1];
     q.push_back({static_cast<std::int64_t>(h.capture_ns), v.jpeg});
     if (q.size() > 8) q.pop_front();
+    eye_frames_received_.fetch_add(1, std::memory_order_relaxed);
   };
 }
 

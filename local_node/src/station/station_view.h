@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -36,6 +37,8 @@ class StationView {
   void bind(ClientEvents& events);
   bool stereo() const { return spec_.stereo(); }
   bool window() const { return window_ != nullptr; }
+  // Eye frames received so far (both eyes): the status line's eye rate.
+  std::uint64_t eye_frames_received() const { return eye_frames_received_.load(); }
 
   // Surface thread: what the view draws (a frame's rest that changed nothing only its depth).
   void show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm);
@@ -77,6 +80,7 @@ class StationView {
   std::unique_ptr<ViewWindow> window_;
 
   std::mutex video_mu_;
+  std::atomic<std::uint64_t> eye_frames_received_{0};
   struct EyeFrame {
     std::int64_t capture_ns = 0;  // sender clock, as the depth frames'
     std::vector<std::uint8_t> jpeg;
