@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Tests for the depth image type and intrinsics scaling.
-#include <gtest/gtest.h>
-
 #include "telex/common/depth_image.h"
+
+#include <gtest/gtest.h>
 
 namespace telex {
 namespace {

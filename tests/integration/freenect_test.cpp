@@ -31,10 +31,11 @@ namespace fs = std::filesystem;
 constexpr const char* kFakenect = "/usr/bin/fakenect";
 
 // The telex tool, run under Debian's fakenect wrapper (tools/setup.sh installs libfreenect-bin).
-#define TELEX_REQUIRE_FAKENECT()                                                             \
-  TELEX_REQUIRE_BINARIES("telex");                                                           \
-  TELEX_SKIP_UNLESS(fs::exists(kFakenect), "Debian's fakenect (package libfreenect-bin) is " \
-                                           "missing")
+#define TELEX_REQUIRE_FAKENECT()                                      \
+  TELEX_REQUIRE_BINARIES("telex");                                    \
+  TELEX_SKIP_UNLESS(fs::exists(kFakenect),                            \
+                    "Debian's fakenect (package libfreenect-bin) is " \
+                    "missing")
 
 // fakenect-record's dump_depth: "P5 640 480 65535\n" then the 11-bit samples as the host wrote
 // them (little-endian here); INDEX.txt names each file as TYPE-SECONDS-TIMESTAMP.EXT.

@@ -22,10 +22,10 @@
 
 #include "telex/common/bilateral.h"
 #include "telex/common/depth_image.h"
-#include "telex/haptics/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
 #include "telex/common/synthetic.h"
+#include "telex/haptics/haptic_surface.h"
 
 namespace {
 

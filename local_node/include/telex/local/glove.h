@@ -14,8 +14,8 @@
 
 #include "telex/base/thread_fault.h"
 #include "telex/base/triple_buffer.h"
-#include "telex/haptics/hand_kinematics.h"
 #include "telex/common/rig.h"
+#include "telex/haptics/hand_kinematics.h"
 
 namespace telex::local {
 

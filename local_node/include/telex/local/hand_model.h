@@ -9,8 +9,8 @@
 #include <glm/gtc/quaternion.hpp>
 #include <span>
 
-#include "telex/haptics/hand_kinematics.h"
 #include "telex/common/rig.h"
+#include "telex/haptics/hand_kinematics.h"
 
 namespace telex::local {
 

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "telex/haptics/body.h"
 #include "telex/common/depth_image.h"
+#include "telex/haptics/body.h"
 
 namespace telex::local {
 

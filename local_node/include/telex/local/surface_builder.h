@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "telex/common/bilateral.h"
-#include "telex/haptics/haptic_surface.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
 #include "telex/common/stage_clock.h"
+#include "telex/haptics/haptic_surface.h"
 #include "telex/local/frame_assembler.h"
 #include "telex/local/tracker.h"
 
