@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "telex/base/realtime.h"
 #include "telex/cli/cli.h"
 #include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
@@ -164,6 +165,9 @@ void add_haptic_options(CLI::App& app, StationFlags& f) {
   app.add_flag("--no-realtime", f.no_realtime,
                "do not try SCHED_FIFO for the threads from depth to force (haptic loop, surface, "
                "depth network, tracking) and the display supervisor");
+  app.add_option("--haptic-cpu", f.cfg.haptic_cpu,
+                 "pin the haptic thread to this CPU (0-based; one the process may run on; "
+                 "default: any). With --no-realtime it is pinned all the same");
   app.add_flag("--no-supervisor", f.no_supervisor,
                "no display supervisor (default: a child process that commands zero force on the "
                "haptic display if the station dies by SIGKILL, abort or a segfault; "
@@ -293,6 +297,11 @@ void resolve_station_flags(StationFlags& f) {
     throw CLI::ValidationError("--hand", e.what());
   }
   check_view_dir(f.cfg.view_spec);
+  if (f.cfg.haptic_cpu != -1 && !cpu_usable(f.cfg.haptic_cpu))
+    throw CLI::ValidationError("--haptic-cpu",
+                               std::to_string(f.cfg.haptic_cpu) +
+                                   " is not a CPU this process may run on (it has " +
+                                   std::to_string(usable_cpu_count()) + ")");
   if (f.elbow_bodies.empty()) return;
   int left = -2, right = -2;
   char comma = 0, extra = 0;

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "flags.h"
+#include "telex/base/realtime.h"
 #include "telex/cli/cli.h"
 #include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
@@ -90,6 +91,8 @@ int main(int argc, char** argv) {
     }
   }
   apply_station_switches(flags);
+  // After the fork (a child does not inherit the lock) and before any thread starts.
+  if (!flags.no_realtime) telex::lock_memory();
   try {
     return run_station(cfg, flags.json_summary);
   } catch (const std::invalid_argument& e) {

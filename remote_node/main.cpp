@@ -7,6 +7,7 @@
 #include <string>
 
 #include "flags.h"
+#include "telex/base/realtime.h"
 #include "telex/cli/cli.h"
 #include "telex/remote/daemon.h"
 
@@ -61,6 +62,8 @@ int main(int argc, char** argv) {
     spdlog::error("{}", e.what());
     return 2;
   }
+  // Before the daemon's threads start: nothing on the depth path or the servo loop faults a page.
+  if (!flags.no_realtime) telex::lock_memory();
   try {
     daemon->start();
   } catch (const std::invalid_argument& e) {
@@ -71,5 +74,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   log_started(*daemon, cfg);
+  spdlog::info("{}", telex::memory_lock_status().description);
   return daemon->run();
 }

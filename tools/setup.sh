@@ -16,7 +16,7 @@ PACKAGES=(
   libepoxy-dev libegl-dev libegl1 libegl-mesa0 libgl1-mesa-dri
   libglfw3-dev libxrandr2 libx11-dev xvfb
   libhidapi-dev libusb-1.0-0-dev libfreenect-dev libfreenect-bin
-  libssl-dev
+  libssl-dev rt-tests
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   librosbag-storage-dev libsensor-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev

@@ -22,6 +22,7 @@
 #include "station/station_view.h"
 #include "station/surface_stage.h"
 #include "telex/base/periodic.h"
+#include "telex/base/realtime.h"
 #include "telex/common/head_kinematics.h"
 #include "telex/common/opencv_workers.h"
 #include "telex/local/deadman.h"
@@ -242,7 +243,8 @@ void Station::Run::start_haptics() {
   for (const auto& [name, how] : thread_scheduling_)
     if (name != "haptic") path += (path.empty() ? "" : ", ") + name + " " + how;
   spdlog::info("depth-to-force path: {}", path);
-  spdlog::info("haptic loop at {:.0f} Hz, {}", cfg_.rate_hz, haptic_scheduling_);
+  spdlog::info("haptic loop at {:.0f} Hz, {}; {}", cfg_.rate_hz, haptic_scheduling_,
+               memory_lock_status().description);
 }
 
 // ---- main thread: drain samples, log, print, view, head ----
@@ -370,6 +372,9 @@ StationSummary Station::Run::summarize() {
   head_.summarize(s);
   log_.summarize(s);
   s.scheduling = haptic_scheduling_;
+  const MemoryLock memory = memory_lock_status();
+  s.memory_locked = memory.locked;
+  s.memory_lock = memory.description;
   s.thread_scheduling = thread_scheduling_;
   if (haptic_.tracker()) s.tracker = haptic_.tracker()->stats();
   const ClientStats& cs = client_->stats();

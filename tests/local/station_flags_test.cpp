@@ -71,5 +71,17 @@ TEST(StationFlags, BadValuesNameTheFlag) {
   }
 }
 
+TEST(StationFlags, HapticCpuMustBeOneThisProcessMayRunOn) {
+  EXPECT_EQ(parse({"--haptic-cpu", "0"}).cfg.haptic_cpu, 0);
+  EXPECT_EQ(parse({}).cfg.haptic_cpu, -1);
+  try {
+    parse({"--haptic-cpu", "4096"});
+    FAIL() << "--haptic-cpu 4096 accepted";
+  } catch (const CLI::ValidationError& e) {
+    EXPECT_NE(std::string(e.what()).find("--haptic-cpu"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("may run on"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace telex::local

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "telex/base/periodic.h"
+#include "telex/base/realtime.h"
 
 namespace telex::local {
 namespace {
@@ -37,6 +38,9 @@ HapticLoop::HapticLoop(const StationConfig& cfg, StationFaults& faults, HapticDi
 
 void HapticLoop::run(std::stop_token stop) {
   scheduling_ = try_realtime(cfg_.realtime ? kHapticPriority : 0);
+  if (cfg_.haptic_cpu >= 0) scheduling_ += ", " + pin_thread(pthread_self(), cfg_.haptic_cpu);
+  // The stack's pages resident before the first deadline (locked too when main locked memory).
+  prefault_stack();
   scheduling_ready_.store(true);
   try {
     ticks(stop);

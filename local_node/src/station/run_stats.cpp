@@ -23,6 +23,7 @@ std::uint64_t RunStats::add(const TickSample& s, std::int64_t clock_offset_ns) {
     jitter_us_.add(std::abs(static_cast<double>(s.period_ns - period_ns_)) / 1e3);
     window_periods_.push_back(s.period_ns);
   }
+  wake_us_.add(static_cast<double>(s.t_ns - s.deadline_ns) / 1e3);
   add_latency(s, clock_offset_ns);
   for (const auto& f : s.forces) {
     peak_pressure_N_ = std::max(peak_pressure_N_, f.normal_force_N);
@@ -102,6 +103,9 @@ void RunStats::summarize(StationSummary& s, std::uint64_t missed_ticks) const {
       period_us_.count() ? 1e6 * static_cast<double>(period_us_.count()) / period_us_.sum() : 0.0;
   s.period_p99_jitter_us = jitter_us_.quantile(0.99);
   s.period_median_us = period_us_.quantile(0.5);
+  s.wake_latency_median_us = wake_us_.quantile(0.5);
+  s.wake_latency_p99_us = wake_us_.quantile(0.99);
+  s.wake_latency_max_us = wake_us_.max();
   s.missed_ticks = missed_ticks;
   s.nominal_rate_hz = cfg_.rate_hz;
   s.haptic_span_s =

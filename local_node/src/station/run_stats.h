@@ -47,6 +47,8 @@ class RunStats {
   const std::int64_t print_period_ns_;  // --print-forces; 0 = off
   Histogram period_us_{1.0, 20'000}, jitter_us_{1.0, 20'000}, latency_ms_{0.1, 20'000},
       contact_latency_ms_{0.1, 20'000};
+  // Wake-up latency: the tick's wake-up less its deadline, what cyclictest measures.
+  Histogram wake_us_{1.0, 20'000};
   std::vector<std::int64_t> window_periods_;
   std::vector<double> window_latency_;
   TickSample last_{};

@@ -51,6 +51,7 @@ struct StationConfig {
   SurfaceOptions surface;
   double rate_hz = 1000.0;
   bool realtime = true;         // try SCHED_FIFO for the threads on the depth-to-force path
+  int haptic_cpu = -1;          // --haptic-cpu: the CPU the haptic thread is pinned to (-1: any)
   double max_tile_age_s = 0.5;  // a missing tile keeps its last value this long
   // Repair (docs/PROTOCOL.md 2.5; client.repair announces it): a tile asked for is asked again
   // after max(nack_retry_min_s, the stream's transit + 2 RTT); key frames at most this often.

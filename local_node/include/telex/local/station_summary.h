@@ -20,6 +20,8 @@ struct StationSummary {
   double haptic_rate_hz = 0;
   double period_p99_jitter_us = 0;
   double period_median_us = 0;
+  // Each tick's wake-up less its deadline (cyclictest's measure, comparable to its figures).
+  double wake_latency_median_us = 0, wake_latency_p99_us = 0, wake_latency_max_us = 0;
   std::uint64_t missed_ticks = 0;
   // The haptic loop's nominal rate and the time from its first deadline to its last: every
   // deadline is ticked or missed, so ticks + missed_ticks = span * rate + 1 (PeriodicTimer).
@@ -43,6 +45,9 @@ struct StationSummary {
   double peak_pressure_N = 0;
   double peak_shear_N = 0;
   std::string scheduling;  // the haptic thread's
+  // The process's memory lock (telex::lock_memory): locked, or why not.
+  bool memory_locked = false;
+  std::string memory_lock;
   // Per thread on the depth-to-force path (surface, network, haptic, tracking): what it got.
   std::vector<std::pair<std::string, std::string>> thread_scheduling;
   // Messages the surface client dropped (ClientStats): authentication, replays, malformed.
