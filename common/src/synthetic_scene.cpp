@@ -88,8 +88,23 @@ Scene Scene::at_time(double t_s) const {
   return out;
 }
 
+void Scene::set_material(int object_id, Material material) {
+  if (object_id < 0 || object_id >= next_id_)
+    throw std::invalid_argument("set_material: no object " + std::to_string(object_id));
+  if (materials_.size() <= static_cast<std::size_t>(object_id))
+    materials_.resize(static_cast<std::size_t>(object_id) + 1, Material::Default);
+  materials_[static_cast<std::size_t>(object_id)] = material;
+}
+
+Material Scene::material(int object_id) const {
+  if (object_id < 0 || static_cast<std::size_t>(object_id) >= materials_.size())
+    return Material::Default;
+  return materials_[static_cast<std::size_t>(object_id)];
+}
+
 Scene Scene::seen_from(const glm::dmat3& R) const {
   Scene out = *this;
+  out.R_CameraWorld_ = R * R_CameraWorld_;
   for (auto& p : out.planes_) p.n = R * p.n;
   for (auto& s : out.spheres_) {
     s.c0 = R * s.c0;
@@ -177,9 +192,34 @@ void build_desk(Room& room) {
   room.cylinder({0.22, kDeskTopY - 0.06, 0.9}, {0, 1, 0}, 0.04, 0.06);  // mug
 }
 
+// The furnished corner (Material): the camera 1.0 m above a plank floor, pitched 35 deg down at a
+// wooden table whose book lies where the optical axis meets it (0.85 m ahead).
+constexpr double kRoomPitch = 35.0;
+
+void build_room(Room& room) {
+  Scene& s = room.scene;
+  s.set_texture_frame(room.r);
+  s.set_material(room.plane({0, -1, 0}, {0, kDeskFloorY, 0}), Material::Floorboards);
+  s.set_material(room.plane({0, 0, -1}, {0, 0, 2.2}), Material::Plaster);  // back wall
+  s.set_material(room.plane({1, 0, 0}, {-1.1, 0, 0}), Material::Plaster);  // left wall
+  s.set_material(room.box({0, kDeskTopY + 0.02, 0.8}, {0.55, 0.02, 0.35}), Material::Wood);
+  const double leg_hh = (kDeskFloorY - kDeskTopY - 0.04) / 2;
+  for (double x : {-0.5, 0.5})
+    for (double z : {0.5, 1.1})
+      s.set_material(room.box({x, kDeskFloorY - leg_hh, z}, {0.025, leg_hh, 0.025}),
+                     Material::Wood);
+  s.set_material(room.box({0.0, kDeskTopY - 0.02, 0.72}, {0.13, 0.02, 0.17}, deg(-4)),
+                 Material::Book);
+  s.set_material(room.box({-0.36, kDeskTopY - 0.09, 0.95}, {0.1, 0.09, 0.08}, deg(25)),
+                 Material::Cardboard);
+  s.set_material(room.cylinder({0.3, kDeskTopY - 0.05, 0.62}, {0, 1, 0}, 0.04, 0.05),
+                 Material::Ceramic);
+  s.set_material(room.sphere({0.33, kDeskTopY - 0.05, 0.95}, 0.05), Material::Metal);
+}
+
 const std::vector<std::string>& scene_names() {
   static const std::vector<std::string> names = {"plane",  "tilted", "sphere", "box",
-                                                 "stairs", "desk",   "moving"};
+                                                 "stairs", "desk",   "moving", "room"};
   return names;
 }
 
@@ -220,6 +260,9 @@ Scene Scene::named(std::string_view name) {
       const int ball = room.sphere({0, kDeskTopY - 0.06, 1.05}, 0.06);
       s.set_motion(ball, Motion{room.r * glm::dvec3(0.25, 0, 0), 4.0});
     }
+  } else if (name == "room") {
+    Room room{s, pitch_down(deg(kRoomPitch))};
+    build_room(room);
   } else {
     std::string valid;
     for (const auto& n : scene_names()) valid += (valid.empty() ? "" : ", ") + n;

@@ -126,9 +126,13 @@ TEST(SyntheticStereo, EyesSeeTheSceneFromTheirOwnPositions) {
   ASSERT_EQ(r.status, ReadStatus::Frame);
   ASSERT_EQ(r.frame.left_bgr.size(), cv::Size(160, 120));
   // Right eye = depth camera: its shading is lit wherever the ground truth has a surface.
-  const auto truth = synth::render(synth::Scene::named("sphere"), kinect_v1_intrinsics(160, 120),
-                                   synth::SensorModel::ideal());
-  EXPECT_EQ(cv::norm(r.frame.right_bgr, shade_render(truth), cv::NORM_INF), 0.0);
+  const auto scene = synth::Scene::named("sphere");
+  const auto truth =
+      synth::render(scene, kinect_v1_intrinsics(160, 120), synth::SensorModel::ideal());
+  EXPECT_EQ(cv::norm(r.frame.right_bgr,
+                     shade_render(truth, scene, kinect_v1_intrinsics(160, 120), glm::dvec3(0.0)),
+                     cv::NORM_INF),
+            0.0);
   // The left eye sits 65 mm to the left, so the near sphere shifts right by f*b/z ~ 13 px at 0.55
   // m.
   EXPECT_GT(cv::norm(r.frame.left_bgr, r.frame.right_bgr, cv::NORM_L1), 0.0);

@@ -24,6 +24,19 @@ struct Hit {
 };
 
 // Sinusoidal translation of one object: offset(t) = amplitude_m * sin(2 pi t / period_s).
+// What an object is made of, for the eye video's shading (remote_node's synthetic view): depth
+// and normals do not depend on it.
+enum class Material : std::uint8_t {
+  Default,      // a flat colour per object id
+  Plaster,      // walls: off-white, mottled
+  Floorboards,  // oak planks along the world's z, staggered joints
+  Wood,         // table: grained
+  Cardboard,    // a box with a tape stripe
+  Ceramic,      // glazed, a blue band, glossy
+  Metal,        // brushed, glossy
+  Book,         // a red cloth cover, pale page edges
+};
+
 struct Motion {
   glm::dvec3 amplitude_m{0.0};
   double period_s = 1.0;
@@ -37,7 +50,9 @@ class Scene {
   // "plane" (wall facing the camera at 0.8 m), "tilted" (plane at 1.0 m tilted 35 deg about y),
   // "sphere" (r 0.15 m at z 0.7 m before a wall at 1.2 m), "box" (0.3 m cube face at 0.7 m before
   // a wall at 1.1 m: step edges), "stairs", "desk" (floor, table top, box, cylinder-like object),
-  // "moving" (desk with a sphere moving sideways; the default of the remote daemon).
+  // "moving" (desk with a sphere moving sideways; the default of the remote daemon), "room" (a
+  // furnished corner: plank floor, plaster walls, a wooden table with a book, a box, a mug and a
+  // metal ball; the image centre falls on the book, where the demo presses and strokes).
   static Scene named(std::string_view name);  // throws std::invalid_argument naming the valid list
   static std::vector<std::string> names();
 
@@ -51,6 +66,12 @@ class Scene {
                    double half_height_m);
   // Animates a sphere, box or cylinder (planes stay put). Throws std::invalid_argument on a bad id.
   void set_motion(int object_id, const Motion& motion);
+  // Materials (Default until set; throws std::invalid_argument on a bad id) and the frame their
+  // patterns are laid out in: R_CameraWorld, a level world (y down) for the room scenes.
+  void set_material(int object_id, Material material);
+  Material material(int object_id) const;
+  void set_texture_frame(const glm::dmat3& R_CameraWorld) { R_CameraWorld_ = R_CameraWorld; }
+  const glm::dmat3& texture_frame() const { return R_CameraWorld_; }
 
   Scene at_time(double t_s) const;  // animated objects move; static scenes unchanged
   // The scene seen from a camera turned about its centre: every object rotated by R_CameraScene
@@ -117,6 +138,8 @@ class Scene {
   std::vector<Box> boxes_;
   std::vector<Cylinder> cylinders_;
   std::vector<Animated> motions_;
+  std::vector<Material> materials_;  // by id, Default beyond its end
+  glm::dmat3 R_CameraWorld_{1.0};
   int next_id_ = 0;
   double time_s_ = 0.0;
 };
