@@ -155,6 +155,73 @@ TEST(ImpairProxy, ForwardsBothWaysAndItsCountersMatchWhatArrived) {
   EXPECT_GT(altered.load(), corrupted / 2);
 }
 
+// The remote's direction as the tests wire it (the remote sends to --listen, the station is
+// --forward) through --rate-limit-mbit 2: a fast stream in; what reaches the far end is bounded by
+// the bucket, the queue and the rate over the time the stream took to send (with a generous
+// slack for a slow proxy), and the proxy's summary counts the drops and reports the limit.
+TEST(ImpairProxy, RateLimitThrottlesTheStreamToTheRate) {
+  const auto dir = scratch_dir("impair_rate_limit");
+  UdpSocket station, remote;
+  ASSERT_TRUE(station.bound && remote.bound);
+  const auto proxy_port = free_port();
+  constexpr double kRateMbit = 2.0, kBurstBytes = 15'000, kQueueMs = 100;
+  Process proxy({built_binary("telex-sim-impair").string(), "--listen",
+                 "127.0.0.1:" + std::to_string(proxy_port), "--forward",
+                 "127.0.0.1:" + std::to_string(station.port()), "--rate-limit-mbit", "2",
+                 "--rate-burst-bytes", "15000", "--rate-queue-ms", "100", "--duration", "4",
+                 "--json-summary"},
+                dir / "proxy.out", dir / "proxy.err");
+  ASSERT_TRUE(eventually(5s, [&] {
+    return proxy.stderr_text().find("listening on") != std::string::npos;
+  })) << proxy.stderr_text();
+
+  std::atomic<bool> stop{false};
+  std::atomic<std::uint64_t> station_bytes{0};
+  std::thread sink([&] {
+    std::vector<std::uint8_t> buf(2048);
+    pollfd p{station.fd, POLLIN, 0};
+    while (!stop) {
+      if (poll(&p, 1, 20) <= 0) continue;
+      const auto n = recv(station.fd, buf.data(), buf.size(), 0);
+      if (n > 0) station_bytes += static_cast<std::uint64_t>(n);
+    }
+  });
+  constexpr int kSent = 3'000;
+  constexpr std::size_t kSize = 1'000;
+  const std::vector<std::uint8_t> d(kSize, 0x5A);
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < kSent; ++i) {
+    remote.send_to(proxy_port, d);
+    if (i % 50 == 49) std::this_thread::sleep_for(5ms);  // stay well under socket buffers
+  }
+  const double send_span_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto rc = proxy.wait(20s);
+  stop = true;
+  sink.join();
+  ASSERT_TRUE(rc.has_value()) << "proxy did not stop after --duration";
+  ASSERT_EQ(*rc, 0) << proxy.stderr_text();
+  const auto j = last_json_line(proxy.stdout_text());
+  ASSERT_TRUE(j.is_object()) << proxy.stdout_text();
+  const auto& up = j["client_to_server"];
+  EXPECT_EQ(j["rate_limit_mbit"].get<double>(), kRateMbit);
+
+  // What passed: at most the bucket, the queue and the rate over the proxy's receiving span
+  // (the sending span plus 1 s); at least a full bucket and queue (the stream overflowed them).
+  const double rate_bytes_per_s = kRateMbit * 1e6 / 8.0;
+  const double queue_bytes = rate_bytes_per_s * kQueueMs / 1e3;
+  const double upper = kBurstBytes + queue_bytes + rate_bytes_per_s * (send_span_s + 1.0);
+  const double got = static_cast<double>(station_bytes.load());
+  EXPECT_LE(got, upper) << "sent " << kSent * kSize << " bytes in " << send_span_s << " s";
+  EXPECT_GE(got, kBurstBytes + queue_bytes - kSize);
+  EXPECT_LT(got, 0.5 * kSent * kSize) << "the stream was not throttled";
+  // The proxy's own counts agree with what arrived, and every datagram it took is accounted for.
+  EXPECT_EQ(up["bytes_out"].get<double>(), got);
+  EXPECT_GT(up["rate_dropped"].get<int>(), 0);
+  EXPECT_EQ(up["delivered"].get<int>(), up["received"].get<int>() - up["rate_dropped"].get<int>());
+  EXPECT_EQ(j["pending"].get<int>(), 0);
+}
+
 struct BadRun {
   std::vector<std::string> args;
   std::string expect_in_stderr;
@@ -188,6 +255,12 @@ TEST(ImpairProxy, BadFlagsAndBusyPortExitTwoNamingTheProblem) {
           {{"--listen", "127.0.0.1:0", "--forward", fwd, "--loss", "1.5"}, "--loss"},
           {{"--listen", "127.0.0.1:0", "--forward", fwd, "--corrupt", "-0.1"}, "--corrupt"},
           {{"--listen", "127.0.0.1:0", "--forward", fwd, "--delay-ms", "abc"}, "--delay-ms"},
+          {{"--listen", "127.0.0.1:0", "--forward", fwd, "--rate-limit-mbit", "-1"},
+           "--rate-limit-mbit"},
+          {{"--listen", "127.0.0.1:0", "--forward", fwd, "--rate-limit-mbit", "fast"},
+           "--rate-limit-mbit"},
+          {{"--listen", "127.0.0.1:0", "--forward", fwd, "--rate-queue-ms", "-5"},
+           "--rate-queue-ms"},
           {{"--listen", "localhost:0", "--forward", fwd}, "not a numeric IP"},
           {{"--listen", "127.0.0.1:70000", "--forward", fwd}, "--listen"},
           {{"--listen", "127.0.0.1:0", "--forward", "127.0.0.1"}, "--forward"},

@@ -11,6 +11,7 @@
 #include "telex/common/synthetic.h"
 #include "telex/remote/sources.h"
 #include "telex/remote/synthetic_view.h"
+#include "telex/video/frame_counter.h"
 #include "test_support.h"
 
 namespace telex::remote {
@@ -125,24 +126,46 @@ TEST(SyntheticStereo, EyesSeeTheSceneFromTheirOwnPositions) {
   const auto r = source->read(1000ms);
   ASSERT_EQ(r.status, ReadStatus::Frame);
   ASSERT_EQ(r.frame.left_bgr.size(), cv::Size(160, 120));
-  // Right eye = depth camera: its shading is lit wherever the ground truth has a surface.
+  // The frame counter's corner aside (SyntheticStereo.EyesCarryTheirFrameId)...
+  const cv::Rect counter = video::frame_counter_rect(r.frame.left_bgr.size());
+  ASSERT_FALSE(counter.empty());
+  cv::Mat3b left = r.frame.left_bgr.clone(), right = r.frame.right_bgr.clone();
+  left(counter).setTo(cv::Vec3b(0, 0, 0));
+  right(counter).setTo(cv::Vec3b(0, 0, 0));
+  // ...the right eye = depth camera: its shading is lit wherever the ground truth has a surface.
   const auto scene = synth::Scene::named("sphere");
   const auto truth =
       synth::render(scene, kinect_v1_intrinsics(160, 120), synth::SensorModel::ideal());
-  EXPECT_EQ(cv::norm(r.frame.right_bgr,
-                     shade_render(truth, scene, kinect_v1_intrinsics(160, 120), glm::dvec3(0.0)),
-                     cv::NORM_INF),
-            0.0);
+  cv::Mat3b expected = shade_render(truth, scene, kinect_v1_intrinsics(160, 120), glm::dvec3(0.0));
+  expected(counter).setTo(cv::Vec3b(0, 0, 0));
+  EXPECT_EQ(cv::norm(right, expected, cv::NORM_INF), 0.0);
   // The left eye sits 65 mm to the left, so the near sphere shifts right by f*b/z ~ 13 px at 0.55
   // m.
-  EXPECT_GT(cv::norm(r.frame.left_bgr, r.frame.right_bgr, cv::NORM_L1), 0.0);
+  EXPECT_GT(cv::norm(left, right, cv::NORM_L1), 0.0);
   cv::Mat gl, gr;
-  cv::extractChannel(r.frame.left_bgr, gl, 1);
-  cv::extractChannel(r.frame.right_bgr, gr, 1);
+  cv::extractChannel(left, gl, 1);
+  cv::extractChannel(right, gr, 1);
   const cv::Moments ml = cv::moments(gl > 100, true), mr = cv::moments(gr > 100, true);
   ASSERT_GT(ml.m00, 0);
   ASSERT_GT(mr.m00, 0);
   EXPECT_GT(ml.m10 / ml.m00, mr.m10 / mr.m00);
+}
+
+// Glass to glass: each pair carries its frame id in both eyes' pixels.
+TEST(SyntheticStereo, EyesCarryTheirFrameId) {
+  SourceOptions opt;
+  opt.synthetic_fps = 500;
+  opt.width = 320;
+  opt.height = 240;
+  auto source = make_stereo_source("synthetic:moving", opt);
+  source->start();
+  for (int i = 0; i < 3; ++i) {
+    const auto r = source->read(1000ms);
+    ASSERT_EQ(r.status, ReadStatus::Frame);
+    const auto id = static_cast<std::uint32_t>(r.frame.frame_id);
+    EXPECT_EQ(video::read_frame_counter(r.frame.left_bgr), id);
+    EXPECT_EQ(video::read_frame_counter(r.frame.right_bgr), id);
+  }
 }
 
 TEST(FilesStereo, MissingImagesAreNamed) {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// telex-sim-impair: a UDP proxy that applies seeded loss, delay, jitter, reorder, dup and
-// corruption.
+// telex-sim-impair: a UDP proxy that applies a rate limit and seeded loss, delay, jitter, reorder,
+// dup and corruption.
 #include <CLI/CLI.hpp>
 #include <array>
 #include <boost/asio.hpp>
@@ -47,9 +47,11 @@ udp::endpoint parse_udp_endpoint(const std::string& s, const char* flag, bool po
 }
 
 nlohmann::json to_json(const ImpairmentCounters& c) {
-  return {{"received", c.received},   {"dropped", c.dropped},       {"delivered", c.delivered},
-          {"reordered", c.reordered}, {"duplicated", c.duplicated}, {"corrupted", c.corrupted},
-          {"bytes_in", c.bytes_in}};
+  return {{"received", c.received},         {"dropped", c.dropped},
+          {"delivered", c.delivered},       {"reordered", c.reordered},
+          {"duplicated", c.duplicated},     {"corrupted", c.corrupted},
+          {"bytes_in", c.bytes_in},         {"bytes_out", c.bytes_out},
+          {"rate_dropped", c.rate_dropped}, {"rate_queued", c.rate_queued}};
 }
 
 // Two sockets, two independent impairments, one timer queue. Single-threaded: every handler runs
@@ -92,6 +94,7 @@ class Proxy {
             {"foreign", foreign_},
             {"no_client", no_client_},
             {"client_changes", client_changes_},
+            {"rate_limit_mbit", to_server_.config().rate_limit_mbit},
             {"pending", queue_.size()}};
   }
 
@@ -213,9 +216,9 @@ class Proxy {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "telex-sim-impair: UDP proxy between a sender and --forward that applies seeded loss, "
-      "delay, jitter, reordering, duplication and bit corruption (both directions), since tc "
-      "netem is not available here"};
+      "telex-sim-impair: UDP proxy between a sender and --forward that applies a rate limit and "
+      "seeded loss, delay, jitter, reordering, duplication and bit corruption (both directions), "
+      "since tc netem is not available here"};
   telex::cli::prepare(app, "telex-sim-impair");
   std::string listen_text, forward_text;
   ImpairmentConfig cfg;
@@ -246,6 +249,20 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--seed", cfg.seed, "random seed")->capture_default_str();
+  app.add_option("--rate-limit-mbit", cfg.rate_limit_mbit,
+                 "rate limit each way, Mbit/s (10^6 bit/s; 0 = none): a token bucket in front of "
+                 "a bounded queue, datagrams beyond it dropped (rate_dropped)")
+      ->check(CLI::Range(0.0, 100000.0))
+      ->capture_default_str();
+  app.add_option("--rate-burst-bytes", cfg.rate_burst_bytes,
+                 "the rate limit's token bucket: bytes that may pass at once")
+      ->check(CLI::Range(1.0, 1e9))
+      ->capture_default_str();
+  app.add_option("--rate-queue-ms", cfg.rate_queue_ms,
+                 "the rate limit's queue: the longest a datagram waits for tokens, ms; longer "
+                 "waits are drops")
+      ->check(CLI::Range(0.0, 60000.0))
+      ->capture_default_str();
   app.add_option("--duration", duration_s, "exit after this many seconds (0 = until a signal)")
       ->check(CLI::Range(0.0, 1e7))
       ->capture_default_str();
@@ -270,11 +287,12 @@ int main(int argc, char** argv) {
     const auto bound = proxy.listen_endpoint();
     std::fprintf(stderr,
                  "telex-sim-impair: listening on %s:%u, forwarding to %s:%u (loss %.3f, delay %.1f "
-                 "ms, jitter %.1f ms, reorder %.3f, duplicate %.3f, corrupt %.3f, seed %llu)\n",
+                 "ms, jitter %.1f ms, reorder %.3f, duplicate %.3f, corrupt %.3f, rate limit %.3f "
+                 "Mbit/s, seed %llu)\n",
                  bound.address().to_string().c_str(), bound.port(),
                  forward_ep.address().to_string().c_str(), forward_ep.port(), cfg.loss,
                  cfg.delay_ms, cfg.jitter_ms, cfg.reorder, cfg.duplicate, cfg.corrupt,
-                 static_cast<unsigned long long>(cfg.seed));
+                 cfg.rate_limit_mbit, static_cast<unsigned long long>(cfg.seed));
 
     asio::signal_set signals(io, SIGINT, SIGTERM);
     signals.async_wait([&](boost::system::error_code ec, int) {

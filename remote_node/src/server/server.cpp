@@ -149,7 +149,9 @@ void RemoteServer::Impl::reject(std::shared_ptr<proto::LinkStream> link, proto::
 }
 
 void RemoteServer::Impl::start_session(tcp::socket socket) {
-  active_ = std::make_shared<Session>(make_link(std::move(socket)), config_.repair_limits);
+  active_ = std::make_shared<Session>(
+      make_link(std::move(socket)), config_.repair_limits,
+      SendQueueLimits{config_.max_queued_frames, config_.max_queued_video_frames});
   ++active_generation_;
   boost::system::error_code ec;
   const auto remote = active_->link->socket().remote_endpoint(ec);

@@ -21,6 +21,7 @@
 #include "telex/proto/parser.h"
 #include "telex/proto/seal.h"
 #include "telex/remote/repair_cache.h"
+#include "telex/remote/send_queue.h"
 #include "telex/remote/server.h"
 
 namespace telex::remote {
@@ -28,29 +29,18 @@ namespace telex::remote {
 namespace asio = boost::asio;
 using tcp = asio::ip::tcp;
 using udp = asio::ip::udp;
-using Buffer = std::shared_ptr<const std::vector<std::uint8_t>>;
 using SealerPtr = std::shared_ptr<proto::DatagramSealer>;  // used on the io thread only
 
 inline Buffer make_buffer(std::vector<std::uint8_t> bytes) {
   return std::make_shared<const std::vector<std::uint8_t>>(std::move(bytes));
 }
 
-// The messages of one frame, sent in order; dropped whole when the queue is over its bound.
-struct OutFrame {
-  std::uint32_t frame_id = 0;
-  std::vector<Buffer> items;
-  std::size_t next = 0;
-  bool counts_as_frame = true;  // video frames are not counted in frames_sent
-  // false for resent tiles and for tiles streamed ahead of their part's manifest: not counted
-  // against the queue's bound and never dropped (each is a few tiles).
-  bool trimmable = true;
-};
-
 // The connected operator (Asio's chat_session): its connection (TLS or plain), parser and queues.
 // Lives on the io thread; the server holds the one current session and drops it when it ends.
 struct Session {
-  Session(std::shared_ptr<proto::LinkStream> s, RepairLimiter::Config limits)
-      : link(std::move(s)), repair(limits) {}
+  Session(std::shared_ptr<proto::LinkStream> s, RepairLimiter::Config limits,
+          SendQueueLimits queue_limits)
+      : link(std::move(s)), repair(limits), queue(queue_limits) {}
   std::shared_ptr<proto::LinkStream> link;
   proto::StreamParser parser;
   // With TLS, after the handshake: datagrams out are sealed under the remote->station key, and
@@ -66,23 +56,10 @@ struct Session {
   bool over_udp = false;
   std::deque<Buffer> control;  // control messages go before frame data (at most kMaxControlQueue)
   RepairLimiter repair;        // this session's NACK answers: dedup and byte budget
-  std::deque<OutFrame> frames;
-  bool tcp_writing = false;  // one async_write in flight
-  bool udp_sending = false;  // one async_send_to in flight
+  SendQueue queue;             // depth before video (send_queue.h)
+  bool tcp_writing = false;    // one async_write in flight
+  bool udp_sending = false;    // one async_send_to in flight
   std::string peer;
-
-  // The next datagram or message of the queued frames, advancing the queue.
-  Buffer next_frame_item(bool& frame_done, bool& counts) {
-    while (!frames.empty() && frames.front().next >= frames.front().items.size())
-      frames.pop_front();
-    if (frames.empty()) return nullptr;
-    auto& f = frames.front();
-    Buffer b = f.items[f.next++];
-    frame_done = f.next == f.items.size();
-    counts = f.counts_as_frame;
-    if (frame_done) frames.pop_front();
-    return b;
-  }
 };
 
 // Bounds on what a station that does not read can make the remote hold (issue 27).
@@ -162,7 +139,7 @@ class RemoteServer::Impl {
   std::vector<std::pair<proto::Header, proto::Message>> tile_messages(const Link& l,
                                                                       const ProcessedFrame& frame,
                                                                       std::size_t from);
-  void enqueue_frame(OutFrame f);  // io thread
+  void enqueue_frame(Lane lane, OutFrame f);  // io thread
   void kick_udp(const std::shared_ptr<Session>& s);
   void udp_receive();
   void on_udp_datagram(std::span<const std::uint8_t> d);

@@ -236,17 +236,12 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   OutFrame f = pack(*l, newest_queued_frame_id_, msgs);
   f.counts_as_frame = false;
   f.trimmable = false;
-  enqueue_frame(std::move(f));
+  enqueue_frame(Lane::Depth, std::move(f));
 }
 
 // Resends (untrimmable frames) still waiting in `s`'s queue, in bytes.
 std::size_t RemoteServer::Impl::queued_repair_bytes(const Session& s) const {
-  std::size_t bytes = 0;
-  for (const auto& f : s.frames) {
-    if (f.trimmable) continue;
-    for (std::size_t i = f.next; i < f.items.size(); ++i) bytes += f.items[i]->size();
-  }
-  return bytes;
+  return s.queue.queued_repair_bytes();
 }
 
 void RemoteServer::Impl::send_control(Buffer buf) {
@@ -263,11 +258,12 @@ void RemoteServer::Impl::kick_tcp(const std::shared_ptr<Session>& a) {
   if (a->tcp_writing) return;
   Buffer buf;
   bool frame_done = false, counts = false, is_data = false;
+  Lane lane = Lane::Depth;
   if (!a->control.empty()) {
     buf = a->control.front();
     a->control.pop_front();
   } else if (!a->over_udp) {
-    buf = a->next_frame_item(frame_done, counts);
+    buf = a->queue.next_item(frame_done, counts, lane);
     is_data = true;
   }
   if (!buf) return;

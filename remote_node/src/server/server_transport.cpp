@@ -1,35 +1,12 @@
 // SPDX-License-Identifier: MIT
 // The remote's network server, transport part: frames and video packed into messages for the
 // current session (fragmented into datagrams, sealed with TLS, over UDP; length-prefixed over TCP),
-// the bounded frame queue, the UDP send loop (one async_send_to in flight) and the UDP socket's
-// receive side, which opens what arrives and acts on none of it.
+// the send queue (depth before video, send_queue.h), the UDP send loop (one async_send_to in
+// flight) and the UDP socket's receive side, which opens what arrives and acts on none of it.
 #include "server_impl.h"
 #include "telex/proto/fragment.h"
 
 namespace telex::remote {
-namespace {
-
-// Drops the oldest frames nobody has started sending so that at most `bound` remain queued.
-// Repairs and streamed batches are not counted and never dropped (each is a few tiles).
-std::uint64_t trim_queue(std::deque<OutFrame>& q, std::size_t bound) {
-  std::uint64_t dropped = 0;
-  const auto frames = [&q] {
-    return static_cast<std::size_t>(
-        std::count_if(q.begin(), q.end(), [](const OutFrame& f) { return f.trimmable; }));
-  };
-  while (frames() > bound) {
-    auto it = std::find_if(q.begin(), q.end(), [](const OutFrame& f) {
-      return f.trimmable && f.next == 0;  // the frame on the wire finishes
-    });
-    if (it == q.end()) break;
-    q.erase(it);
-    ++dropped;
-  }
-  return dropped;
-}
-
-}  // namespace
-
 std::optional<RemoteServer::Impl::Link> RemoteServer::Impl::link() const {
   std::lock_guard lock(mu_);
   if (!connected_) return std::nullopt;
@@ -158,31 +135,44 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
 }
 
 // Hands a frame's messages to the io thread, which packs them for the session they were made for
-// (only) as it queues them.
+// (only): depth as it queues them, video when it is sent (depth may overtake it in the queue, and
+// its message ids and seals must still follow the sending order).
 void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
                                     std::vector<std::pair<proto::Header, proto::Message>> msgs,
                                     bool counts_as_frame, bool depth, bool trimmable) {
-  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth, trimmable]() {
+  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth,
+                   trimmable]() mutable {
     if (!active_ || active_generation_ != l.generation) return;
-    // Video counts its own frames: its datagrams carry the newest depth frame's id, so the
-    // client's reassembler (newest frame wins) neither drops them nor drops depth for them. With
-    // 30 fps of video a station built one surface in 5 s: its depth was dropped as stale.
-    OutFrame f = pack(l, depth ? frame_id : newest_queued_frame_id_, msgs);
+    OutFrame f;
+    if (depth) {
+      f = pack(l, frame_id, msgs);
+      newest_queued_frame_id_ = frame_id;
+    } else {
+      // Video counts its own frames: its datagrams carry the newest depth frame's id when they
+      // go (all depth queued before them has gone by then), so the client's reassembler (newest
+      // frame wins) neither drops them as stale nor drops depth for them. With 30 fps of video
+      // a station built one surface in 5 s: its depth was dropped as stale.
+      f.frame_id = frame_id;
+      f.pack = [this, l, msgs = std::move(msgs)] {
+        return pack(l, newest_queued_frame_id_, msgs).items;
+      };
+    }
     f.counts_as_frame = counts_as_frame;
     f.trimmable = trimmable;
-    if (depth) newest_queued_frame_id_ = frame_id;
-    enqueue_frame(std::move(f));
+    enqueue_frame(depth ? Lane::Depth : Lane::Video, std::move(f));
   });
 }
 
-void RemoteServer::Impl::enqueue_frame(OutFrame f) {
+void RemoteServer::Impl::enqueue_frame(Lane lane, OutFrame f) {
   auto& a = *active_;
-  a.frames.push_back(std::move(f));
-  const auto dropped = trim_queue(a.frames, config_.max_queued_frames);
-  if (dropped > 0) {
+  const std::size_t dropped = a.queue.push(lane, std::move(f));
+  if (dropped > 0 && lane == Lane::Depth) {
     counters_.frames_dropped += dropped;
     // The receiver misses those tiles: resend everything with the next frame.
     request_key_frame();
+  } else if (dropped > 0) {
+    // The station sees the gap in the eyes' sequence and asks for what it needs.
+    counters_.video_frames_dropped += dropped;
   }
   if (a.over_udp)
     kick_udp(active_);
@@ -193,7 +183,8 @@ void RemoteServer::Impl::enqueue_frame(OutFrame f) {
 void RemoteServer::Impl::kick_udp(const std::shared_ptr<Session>& a) {
   if (a->udp_sending) return;
   bool frame_done = false, counts = false;
-  Buffer buf = a->next_frame_item(frame_done, counts);
+  Lane lane = Lane::Depth;
+  Buffer buf = a->queue.next_item(frame_done, counts, lane);
   if (!buf) return;
   a->udp_sending = true;
   udp_.async_send_to(

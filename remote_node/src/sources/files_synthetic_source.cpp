@@ -16,6 +16,7 @@
 #include "telex/common/depth_io.h"
 #include "telex/common/synthetic.h"
 #include "telex/remote/synthetic_view.h"
+#include "telex/video/frame_counter.h"
 
 namespace telex::remote {
 
@@ -342,6 +343,11 @@ class SyntheticStereoSource final : public StereoSource {
     out.frame.right_bgr = views.right_bgr.clone();
     out.frame.capture_ns = steady_now_ns();
     out.frame.frame_id = ++clock_.frames;
+    // Glass to glass: the frame id in both eyes' top-left corner, for the station to read back
+    // from what it shows (telex/video/frame_counter.h; the low 32 bits).
+    const auto counter = static_cast<std::uint32_t>(out.frame.frame_id);
+    video::stamp_frame_counter(out.frame.left_bgr, counter);
+    video::stamp_frame_counter(out.frame.right_bgr, counter);
     out.status = ReadStatus::Frame;
     return out;
   }

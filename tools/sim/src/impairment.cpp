@@ -34,6 +34,13 @@ void validate(const ImpairmentConfig& c) {
   check_ms(c.delay_ms, "delay_ms");
   check_ms(c.jitter_ms, "jitter_ms");
   check_ms(c.reorder_hold_ms, "reorder_hold_ms");
+  check_ms(c.rate_queue_ms, "rate_queue_ms");
+  if (!(c.rate_limit_mbit >= 0.0 && c.rate_limit_mbit <= 100'000.0))
+    throw std::invalid_argument("impairment: rate_limit_mbit must be in [0, 100000], got " +
+                                std::to_string(c.rate_limit_mbit));
+  if (!(c.rate_burst_bytes >= 1.0 && c.rate_burst_bytes <= 1e9))
+    throw std::invalid_argument("impairment: rate_burst_bytes must be in [1, 1e9], got " +
+                                std::to_string(c.rate_burst_bytes));
 }
 
 Impairment::Impairment(const ImpairmentConfig& config) : config_(config) {
@@ -52,6 +59,29 @@ std::uint64_t Impairment::next_u64() {
 
 double Impairment::next_unit() { return static_cast<double>(next_u64() >> 11) * 0x1.0p-53; }
 
+// Tokens accrue at the rate up to the burst; a datagram takes its size in tokens, going into debt
+// when there are too few, and leaves when the debt before it is repaid. The debt is the queue.
+std::int64_t Impairment::shape(std::size_t bytes, std::int64_t now_ns) {
+  const double rate_bytes_per_ns = config_.rate_limit_mbit * 1e6 / 8.0 / 1e9;
+  if (!bucket_started_) {
+    bucket_started_ = true;
+    tokens_bytes_ = config_.rate_burst_bytes;
+    tokens_at_ns_ = now_ns;
+  }
+  if (now_ns > tokens_at_ns_) {
+    tokens_bytes_ = std::min(config_.rate_burst_bytes,
+                             tokens_bytes_ + rate_bytes_per_ns * double(now_ns - tokens_at_ns_));
+    tokens_at_ns_ = now_ns;
+  }
+  const double debt_after = static_cast<double>(bytes) - tokens_bytes_;
+  const double queue_limit_bytes = rate_bytes_per_ns * config_.rate_queue_ms * 1e6;
+  if (debt_after > queue_limit_bytes) return -1;
+  tokens_bytes_ -= static_cast<double>(bytes);
+  if (debt_after <= 0.0) return now_ns;
+  ++counters_.rate_queued;
+  return now_ns + static_cast<std::int64_t>(std::ceil(debt_after / rate_bytes_per_ns));
+}
+
 std::vector<Delivery> Impairment::process(std::span<const std::uint8_t> datagram,
                                           std::int64_t now_ns) {
   ++counters_.received;
@@ -65,13 +95,22 @@ std::vector<Delivery> Impairment::process(std::span<const std::uint8_t> datagram
   const std::uint64_t bit_pick = next_u64();
 
   std::vector<Delivery> out;
+  // The bottleneck comes first: a datagram takes its slot, then the wire may lose it.
+  std::int64_t leave_ns = now_ns;
+  if (config_.rate_limit_mbit > 0.0) {
+    leave_ns = shape(datagram.size(), now_ns);
+    if (leave_ns < 0) {
+      ++counters_.rate_dropped;
+      return out;
+    }
+  }
   if (u_loss < config_.loss) {
     ++counters_.dropped;
     return out;
   }
   const double delay_ms =
       std::max(0.0, config_.delay_ms + (2.0 * u_jitter - 1.0) * config_.jitter_ms);
-  std::int64_t at_ns = now_ns + ms_to_ns(delay_ms);
+  std::int64_t at_ns = leave_ns + ms_to_ns(delay_ms);
   if (u_reorder < config_.reorder) {
     ++counters_.reordered;
     at_ns += ms_to_ns(config_.reorder_hold_ms);
@@ -91,6 +130,7 @@ std::vector<Delivery> Impairment::process(std::span<const std::uint8_t> datagram
     out.push_back(out.front());
   }
   counters_.delivered += out.size();
+  counters_.bytes_out += out.size() * datagram.size();
   return out;
 }
 
@@ -98,7 +138,9 @@ std::string to_string(const ImpairmentCounters& c) {
   return "received=" + std::to_string(c.received) + " dropped=" + std::to_string(c.dropped) +
          " delivered=" + std::to_string(c.delivered) + " reordered=" + std::to_string(c.reordered) +
          " duplicated=" + std::to_string(c.duplicated) +
-         " corrupted=" + std::to_string(c.corrupted) + " bytes_in=" + std::to_string(c.bytes_in);
+         " corrupted=" + std::to_string(c.corrupted) + " bytes_in=" + std::to_string(c.bytes_in) +
+         " rate_dropped=" + std::to_string(c.rate_dropped) +
+         " bytes_out=" + std::to_string(c.bytes_out);
 }
 
 }  // namespace telex::sim

@@ -26,8 +26,10 @@ struct ServerConfig {
   std::uint16_t port = 7300;  // 0 = any free port (tests)
   bool force_tcp = false;  // depth and video on the TCP connection even when the client offers UDP
   std::chrono::milliseconds client_timeout{3000};  // a silent operator is dropped after this
-  std::size_t repair_cache_frames = 8;     // frames whose tiles a TileNack can still get (0 = none)
-  std::size_t max_queued_frames = 3;       // frames waiting to go out; older ones are dropped
+  std::size_t repair_cache_frames = 8;  // frames whose tiles a TileNack can still get (0 = none)
+  std::size_t max_queued_frames = 3;    // depth frames waiting to go out; older ones are dropped
+  // Video frames waiting, apart from depth and sent after it (send_queue.h); older ones dropped.
+  std::size_t max_queued_video_frames = 2;
   RepairLimiter::Config repair_limits;     // what TileNacks may make the remote resend
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
@@ -63,7 +65,8 @@ struct ServerCounters {
   std::atomic<std::uint64_t> clients_rejected{0};
   std::atomic<std::uint64_t> client_timeouts{0};
   std::atomic<std::uint64_t> frames_sent{0};
-  std::atomic<std::uint64_t> frames_dropped{0};  // dropped from a full send queue
+  std::atomic<std::uint64_t> frames_dropped{0};  // depth frames dropped from a full send queue
+  std::atomic<std::uint64_t> video_frames_dropped{0};  // video frames dropped from theirs
   std::atomic<std::uint64_t> messages_sent{0};
   std::atomic<std::uint64_t> datagrams_sent{0};
   std::atomic<std::uint64_t> bytes_sent{0};  // depth + video payload bytes on the wire (UDP or TCP)

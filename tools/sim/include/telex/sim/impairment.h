@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Deterministic network impairment (loss, delay, jitter, reorder, duplicate, corrupt) for
-// datagrams.
+// Deterministic network impairment (a rate limit, loss, delay, jitter, reorder, duplicate,
+// corrupt) for datagrams.
 #pragma once
 
 #include <cstddef>
@@ -21,6 +21,13 @@ struct ImpairmentConfig {
   double duplicate = 0.0;  // a second copy delivered right after the first
   double corrupt = 0.0;    // one random bit of one random byte flipped (what netem does)
   std::uint64_t seed = 1;
+  // A bottleneck before the rest (0 = none): a token bucket of rate_limit_mbit (10^6 bit/s)
+  // holding at most rate_burst_bytes, in front of a FIFO queue that holds at most rate_queue_ms
+  // of the rate; a datagram that would wait longer is dropped (rate_dropped). The sending side of
+  // tc's tbf with its "latency".
+  double rate_limit_mbit = 0.0;
+  double rate_burst_bytes = 15'000.0;  // ten 1500-byte datagrams pass at once
+  double rate_queue_ms = 100.0;
 };
 
 // Throws std::invalid_argument naming the first field out of range.
@@ -34,6 +41,9 @@ struct ImpairmentCounters {
   std::uint64_t duplicated = 0;  // extra copies
   std::uint64_t corrupted = 0;   // datagrams with a flipped bit
   std::uint64_t bytes_in = 0;
+  std::uint64_t rate_dropped = 0;  // dropped by the rate limit's full queue
+  std::uint64_t rate_queued = 0;   // waited for tokens (delayed by the rate limit)
+  std::uint64_t bytes_out = 0;     // bytes of the copies scheduled, duplicates included
 };
 
 struct Delivery {
@@ -58,10 +68,16 @@ class Impairment {
  private:
   std::uint64_t next_u64();
   double next_unit();  // [0, 1)
+  // When the rate limit lets a datagram of `bytes` leave, or -1 when its queue is full.
+  std::int64_t shape(std::size_t bytes, std::int64_t now_ns);
   ImpairmentConfig config_;
   ImpairmentCounters counters_;
   std::uint64_t state_;
   std::int64_t last_in_order_ns_ = 0;
+  // The token bucket: tokens at tokens_at_ns_; negative while datagrams queue for them.
+  bool bucket_started_ = false;
+  double tokens_bytes_ = 0.0;
+  std::int64_t tokens_at_ns_ = 0;
 };
 
 // "received=... dropped=..." for logs and summaries.
