@@ -13,6 +13,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "telex/local/warp_check.h"
+
 namespace telex::local {
 namespace {
 
@@ -137,6 +139,20 @@ TEST(Warp, BadSizesAndOptionsNameThemselves) {
   DepthWarp warp(64, 48, {});
   const Intrinsics k = kinect_v1_intrinsics(64, 48);
   EXPECT_THROW(warp.warp(cv::Mat3b(48, 64), cv::Mat1w(40, 64), k, {}), std::invalid_argument);
+}
+
+TEST(WarpCheck, TheWarpHoldsWorldPointsWithinHalfADegreeAtSixtyDegreesPerSecond) {
+  WarpCheckOptions o;
+  o.width = 640;  // the check's geometry at a smaller size: the bounds are angular
+  o.height = 360;
+  o.frames = 6;
+  const WarpCheckResult r = run_warp_check(o);
+  EXPECT_GE(r.points_measured, 20);
+  EXPECT_EQ(r.points_missed, 0);
+  EXPECT_LE(r.error_deg_with, 0.5);
+  // 80 ms at 60 deg/s is 4.8 degrees of turn; the eyes sit off the yaw axis, so a little more.
+  EXPECT_GE(r.error_deg_without, 4.0);
+  EXPECT_LE(r.error_deg_without, 6.0);
 }
 
 }  // namespace
