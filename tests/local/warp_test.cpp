@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The depth-image-based warp, headless on Mesa's EGL: a still pose gives the capture back, a turn
 // moves the picture by f tan(angle), a box moved sideways in front of a wall opens a hole that is
-// filled neutrally (or from the previous frame), never stretched from the box's edge, and the
-// ground-truth check (`telex warp --check`) meets its bounds.
+// shaded neutrally, never stretched from the box's edge, a border the capture did not see takes
+// the previous frame, and the ground-truth check (`telex warp --check`) meets its bounds.
 #include "telex/local/warp.h"
 
 #include <gtest/gtest.h>
@@ -120,17 +120,37 @@ TEST(Warp, ADepthDiscontinuityOpensAHoleInsteadOfAStretchedTriangle) {
   EXPECT_TRUE(near(out.bgr(mid, hole_x1 + 6), kBlue, 10));
   EXPECT_NEAR(out.depth_mm(mid, hole_x1 + 6), 3000, 3);
 
-  // With the previous frame as the fill, the same hole shows what the previous output had there
-  // (all wall: a capture of the wall alone), not the box's edge.
+  // With the previous frame as the fill, the same hole stays neutral: the previous output there
+  // (a capture of the wall alone here; in a turn, often the box's old edge) is not what is behind.
   DepthWarp with_previous(640, 480, {.hole_fill = HoleFill::Previous});
   const cv::Mat1w wall_depth(480, 640, std::uint16_t{3000});
   with_previous.warp(cv::Mat3b(480, 640, kBlue), wall_depth, k, {});
   const WarpedEye filled = with_previous.warp(s.bgr, s.depth_mm, k, X_DisplayCapture);
   for (int y = s.box.y + 4; y < s.box.br().y - 4; ++y)
-    for (int x = hole_x0; x < hole_x1; ++x) {
-      ASSERT_TRUE(near(filled.bgr(y, x), kBlue)) << "at " << x << "," << y;
-      ASSERT_EQ(filled.depth_mm(y, x), 0) << x << "," << y;
-    }
+    for (int x = hole_x0; x < hole_x1; ++x) ASSERT_EQ(filled.bgr(y, x), kGrey) << x << "," << y;
+}
+
+// The border a capture did not see, which the previous output did (the robot head turned back
+// while the operator's stayed): the previous output there with HoleFill::Previous, grey without.
+TEST(Warp, TheBorderTheCaptureDidNotSeeShowsThePreviousFrame) {
+  const Intrinsics k = kinect_v1_intrinsics(640, 480);
+  const cv::Mat1w depth(480, 640, std::uint16_t{2000});
+  cv::Mat3b striped(480, 640, kBlue);
+  striped.colRange(600, 640).setTo(kGreen);  // the right edge of the previous view
+  // The display turned 5 deg right of the base; the previous capture was taken there too, this
+  // one at the base: its right border is fx tan(5 deg) = 46 px inside the display's.
+  const double a = 5.0 * M_PI / 180.0;
+  const glm::dmat3 R_BaseDisplay(glm::rotate(glm::dmat4(1.0), a, glm::dvec3(0, 1, 0)));
+  const RigidTransform from_base{glm::transpose(R_BaseDisplay), glm::dvec3(0.0)};
+  for (const HoleFill fill : {HoleFill::Previous, HoleFill::Neutral}) {
+    DepthWarp warp(640, 480, {.hole_fill = fill});
+    warp.warp(striped, depth, k, {});
+    const WarpedEye out = warp.warp(cv::Mat3b(480, 640, kBlue), depth, k, from_base);
+    EXPECT_TRUE(near(out.bgr(240, 560), kBlue));  // seen by this capture
+    for (int x = 600; x < 640; ++x)
+      ASSERT_EQ(out.bgr(240, x), fill == HoleFill::Previous ? kGreen : kGrey) << x;
+    EXPECT_EQ(out.depth_mm(240, 620), 0);
+  }
 }
 
 TEST(Warp, BadSizesAndOptionsNameThemselves) {

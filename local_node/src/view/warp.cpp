@@ -72,9 +72,11 @@ void main() {
 // A pixel the mesh left empty. First the capture's own pixel that lands here, found by iterating
 // the inverse warp from the rotation-only guess (H_capture = K R^T K^-1) and accepted only when it
 // lands within half a pixel: this fills the strips where an edge's triangles were dropped although
-// nothing was uncovered. What nothing in the capture lands on (a disocclusion, or outside the
-// camera's view) takes the previous output, turned by the display's rotation since
-// (H_previous = K R_PreviousDisplay K^-1), or the neutral grey: never a stretched neighbour.
+// nothing was uncovered. Where the capture has no depth the guess itself is taken. Where the guess
+// is outside the capture (the border a turn uncovers) the previous output, turned by the display's
+// rotation since (H_previous = K R_PreviousDisplay K^-1), takes over; a disocclusion inside the
+// view is shaded neutrally, since the previous output there may hold the occluder's old edge (a
+// ghost). Never a stretched neighbour.
 constexpr const char* kFillFs = R"(#version 330 core
 uniform sampler2D u_color;
 uniform usampler2D u_depth_mm;
@@ -96,9 +98,19 @@ void main() {
   vec2 want = gl_FragCoord.xy - 0.5;
   vec3 q = u_H_capture * vec3(want, 1.0);
   vec2 source = q.xy / q.z;
+  bool unseen = q.z <= 0.0 || !in_image(source);
   for (int i = 0; i < 4 && q.z > 0.0 && in_image(source); ++i) {
     float z_m = float(texelFetch(u_depth_mm, ivec2(floor(source + 0.5)), 0).r) * 1e-3;
-    if (z_m <= 0.0) break;
+    if (z_m <= 0.0) {
+      // The remote has no depth there (a sensor's shadow, beyond its range or view): the video
+      // as if far away, turned only, which is exact for the eye the head turns about.
+      if (i == 0) {
+        o_color = vec4(texture(u_color, (source + 0.5) / u_size).rgb, 1.0);
+        o_depth_mm = 0u;
+        return;
+      }
+      break;
+    }
     vec3 p_Capture = vec3((source - u_k.zw) / u_k.xy * z_m, z_m);
     vec3 p_Display = u_R_DisplayCapture * p_Capture + u_p_DisplayCapture_m;
     if (p_Display.z <= 0.0) break;
@@ -112,7 +124,7 @@ void main() {
   }
   vec3 r = u_H_previous * vec3(want, 1.0);
   vec2 px = r.xy / r.z;
-  o_color = vec4(u_has_previous && r.z > 0.0 && in_image(px)
+  o_color = vec4(unseen && u_has_previous && r.z > 0.0 && in_image(px)
                      ? texture(u_previous, (px + 0.5) / u_size).rgb : u_neutral_rgb, 1.0);
   o_depth_mm = 0u;
 }

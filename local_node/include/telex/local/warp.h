@@ -2,9 +2,10 @@
 // A remote world that stays put: one eye's video reprojected from the pose it was captured at (the
 // robot head's) to the operator's eye pose at display time, through a grid mesh built from the
 // remote depth registered to that eye (a depth-image-based warp). Triangles across a depth
-// discontinuity are dropped, so the holes a disocclusion opens show the previous warped frame (or a
-// neutral grey) instead of a stretched edge. OpenGL 3.3 core, drawn on the calling thread's current
-// context (the stereo view's renderer's) or on a headless EGL context of its own.
+// discontinuity are dropped, so a disocclusion opens a hole (shaded neutrally) instead of a
+// stretched edge; what the capture did not see at all takes the previous warped frame. OpenGL 3.3
+// core, drawn on the calling thread's current context (the stereo view's renderer's) or on a
+// headless EGL context of its own.
 #pragma once
 
 #include <cstdint>
@@ -18,10 +19,14 @@
 namespace telex::local {
 
 // What the holes a warp opens are filled with, where no pixel of the capture lands (a pixel the
-// capture does land on but whose triangle was dropped at an edge takes that pixel first).
+// capture does land on but whose triangle was dropped at an edge takes that pixel first, and
+// where the remote has no depth the video is turned as if far away: it is not a hole).
 enum class HoleFill {
-  Previous,  // the previous warped frame, turned by the display's rotation since (else neutral)
-  Neutral,   // WarpOptions::neutral_bgr
+  // Outside the capture's view (the border a turn uncovers): the previous warped frame, turned by
+  // the display's rotation since. A disocclusion inside the view: neutral, as the previous frame
+  // there may hold the occluder's old edge.
+  Previous,
+  Neutral,  // everywhere WarpOptions::neutral_bgr
 };
 
 struct WarpOptions {
