@@ -241,6 +241,13 @@ void add_output_options(CLI::App& app, StationFlags& f) {
   app.add_option("--stereo-baseline", f.cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option_function<std::string>(
+         "--warp", [&f](const std::string& v) { f.cfg.view_warp = v == "on"; },
+         "stereo view: on = each eye's video reprojected from the robot head's pose at capture "
+         "to the operator's head now, through the remote depth, when both poses are known "
+         "(the remote reports its head, a head body is tracked); off = shown as captured")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->default_str("on");
   app.add_option("--print-forces", f.cfg.print_forces_hz,
                  "print forces on stdout at this rate, Hz (0 off)")
       ->check(CLI::Range(0.0, 1000.0))

@@ -150,10 +150,29 @@ StereoView::StereoView(int width, int height, const BodyDims& dims)
       body_(camera_frame_body(dims)) {}
 StereoView::~StereoView() = default;
 
+void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes) {
+  const glm::dmat3 R_DisplayBase = glm::transpose(*in.R_BaseDisplay);
+  const glm::dmat3 R_DisplayCapture = R_DisplayBase * *in.R_BaseCapture;
+  const glm::dmat3 R_DisplayPrevious =
+      R_BasePreviousDisplay_ ? R_DisplayBase * *R_BasePreviousDisplay_ : glm::dmat3(1.0);
+  R_BasePreviousDisplay_ = in.R_BaseDisplay;
+  for (const Side side : kSides) {
+    EyeView& e = *eyes[index_of(side)];
+    auto& w = warp_[index_of(side)];
+    if (!w) w = std::make_unique<DepthWarp>(in.k.width, in.k.height);
+    WarpedEye warped =
+        w->warp(e.background, e.depth_mm, in.k,
+                eye_display_from_capture(R_DisplayCapture, e.p_RightEye), R_DisplayPrevious);
+    e.background = std::move(warped.bgr);
+    e.depth_mm = std::move(warped.depth_mm);
+  }
+}
+
 StereoViewImages StereoView::render(const StereoViewInputs& in) {
   StereoViewImages out;
   const cv::Size size(in.k.width, in.k.height);
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
+    for (auto& w : warp_) w.reset();  // their objects live in the old renderer's context
     renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
@@ -184,6 +203,15 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     // The remote depth is registered to the right eye; the left eye sees it from B to the left.
     const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
     left.depth_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+    if (in.R_BaseCapture && in.R_BaseDisplay && !eye[0].empty()) {
+      warp_eyes(in, {&left, &right});
+      out.warped = true;
+    }
+  }
+  if (!out.warped) {  // the next warp's holes must not take a picture from another pose
+    for (auto& w : warp_)
+      if (w) w->reset_previous();
+    R_BasePreviousDisplay_.reset();
   }
   out.right = renderer_->render(right, capsules);
   out.left = renderer_->render(left, capsules);

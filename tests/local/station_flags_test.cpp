@@ -33,6 +33,9 @@ TEST(StationFlags, DefaultsConnectToTheLocalRemoteOverUdp) {
   EXPECT_TRUE(f.cfg.client.use_udp);
   EXPECT_TRUE(f.cfg.surface.roi);
   EXPECT_TRUE(f.cfg.head_teleop);
+  EXPECT_TRUE(f.cfg.view_warp);
+  EXPECT_FALSE(parse({"--warp", "off"}).cfg.view_warp);
+  EXPECT_TRUE(parse({"--warp", "on"}).cfg.view_warp);
 }
 
 TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
@@ -60,6 +63,7 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--elbow-bodies", "3"}, "--elbow-bodies"},
       {{"--rate", "5"}, "--rate"},
       {{"--transport", "sctp"}, "--transport"},
+      {{"--warp", "yes"}, "--warp"},
   };
   for (const auto& c : cases) {
     try {

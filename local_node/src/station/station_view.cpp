@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 #include <span>
 
+#include "telex/common/head_kinematics.h"
 #include "telex/local/operator_view.h"
 
 namespace telex::local {
@@ -197,6 +198,21 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     char pairing[48];
     std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms", gap_ms);
     in.status += pairing;
+  }
+  // The warp: the robot head's pose when the depth drawn (and the eye video paired with it) was
+  // captured, as the remote measured it with that frame, and the operator's head in the newest
+  // tracking sample, which `in.hand` is in.
+  const bool warp = cfg_.view_warp && vs->head_valid && in.hand.head_valid;
+  if (warp) {
+    in.R_BaseCapture = head_rotation(cfg_.robot_head, vs->head_joint_rad);
+    in.R_BaseDisplay = in.hand.R_BaseCamera;
+  } else if (cfg_.view_warp && !warned_no_warp_) {
+    spdlog::info(
+        "view: no warp until both head poses are known ({}): the video is shown as "
+        "captured",
+        !vs->head_valid ? "the remote reports no head pose with its frames"
+                        : "no head body is tracked");
+    warned_no_warp_ = true;
   }
   const StereoViewImages v = view.render(in);
   if (v.one_eye && !warned_one_eye_) {

@@ -105,6 +105,7 @@ class StationView {
     bool pending = false;
   } stereo_request_;             // guarded by stereo_mu_
   bool warned_one_eye_ = false;  // view thread
+  bool warned_no_warp_ = false;  // view thread
 };
 
 }  // namespace telex::local

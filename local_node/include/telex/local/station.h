@@ -72,6 +72,11 @@ struct StationConfig {
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;
+  // --warp on|off: the stereo view reprojects each eye's video from the robot head's pose at its
+  // capture to the operator's head now (telex/local/warp.h), when both are known: the remote
+  // reports its head's joints with the depth frame the video is paired with, and the tracker
+  // has the operator's head. Otherwise, or off, the video is shown as captured.
+  bool view_warp = true;
   // Each eye's intrinsics and distortion (the rig's eyes.*), by Side: the view undistorts that
   // eye's video into the depth's pinhole camera, the left eye also rotated by R_RightEyeLeftEye
   // (rectified). Absent: the video is drawn as it comes.

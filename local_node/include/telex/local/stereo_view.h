@@ -17,6 +17,7 @@
 #include "telex/haptics/haptic_model.h"
 #include "telex/local/stereo_renderer.h"
 #include "telex/local/tracker.h"
+#include "telex/local/warp.h"
 
 namespace telex::local {
 
@@ -37,11 +38,17 @@ struct StereoViewInputs {
   // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
   std::array<glm::dvec3, 2> default_shoulder_camera{glm::dvec3{-0.264, 0.30, -0.10},
                                                     glm::dvec3{0.20, 0.30, -0.10}};
+  // The warp (--warp on, telex/local/warp.h): the right eye camera's orientation in the head
+  // base's frame when the depth and the video paired with it were captured (the robot head's
+  // measured joints), and now (the operator's head, the frame `hand` is in). Both set: each eye's
+  // video and depth are reprojected to the operator's pose before the body is drawn over them.
+  std::optional<glm::dmat3> R_BaseCapture, R_BaseDisplay;
 };
 
 struct StereoViewImages {
   cv::Mat3b left, right, sbs;
   bool one_eye = false;  // only one eye's image came: it was used for both
+  bool warped = false;   // the eyes were reprojected to the operator's pose
 };
 
 // One eye's video brought into the view's pinhole camera: undistorted with that eye's intrinsics
@@ -78,8 +85,14 @@ class StereoView {
                        const glm::dmat3& R_RightEyeLeftEye);
 
  private:
+  // Each eye's video and depth at the display pose, by Side, when the inputs carry both poses.
+  void warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes);
+
   std::array<std::optional<EyeRectifier>, 2> rectifier_;
   std::unique_ptr<StereoRenderer> renderer_;
+  // On the renderer's context, made at the first warped frame; they go before the renderer does.
+  std::array<std::unique_ptr<DepthWarp>, 2> warp_;
+  std::optional<glm::dmat3> R_BasePreviousDisplay_;
   cv::Size renderer_size_;
   Body body_;
 };
