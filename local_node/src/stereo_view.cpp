@@ -150,23 +150,54 @@ StereoView::StereoView(int width, int height, const BodyDims& dims)
       body_(camera_frame_body(dims)) {}
 StereoView::~StereoView() = default;
 
+Intrinsics eye_intrinsics(const Intrinsics& k, cv::Size size) {
+  const double s = std::max(static_cast<double>(size.width) / k.width,
+                            static_cast<double>(size.height) / k.height);
+  Intrinsics out = k;
+  out.fx = k.fx * s;
+  out.fy = k.fy * s;
+  // Pixel centres scale as (c + 0.5) s - 0.5; the overhang of the scaled image is cut evenly.
+  out.cx = (k.cx + 0.5) * s - 0.5 - (k.width * s - size.width) / 2.0;
+  out.cy = (k.cy + 0.5) * s - 0.5 - (k.height * s - size.height) / 2.0;
+  out.width = size.width;
+  out.height = size.height;
+  return out;
+}
+
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         int interpolation, const cv::Scalar& border) {
+  if (image.empty() || (from == to && image.cols == to.width && image.rows == to.height))
+    return image;
+  // Output pixel (u, v) sees the ray ((u - to.cx) / to.fx, ...): in `image` at this affine map.
+  const double sx = from.fx / to.fx, sy = from.fy / to.fy;
+  const cv::Matx23d M(sx, 0.0, from.cx - sx * to.cx, 0.0, sy, from.cy - sy * to.cy);
+  cv::Mat out;
+  cv::warpAffine(image, out, M, {to.width, to.height}, interpolation | cv::WARP_INVERSE_MAP,
+                 cv::BORDER_CONSTANT, border);
+  return out;
+}
+
 StereoViewImages StereoView::render(const StereoViewInputs& in) {
   StereoViewImages out;
-  const cv::Size size(in.k.width, in.k.height);
+  const cv::Size depth_size(in.k.width, in.k.height);
+  cv::Size size = in.eye_size;
+  if (size.empty()) {
+    const cv::Mat3b& video = in.eye_bgr[1].empty() ? in.eye_bgr[0] : in.eye_bgr[1];
+    size = video.empty() ? depth_size : video.size();
+  }
+  const Intrinsics k_eye = size == depth_size ? in.k : eye_intrinsics(in.k, size);
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
     renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
-  const auto fit = [&size](const cv::Mat3b& m) {
-    if (m.empty() || m.size() == size) return m;
-    cv::Mat3b r;
-    cv::resize(m, r, size, 0, 0, cv::INTER_AREA);
-    return r;
+  // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
+  const auto fit = [&](const cv::Mat3b& m) -> cv::Mat3b {
+    if (m.empty()) return m;
+    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k_eye, cv::INTER_LINEAR);
   };
-  // A calibrated eye is undistorted (and the left one rectified) into the depth's camera; an
-  // uncalibrated one is only resized to it.
+  // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], in.k) : fit(in.eye_bgr[i]);
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_eye) : fit(in.eye_bgr[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   out.one_eye = eye[0].empty() != eye[1].empty();
@@ -175,15 +206,18 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
 
   const std::vector<Capsule> capsules = view_capsules(body_, in);
   EyeView right, left;
-  right.k = left.k = in.k;
+  right.k = left.k = k_eye;
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
   right.background = eye[index_of(Side::Right)];
   left.background = eye[index_of(Side::Left)];
-  if (!in.depth_mm.empty() && in.depth_mm.size() == size) {
-    right.depth_mm = in.depth_mm;
+  if (!in.depth_mm.empty() && in.depth_mm.size() == depth_size) {
     // The remote depth is registered to the right eye; the left eye sees it from B to the left.
+    // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
+    // an edge) at each eye pixel's ray.
     const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
-    left.depth_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+    const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+    right.depth_mm = resample_pinhole(in.depth_mm, in.k, k_eye, cv::INTER_NEAREST);
+    left.depth_mm = resample_pinhole(left_mm, in.k, k_eye, cv::INTER_NEAREST);
   }
   out.right = renderer_->render(right, capsules);
   out.left = renderer_->render(left, capsules);

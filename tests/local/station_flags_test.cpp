@@ -49,6 +49,11 @@ TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
   EXPECT_FALSE(f.cfg.status_line);
 }
 
+TEST(StationFlags, EyeSizeReachesTheConfigAndDefaultsToTheVideos) {
+  EXPECT_TRUE(parse({}).cfg.eye_size.empty());
+  EXPECT_EQ(parse({"--eye-size", "1280x720"}).cfg.eye_size, cv::Size(1280, 720));
+}
+
 TEST(StationFlags, BadValuesNameTheFlag) {
   const struct {
     std::vector<std::string> args;
@@ -60,6 +65,9 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--elbow-bodies", "3"}, "--elbow-bodies"},
       {{"--rate", "5"}, "--rate"},
       {{"--transport", "sctp"}, "--transport"},
+      {{"--eye-size", "1280"}, "--eye-size"},
+      {{"--eye-size", "1280x720x3"}, "--eye-size"},
+      {{"--eye-size", "8x8"}, "--eye-size"},
   };
   for (const auto& c : cases) {
     try {

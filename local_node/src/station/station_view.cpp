@@ -156,7 +156,8 @@ void StationView::run_stereo(std::stop_token stop) {
   // (SCHED_FIFO, or its own thread at nice 0).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
   try {
-    StereoView view(640, 480, cfg_.body);
+    const cv::Size first = cfg_.eye_size.empty() ? cv::Size(640, 480) : cfg_.eye_size;
+    StereoView view(first.width, first.height, cfg_.body);
     view.set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
     for (;;) {
       StereoViewInputs in;
@@ -186,6 +187,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
   if (!vs) return false;
   in.surface = vs.get();
   in.k = vs->intrinsics;
+  in.eye_size = cfg_.eye_size;
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
   // Each eye's frame captured nearest to the depth drawn over it; the larger gap is shown.

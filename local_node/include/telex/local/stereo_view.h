@@ -23,9 +23,12 @@ namespace telex::local {
 struct StereoViewInputs {
   std::array<cv::Mat3b, 2> eye_bgr;  // by Side (left 0, right 1); an empty one: the other eye's
   cv::Mat1w depth_mm;                // the remote depth, registered to the right eye
-  Intrinsics k;                      // the right eye's (and, rectified, the left eye's)
-  double baseline_m = 0.065;         // the left eye sits this far to the right eye's left
-  HandState hand;                    // camera (right eye) frame
+  Intrinsics k;                      // the depth's: the right eye's camera at the depth's size
+  // Each eye's image size (--eye-size); empty: the eye video's size when video came, else the
+  // depth's. The eyes see the depth's camera through eye_intrinsics(k, eye_size).
+  cv::Size eye_size;
+  double baseline_m = 0.065;  // the left eye sits this far to the right eye's left
+  HandState hand;             // camera (right eye) frame
   // The tick re-expressed in the camera (reexpress): there the Model frame is the Camera.
   std::array<FingertipForce, kFingerCount> forces{};
   const Surface* surface = nullptr;  // for the normal-map inset; may be null
@@ -83,6 +86,16 @@ class StereoView {
   cv::Size renderer_size_;
   Body body_;
 };
+
+// The depth camera `k` at another image size: the same centre and square-pixel scale, the larger
+// of the two axes' scales, so the image is filled and the depth's field of view cropped on the
+// other axis (a 640x480 depth seen by 1280x720 eyes: scale 2, 120 rows cropped top and bottom).
+Intrinsics eye_intrinsics(const Intrinsics& k, cv::Size size);
+
+// `image`, taken with intrinsics `from`, resampled into intrinsics `to` (the same camera centre and
+// orientation), `to`'s size; outside `image`: `border`. Nearest keeps depth edges unblended.
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         int interpolation, const cv::Scalar& border = {});
 
 // Index of the capture time in `captures` nearest to `want_ns` (the first of equals); nullopt
 // for none. The view pairs each eye's video with the depth frame it draws over this way.
