@@ -99,13 +99,27 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
     const FingertipForce& f = in.forces[i];
     if (!hand.tips[i].valid || !f.contact) continue;
     const glm::dvec3 p = f.p_ModelProxy;
-    out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N)});
+    out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N), false});
     const glm::dvec3 end = p + f.force_N * in.arrow_m_per_N;
     if (glm::length(end - p) > 1e-4) {
-      out.push_back({p, end, 0.002, {0, 200, 255}});
-      out.push_back({end, end, 0.004, {0, 200, 255}});
+      out.push_back({p, end, 0.002, {0, 200, 255}, false});
+      out.push_back({end, end, 0.004, {0, 200, 255}, false});
     }
   }
+  return out;
+}
+
+std::vector<glm::dvec3> view_fingertips(const HandState& hand) {
+  std::vector<glm::dvec3> out;
+  bool right_tracked = false;
+  for (const Side side : kSides) {
+    const ArmTrack& a = hand.arms[index_of(side)];
+    if (!a.wrist_valid) continue;
+    right_tracked = right_tracked || side == Side::Right;
+    for (const auto& finger : a.joints_camera) out.push_back(finger[3]);
+  }
+  if (!right_tracked && hand.skeleton_valid)
+    for (const auto& finger : hand.joints_camera) out.push_back(finger[3]);
   return out;
 }
 
@@ -208,6 +222,7 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
   EyeView right, left;
   right.k = left.k = k_eye;
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
+  right.fingertips = left.fingertips = view_fingertips(in.hand);
   right.background = eye[index_of(Side::Right)];
   left.background = eye[index_of(Side::Left)];
   if (!in.depth_mm.empty() && in.depth_mm.size() == depth_size) {

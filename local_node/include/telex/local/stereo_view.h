@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The operator's stereo view (--view png:DIR writes left.png, right.png, sbs.png): each eye's
 // camera image, the remote depth registered to that eye hiding the virtual body where the remote
-// scene is nearer, the arm and hand as shaded capsules, fingertips in contact coloured by pressure
-// with their force arrows in 3D, and the normal-map inset and status text as an overlay that fits.
+// scene is nearer, the arm and hand as one smooth shaded body with their contact shadows,
+// fingertips in contact coloured by pressure with their force arrows in 3D, and the normal-map
+// inset and status text as an overlay that fits.
 #pragma once
 
 #include <array>
@@ -104,5 +105,9 @@ std::optional<std::size_t> nearest_capture(std::span<const std::int64_t> capture
 
 // The arm and hand of `hand` (camera frame) and the fingertips' contact and force capsules.
 std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in);
+
+// The tracked fingertips of both hands in the camera (right eye) frame: the contact shadows'
+// casters.
+std::vector<glm::dvec3> view_fingertips(const HandState& hand);
 
 }  // namespace telex::local
