@@ -237,6 +237,13 @@ void add_output_options(CLI::App& app, StationFlags& f) {
   app.add_option("--eye-size", f.eye_size,
                  "each eye of the stereo view rendered at WxH pixels (e.g. 1280x720); default the "
                  "eye video's size, or the depth's before video comes");
+  app.add_option("--view-layout", f.cfg.view_layout,
+                 "sbs: the stereo pair side by side | fig7: the paper's Fig. 7, the right eye "
+                 "beside the full-frame normal map with each fingertip's touch vector (god-point, "
+                 "normal, force, shear); --view png:DIR writes it as DIR/fig7.png, a window shows "
+                 "it")
+      ->check(CLI::IsMember({"sbs", "fig7"}))
+      ->capture_default_str();
   app.add_option("--stereo-baseline", f.cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")
       ->check(CLI::Range(0.0, 1.0));

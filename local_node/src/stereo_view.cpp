@@ -10,6 +10,7 @@
 
 #include "telex/common/colorize.h"
 #include "telex/common/registration.h"
+#include "telex/local/fig7_view.h"
 #include "telex/local/status_band.h"
 
 namespace telex::local {
@@ -28,11 +29,11 @@ cv::Vec3b pressure_bgr(double n) {
           static_cast<unsigned char>(80 + 175 * t)};
 }
 
-// The overlay: the normal-map inset (top right, a quarter of the width) and the status text,
-// wrapped to fit the width.
-void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
-  if (in.surface != nullptr && !in.surface->normals.empty()) {
-    const cv::Mat3b inset = colorize_normals(in.surface->normals);
+// The overlay: the normal-map inset (top right, a quarter of the width; none when empty) and the
+// status text, wrapped to fit the width.
+void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3f& normals) {
+  if (!normals.empty()) {
+    const cv::Mat3b inset = colorize_normals(normals);
     const int w = img.cols / 4, h = w * inset.rows / std::max(1, inset.cols);
     if (w > 0 && h > 0 && h < img.rows) {
       cv::Mat3b small;
@@ -236,8 +237,18 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
   }
   out.right = renderer_->render(right, capsules);
   out.left = renderer_->render(left, capsules);
-  overlay(out.left, in);
-  overlay(out.right, in);
+  // The normal map the view shows: full-frame, computed here when the haptic path built only
+  // fingertip windows.
+  const bool depth_fits = !in.depth_mm.empty() && in.depth_mm.size() == depth_size;
+  const cv::Mat3f normals =
+      depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
+  if (in.fig7) {
+    cv::Mat3b interaction = out.right.clone();
+    overlay(interaction, in, {});
+    out.fig7 = fig7_layout(interaction, k_eye, normals, in.k, in.forces, in.arrow_m_per_N);
+  }
+  overlay(out.left, in, normals);
+  overlay(out.right, in, normals);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }

@@ -52,6 +52,8 @@ TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
 TEST(StationFlags, EyeSizeReachesTheConfigAndDefaultsToTheVideos) {
   EXPECT_TRUE(parse({}).cfg.eye_size.empty());
   EXPECT_EQ(parse({"--eye-size", "1280x720"}).cfg.eye_size, cv::Size(1280, 720));
+  EXPECT_EQ(parse({}).cfg.view_layout, "sbs");
+  EXPECT_EQ(parse({"--view-layout", "fig7"}).cfg.view_layout, "fig7");
 }
 
 TEST(StationFlags, BadValuesNameTheFlag) {
@@ -68,6 +70,7 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--eye-size", "1280"}, "--eye-size"},
       {{"--eye-size", "1280x720x3"}, "--eye-size"},
       {{"--eye-size", "8x8"}, "--eye-size"},
+      {{"--view-layout", "quad"}, "--view-layout"},
   };
   for (const auto& c : cases) {
     try {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// The stereo view's body: a flat hand shows five separate fingers, the skin follows the video's
-// brightness, and a fingertip near the remote surface shades it.
+// The stereo view's body and Fig. 7: a flat hand shows five separate fingers, the skin follows the
+// video's brightness, a fingertip near the remote surface shades it, and the Fig. 7 panel holds a
+// full normal map of the remote scene with a touch vector at the contact.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <set>
 
 #include "telex/haptics/hand_kinematics.h"
+#include "telex/local/fig7_view.h"
 #include "telex/local/stereo_view.h"
 
 namespace telex::local {
@@ -111,6 +113,76 @@ TEST(StereoBody, AFingertipNearTheSurfaceShadesItAndOneFarFromItDoesNot) {
   EXPECT_GT(near(at + cv::Point(120, 0))[1], 155) << "15 cm away";
   eye.fingertips = {glm::dvec3{0.02, 0.01, 0.35}};  // 15 cm off the wall
   EXPECT_GT(r.render(eye, {})(at)[1], 155);
+}
+
+// An analytic scene: a wall 80 cm away facing the camera on the left half of the image, and on the
+// right half a plane turned about the vertical, continuing the wall at the image's centre column.
+cv::Mat1w two_planes(const Intrinsics& k, const glm::dvec3& n_right) {
+  cv::Mat1w d(k.height, k.width);
+  for (int v = 0; v < k.height; ++v)
+    for (int u = 0; u < k.width; ++u) {
+      const glm::dvec3 ray{(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
+      const double z = u < k.cx ? 0.8 : n_right.z * 0.8 / glm::dot(n_right, ray);
+      d(v, u) = static_cast<std::uint16_t>(std::lround(z * 1000.0));
+    }
+  return d;
+}
+
+TEST(StereoFig7, ThePanelHoldsAFullNormalMapAndATouchVectorAtTheContact) {
+  StereoView view(1280, 720);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.eye_size = {1280, 720};
+  in.fig7 = true;
+  const glm::dvec3 n_right = glm::normalize(glm::dvec3{0.5, 0.0, -1.0});
+  in.depth_mm = two_planes(in.k, n_right);
+  // The haptic path's surface: normals only in a fingertip window, as the default ROI builds.
+  Surface s;
+  s.intrinsics = in.k;
+  s.normals = cv::Mat3f(480, 640, cv::Vec3f(0.0f, 0.0f, 0.0f));
+  s.normals(cv::Rect(100, 100, 32, 32)).setTo(cv::Vec3f(0.0f, 0.0f, -1.0f));
+  in.surface = &s;
+  const glm::dvec3 god{-0.10, 0.05, 0.80};  // on the wall
+  in.forces[1].contact = true;
+  in.forces[1].p_ModelProxy = god;
+  in.forces[1].normal_Model = {0.0, 0.0, -1.0};
+  in.forces[1].normal_force_N = 2.0;
+  in.forces[1].tangential_force_N = {0.5, 0.0, 0.0};
+  in.forces[1].force_N = {0.5, 0.0, -2.0};
+  const StereoViewImages v = view.render(in);
+  ASSERT_EQ(v.fig7.size(), cv::Size(2560, 720));
+  const cv::Mat3b panel = v.fig7(cv::Rect(1280, 0, 1280, 720));
+  int lit = 0;
+  for (int y = 0; y < panel.rows; ++y)
+    for (int x = 0; x < panel.cols; ++x) lit += panel(y, x) != cv::Vec3b(0, 0, 0);
+  EXPECT_GT(lit, panel.rows * panel.cols * 9 / 10);
+  // The colours colorize_normals gives each plane's normal ((n + 1) / 2, as BGR = z, y, x).
+  const auto expect_normal = [&](cv::Point p, const glm::dvec3& n) {
+    const cv::Vec3b c = panel(p);
+    EXPECT_NEAR(c[0], (n.z + 1.0) * 127.5, 12.0) << p;
+    EXPECT_NEAR(c[1], (n.y + 1.0) * 127.5, 12.0) << p;
+    EXPECT_NEAR(c[2], (n.x + 1.0) * 127.5, 12.0) << p;
+  };
+  expect_normal({300, 200}, {0.0, 0.0, -1.0});
+  expect_normal({1000, 500}, n_right);
+  // The god-point's ring and the force arrow (yellow) at the contact's pixel.
+  const Intrinsics k_eye = eye_intrinsics(in.k, in.eye_size);
+  const cv::Point at = pixel(k_eye, god);
+  int yellow = 0;
+  for (int y = at.y - 20; y <= at.y + 20; ++y)
+    for (int x = at.x - 20; x <= at.x + 20; ++x) {
+      const cv::Vec3b c = panel(y, x);
+      yellow += c[0] < 60 && c[1] > 180 && c[2] > 220;
+    }
+  EXPECT_GT(yellow, 40);
+  // Away from the contact the panel has no yellow.
+  int far_yellow = 0;
+  for (int y = 500; y < 540; ++y)
+    for (int x = 1000; x < 1040; ++x) {
+      const cv::Vec3b c = panel(y, x);
+      far_yellow += c[0] < 60 && c[1] > 180 && c[2] > 220;
+    }
+  EXPECT_EQ(far_yellow, 0);
 }
 
 }  // namespace

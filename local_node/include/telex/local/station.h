@@ -71,6 +71,9 @@ struct StationConfig {
   // --eye-size: each eye of the stereo view rendered at this size; empty: the eye video's size
   // when video comes, else the depth's.
   cv::Size eye_size;
+  // --view-layout: "sbs" (the eyes side by side) or "fig7" (the right eye beside the normal map
+  // with the touch vectors; png:DIR also writes fig7.png, a window shows it instead of the pair).
+  std::string view_layout = "sbs";
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;

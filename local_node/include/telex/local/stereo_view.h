@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT
-// The operator's stereo view (--view png:DIR writes left.png, right.png, sbs.png): each eye's
-// camera image, the remote depth registered to that eye hiding the virtual body where the remote
-// scene is nearer, the arm and hand as one smooth shaded body with their contact shadows,
-// fingertips in contact coloured by pressure with their force arrows in 3D, and the normal-map
-// inset and status text as an overlay that fits.
+// The operator's stereo view (--view png:DIR writes left.png, right.png, sbs.png, and fig7.png
+// with --view-layout fig7): each eye's camera image, the remote depth registered to that eye
+// hiding the virtual body where the remote scene is nearer, the arm and hand as one smooth shaded
+// body with their contact shadows, fingertips in contact coloured by pressure with their force
+// arrows in 3D, and the normal-map inset and status text as an overlay that fits.
 #pragma once
 
 #include <array>
@@ -36,6 +36,7 @@ struct StereoViewInputs {
   std::string status;
   double arrow_m_per_N = 0.02;        // force arrow length in the scene per newton
   cv::Vec3b skin_bgr{150, 175, 225};  // the body's colour (the rig's operator.skin_rgb)
+  bool fig7 = false;                  // also compose Fig. 7 (--view-layout fig7)
   // Where the operator's shoulders sit in the camera (right eye) frame, by Side, when the tracker
   // has no shoulder body: 30 cm below and 10 cm behind the eyes, the right one 20 cm right of the
   // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
@@ -45,6 +46,7 @@ struct StereoViewInputs {
 
 struct StereoViewImages {
   cv::Mat3b left, right, sbs;
+  cv::Mat3b fig7;        // with StereoViewInputs::fig7: the right eye beside the normal map
   bool one_eye = false;  // only one eye's image came: it was used for both
 };
 
