@@ -63,23 +63,25 @@ void draw_touch_vectors(cv::Mat3b& panel, const Intrinsics& k,
                         double arrow_m_per_N) {
   static constexpr std::array<const char*, kFingerCount> kName{"T", "I", "M", "R", "L"};
   const int thick = std::max(2, panel.cols / 320);
-  const double min_px = 6.0 * thick;
+  // Pressure points mostly at the camera: the normal and the force keep a visible length, the
+  // normal the longer, so both clear the god-point's ring.
+  const double min_force_px = 10.0 * thick, min_normal_px = 15.0 * thick;
   for (std::size_t i = 0; i < kFingerCount; ++i) {
     const FingertipForce& f = forces[i];
     if (!f.contact) continue;
     const glm::dvec3 p = f.p_ModelProxy;
     const auto at = project(k, p);
     if (!at) continue;
-    arrow(panel, k, p, p + f.normal_Model * 0.03, {255, 255, 255}, thick, min_px);
+    arrow(panel, k, p, p + f.normal_Model * 0.03, {255, 255, 255}, thick, min_normal_px);
     arrow(panel, k, p, p + f.tangential_force_N * arrow_m_per_N, {255, 0, 255}, thick, 0.0);
-    arrow(panel, k, p, p + f.force_N * arrow_m_per_N, {0, 230, 255}, thick, min_px);
+    arrow(panel, k, p, p + f.force_N * arrow_m_per_N, {0, 230, 255}, thick, min_force_px);
     // The god-point: a dark-edged ring that reads on any normal colour.
     cv::circle(panel, *at, 3 * thick, {0, 0, 0}, thick + 2, cv::LINE_AA);
     cv::circle(panel, *at, 3 * thick, {0, 230, 255}, thick, cv::LINE_AA);
     char label[32];
     std::snprintf(label, sizeof label, "%s %.1f N", kName[i], glm::length(f.force_N));
     const cv::Point org(static_cast<int>(at->x) + 4 * thick, static_cast<int>(at->y) - 4 * thick);
-    const double scale = 0.2 * thick;
+    const double scale = 0.25 * thick;
     cv::putText(panel, label, org, cv::FONT_HERSHEY_SIMPLEX, scale, {0, 0, 0}, thick + 2,
                 cv::LINE_AA);
     cv::putText(panel, label, org, cv::FONT_HERSHEY_SIMPLEX, scale, {255, 255, 255}, thick,
