@@ -8,7 +8,9 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "telex/local/fig7_view.h"
 #include "telex/local/stereo_renderer.h"
+#include "telex/local/stereo_view.h"
 
 namespace telex::local {
 namespace {
@@ -67,6 +69,27 @@ BENCHMARK(BM_StereoPair640x480)->Unit(benchmark::kMillisecond)->UseRealTime();
 // The issue 29 goal: a 1280x720 pair (render + warp <= 16 ms on llvmpipe).
 void BM_StereoPair1280x720(benchmark::State& state) { stereo_pair(state, 1280, 720); }
 BENCHMARK(BM_StereoPair1280x720)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Fig. 7's own normal map (the view thread's work when the haptic path builds only fingertip
+// windows) and its composition at 1280x720 eyes.
+void BM_Fig7NormalMapAndLayout(benchmark::State& state) {
+  const Intrinsics k = kinect_v1_intrinsics(640, 480);
+  cv::Mat1w depth(480, 640);
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) depth(y, x) = static_cast<std::uint16_t>(700 + y + x / 4);
+  const Intrinsics k_eye = eye_intrinsics(k, {1280, 720});
+  const cv::Mat3b interaction(720, 1280, cv::Vec3b(90, 90, 90));
+  std::array<FingertipForce, kFingerCount> forces{};
+  forces[1].contact = true;
+  forces[1].p_ModelProxy = {0.0, 0.0, 0.9};
+  forces[1].force_N = {0.3, 0.0, -1.5};
+  for (auto _ : state) {
+    const cv::Mat3f normals = display_normals(depth, k);
+    const cv::Mat3b fig7 = fig7_layout(interaction, k_eye, normals, k, forces, 0.02);
+    benchmark::DoNotOptimize(fig7.data[0]);
+  }
+}
+BENCHMARK(BM_Fig7NormalMapAndLayout)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace telex::local
