@@ -173,7 +173,9 @@ StereoRenderer::StereoRenderer(int width, int height) : impl_(std::make_unique<I
 
 StereoRenderer::~StereoRenderer() {
   if (impl_->display == EGL_NO_DISPLAY) return;
-  eglMakeCurrent(impl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  // Only this renderer's own context is released: another one made since stays current.
+  if (eglGetCurrentContext() == impl_->context)
+    eglMakeCurrent(impl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   if (impl_->surface != EGL_NO_SURFACE) eglDestroySurface(impl_->display, impl_->surface);
   if (impl_->context != EGL_NO_CONTEXT) eglDestroyContext(impl_->display, impl_->context);
   // No eglTerminate: the display is shared with any other renderer in the process.
@@ -191,6 +193,10 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
                                 "x" + std::to_string(eye.k.height) + ", the renderer " +
                                 std::to_string(g.width) + "x" + std::to_string(g.height));
   const cv::Size size(g.width, g.height);
+  // With two renderers on a thread, the one drawing needs its own context current.
+  if (eglGetCurrentContext() != g.context &&
+      !eglMakeCurrent(g.display, g.surface, g.surface, g.context))
+    throw std::runtime_error(egl_error("cannot make the OpenGL context current"));
   const bool has_color = !eye.background.empty();
   const bool has_depth = !eye.depth_mm.empty();
   if ((has_color && eye.background.size() != size) || (has_depth && eye.depth_mm.size() != size))

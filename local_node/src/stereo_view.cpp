@@ -202,6 +202,8 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
   }
   const Intrinsics k_eye = size == depth_size ? in.k : eye_intrinsics(in.k, size);
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
+    // The old renderer goes first: its end releases the thread's current context.
+    renderer_.reset();
     renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
