@@ -238,6 +238,16 @@ void add_output_options(CLI::App& app, StationFlags& f) {
                  "starts (a scripted hand's time), instead of once a second and at the end: the "
                  "pictures show that moment of the run")
       ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--eye-size", f.eye_size,
+                 "each eye of the stereo view rendered at WxH pixels (e.g. 1280x720); default the "
+                 "eye video's size, or the depth's before video comes");
+  app.add_option("--view-layout", f.cfg.view_layout,
+                 "sbs: the stereo pair side by side | fig7: the paper's Fig. 7, the right eye "
+                 "beside the full-frame normal map with each fingertip's touch vector (god-point, "
+                 "normal, force, shear); --view png:DIR writes it as DIR/fig7.png, a window shows "
+                 "it")
+      ->check(CLI::IsMember({"sbs", "fig7"}))
+      ->capture_default_str();
   app.add_option("--stereo-baseline", f.cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")
       ->check(CLI::Range(0.0, 1.0));
@@ -309,6 +319,13 @@ void resolve_station_flags(StationFlags& f) {
                                std::to_string(f.cfg.haptic_cpu) +
                                    " is not a CPU this process may run on (it has " +
                                    std::to_string(usable_cpu_count()) + ")");
+  if (!f.eye_size.empty()) {
+    try {
+      f.cfg.eye_size = parse_eye_size(f.eye_size);
+    } catch (const std::invalid_argument& e) {
+      throw CLI::ValidationError("--eye-size", e.what());
+    }
+  }
   if (f.elbow_bodies.empty()) return;
   int left = -2, right = -2;
   char comma = 0, extra = 0;
@@ -318,6 +335,17 @@ void resolve_station_flags(StationFlags& f) {
         "--elbow-bodies", "expected LEFT,RIGHT body ids (-1 none), got '" + f.elbow_bodies + "'");
   f.cfg.tracker.left_elbow_body_id = left;
   f.cfg.tracker.right_elbow_body_id = right;
+}
+
+cv::Size parse_eye_size(const std::string& text) {
+  int w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X'))
+    throw std::invalid_argument("expected WIDTHxHEIGHT in pixels (e.g. 1280x720), got '" + text +
+                                "'");
+  if (w < 16 || h < 16 || w > 8192 || h > 8192)
+    throw std::invalid_argument("each side must be 16..8192 pixels, got '" + text + "'");
+  return {w, h};
 }
 
 void apply_security_flags(StationFlags& f) {

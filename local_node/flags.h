@@ -24,6 +24,7 @@ struct StationFlags {
   std::string psk_file, cert_file, key_file, ca_file;
   bool insecure = false;
   std::string elbow_bodies;
+  std::string eye_size;  // --eye-size WxH, into cfg.eye_size
   bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;
   bool no_head = false, head_naive = false, no_supervisor = false;
   bool full_frame = false, roi_flag = false, no_fill_here = false;
@@ -42,6 +43,9 @@ void add_station_options(CLI::App& app, StationFlags& flags);
 // After parsing: --connect and --elbow-bodies into the configuration. Throws CLI::ValidationError
 // naming the flag.
 void resolve_station_flags(StationFlags& flags);
+
+// --eye-size's text: "WxH", each in 16..8192. Throws std::invalid_argument saying what is wrong.
+cv::Size parse_eye_size(const std::string& text);
 
 // --psk, --cert/--key/--ca and --insecure: the keys loaded and checked, and a plain link off
 // loopback refused without --insecure. Throws std::invalid_argument naming the flag.

@@ -19,177 +19,10 @@
 #include <stdexcept>
 #include <vector>
 
+#include "body_pass.h"
+
 namespace telex::local {
 namespace {
-
-// Capsules are ray-cast in the fragment shader over a box around each (12 triangles a capsule:
-// Mesa's llvmpipe pays per triangle, and a tessellated arm and hand cost it 40 ms an eye). The
-// box vertex shader places a unit cube's corner c in [0, 1]^3 around the segment a-b, radius r.
-constexpr const char* kCapsuleVs = R"(#version 330 core
-layout(location = 0) in vec3 a_corner;
-layout(location = 1) in vec3 a_a;       // per instance, eye frame
-layout(location = 2) in vec3 a_b;
-layout(location = 3) in float a_radius;
-layout(location = 4) in vec3 a_color;
-uniform mat4 u_projection;
-out vec3 v_position;
-flat out vec3 v_a;
-flat out vec3 v_b;
-flat out float v_radius;
-flat out vec3 v_color;
-void main() {
-  vec3 d = a_b - a_a;
-  float len = length(d);
-  vec3 axis = len > 1e-9 ? d / len : vec3(0.0, 0.0, 1.0);
-  vec3 helper = abs(axis.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
-  vec3 u = normalize(cross(axis, helper));
-  vec3 w = cross(axis, u);
-  // A little larger than the capsule, so its silhouette is never cut by the box.
-  float r = a_radius * 1.01;
-  vec3 p = a_a + u * (a_corner.x * 2.0 - 1.0) * r + w * (a_corner.y * 2.0 - 1.0) * r +
-           axis * (-r + a_corner.z * (len + 2.0 * r));
-  v_position = p;
-  v_a = a_a;
-  v_b = a_b;
-  v_radius = a_radius;
-  v_color = a_color;
-  gl_Position = u_projection * vec4(p, 1.0);
-}
-)";
-
-// The eye sits at the origin; the ray through this fragment meets the capsule (Quilez's capsule
-// intersection) or the fragment is discarded. Depth is the hit's, shading Lambert from the eye.
-constexpr const char* kCapsuleFs = R"(#version 330 core
-uniform float u_near;
-uniform float u_far;
-in vec3 v_position;
-flat in vec3 v_a;
-flat in vec3 v_b;
-flat in float v_radius;
-flat in vec3 v_color;
-out vec4 o_color;
-float sphere_hit(vec3 rd, vec3 c, float r) {
-  float b = dot(rd, -c);
-  float h = b * b - (dot(c, c) - r * r);
-  return h < 0.0 ? -1.0 : -b - sqrt(h);
-}
-void main() {
-  vec3 rd = normalize(v_position);
-  vec3 ba = v_b - v_a;
-  vec3 oa = -v_a;
-  float baba = dot(ba, ba);
-  float t = -1.0;
-  if (baba > 1e-12) {
-    float bard = dot(ba, rd);
-    float baoa = dot(ba, oa);
-    float a = baba - bard * bard;
-    if (a > 1e-9 * baba) {
-      float b = baba * dot(rd, oa) - baoa * bard;
-      float c = baba * dot(oa, oa) - baoa * baoa - v_radius * v_radius * baba;
-      float h = b * b - a * c;
-      if (h >= 0.0) {
-        float tb = (-b - sqrt(h)) / a;
-        float y = baoa + tb * bard;
-        if (y > 0.0 && y < baba) t = tb;
-      }
-    }
-  }
-  if (t < 0.0) {
-    // The round ends: the nearer hit of the two spheres.
-    float t1 = sphere_hit(rd, v_a, v_radius);
-    float t2 = sphere_hit(rd, v_b, v_radius);
-    t = t1 < 0.0 ? t2 : (t2 < 0.0 ? t1 : min(t1, t2));
-  }
-  if (t <= 0.0) discard;
-  vec3 hit = rd * t;
-  float k = baba > 1e-12 ? clamp(dot(hit - v_a, ba) / baba, 0.0, 1.0) : 0.0;
-  vec3 n = normalize(hit - (v_a + k * ba));
-  float lit = abs(dot(n, -rd));
-  o_color = vec4(v_color * (0.35 + 0.65 * lit), 1.0);
-  float z = clamp(hit.z, u_near, u_far);
-  float ndc = (u_far + u_near) / (u_far - u_near) - 2.0 * u_far * u_near / ((u_far - u_near) * z);
-  gl_FragDepth = ndc * 0.5 + 0.5;
-}
-)";
-
-GLuint compile(GLenum type, const char* source) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &source, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(s, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("stereo view: shader does not compile: ") + log);
-  }
-  return s;
-}
-
-GLuint link(const char* vs, const char* fs) {
-  const GLuint p = glCreateProgram();
-  const GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
-  glAttachShader(p, v);
-  glAttachShader(p, f);
-  glLinkProgram(p);
-  glDeleteShader(v);
-  glDeleteShader(f);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetProgramInfoLog(p, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("stereo view: shaders do not link: ") + log);
-  }
-  return p;
-}
-
-// One capsule as the box shader takes it: both ends in the eye's frame, radius, colour.
-struct Instance {
-  std::array<float, 3> a, b;
-  float radius;
-  std::array<float, 3> rgb;
-};
-
-// The unit cube's 12 triangles, instanced once per capsule.
-struct Boxes {
-  GLuint vao = 0, vbo = 0, instances = 0;
-  GLsizei vertices = 0;
-};
-
-Boxes make_boxes() {
-  const float c[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
-                         {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-  const int faces[6][4] = {{0, 1, 2, 3}, {4, 5, 6, 7}, {0, 1, 5, 4},
-                           {3, 2, 6, 7}, {0, 3, 7, 4}, {1, 2, 6, 5}};
-  std::vector<float> corners;
-  for (const auto& f : faces)
-    for (int k : {0, 1, 2, 0, 2, 3}) corners.insert(corners.end(), c[f[k]], c[f[k]] + 3);
-  Boxes m;
-  glGenVertexArrays(1, &m.vao);
-  glGenBuffers(1, &m.vbo);
-  glGenBuffers(1, &m.instances);
-  glBindVertexArray(m.vao);
-  glBindBuffer(GL_ARRAY_BUFFER, m.vbo);
-  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(corners.size() * sizeof(float)),
-               corners.data(), GL_STATIC_DRAW);
-  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
-  glEnableVertexAttribArray(0);
-  glBindBuffer(GL_ARRAY_BUFFER, m.instances);
-  const auto attrib = [](GLuint loc, GLint n, std::size_t offset) {
-    glVertexAttribPointer(loc, n, GL_FLOAT, GL_FALSE, sizeof(Instance),
-                          reinterpret_cast<const void*>(offset));
-    glEnableVertexAttribArray(loc);
-    glVertexAttribDivisor(loc, 1);
-  };
-  attrib(1, 3, offsetof(Instance, a));
-  attrib(2, 3, offsetof(Instance, b));
-  attrib(3, 1, offsetof(Instance, radius));
-  attrib(4, 3, offsetof(Instance, rgb));
-  m.vertices = static_cast<GLsizei>(corners.size() / 3);
-  glBindVertexArray(0);
-  return m;
-}
 
 std::string egl_error(const char* what) {
   char hex[16];
@@ -206,15 +39,28 @@ std::vector<Capsule> body_capsules(const BodyState& body,
   std::vector<Capsule> out;
   for (const ArmState& arm : body.arms) {
     if (!arm.visible) continue;
-    const auto cap = [&](const glm::dvec3& a, const glm::dvec3& b, double r) {
-      out.push_back({to_right_eye(a), to_right_eye(b), r, skin});
+    const auto cap = [&](const glm::dvec3& a, const glm::dvec3& b, double ra, double rb) {
+      out.push_back({to_right_eye(a), to_right_eye(b), ra, skin, true, rb});
     };
-    cap(arm.shoulder, arm.elbow, 0.045);
-    cap(arm.elbow, arm.wrist, 0.035);
-    constexpr std::array<double, 3> kPhalanx{0.009, 0.008, 0.007};
-    for (const auto& finger : arm.hand.joints) {
-      cap(arm.wrist, finger[0], 0.014);
-      for (std::size_t s = 0; s < 3; ++s) cap(finger[s], finger[s + 1], kPhalanx[s]);
+    // Each arm segment in two, so that the long part, large on screen, blends with one neighbour
+    // only and the short one by the wrist with the palm's fan.
+    const glm::dvec3 p_wrist_joint = arm.wrist + 0.2 * (arm.elbow - arm.wrist);
+    cap(arm.shoulder, arm.elbow, 0.045, 0.038);
+    cap(arm.elbow, p_wrist_joint, 0.036, 0.028);
+    cap(p_wrist_joint, arm.wrist, 0.028, 0.026);
+    // Radii at the knuckle, the two finger joints and the tip (the thumb 15 % fuller); each
+    // joint's ball is a little fuller than the bones it joins.
+    constexpr std::array<double, 4> kFinger{0.0095, 0.0085, 0.0078, 0.0068};
+    constexpr double kKnuckle = 1.06, kThumb = 1.15;
+    for (std::size_t f = 0; f < arm.hand.joints.size(); ++f) {
+      const auto& finger = arm.hand.joints[f];
+      const double scale = f == 0 ? kThumb : 1.0;
+      cap(arm.wrist, finger[0], 0.02, 0.013 * scale);
+      for (std::size_t s = 0; s < 3; ++s) {
+        const double r = kFinger[s] * scale;
+        cap(finger[s], finger[s], r * kKnuckle, r * kKnuckle);
+        cap(finger[s], finger[s + 1], r, kFinger[s + 1] * scale);
+      }
     }
   }
   return out;
@@ -239,11 +85,9 @@ struct StereoRenderer::Impl {
   EGLContext context = EGL_NO_CONTEXT;
   EGLSurface surface = EGL_NO_SURFACE;
   GLuint fbo = 0, color_tex = 0, depth_tex = 0;
-  GLuint capsule = 0;
   std::vector<float> window_depth;  // by depth in mm
   cv::Mat1f depth_upload;
-  Boxes boxes;
-  std::vector<Instance> instances;  // this frame's, reused
+  std::unique_ptr<BodyPass> body;
   cv::Mat4b color_upload, readback;
 
   void init_egl() {
@@ -308,8 +152,7 @@ struct StereoRenderer::Impl {
                          2.0 * kFar_m * kNear_m / ((kFar_m - kNear_m) * z);
       window_depth[mm] = static_cast<float>(ndc * 0.5 + 0.5);
     }
-    capsule = link(kCapsuleVs, kCapsuleFs);
-    boxes = make_boxes();
+    body = std::make_unique<BodyPass>();
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
   }
@@ -330,7 +173,9 @@ StereoRenderer::StereoRenderer(int width, int height) : impl_(std::make_unique<I
 
 StereoRenderer::~StereoRenderer() {
   if (impl_->display == EGL_NO_DISPLAY) return;
-  eglMakeCurrent(impl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  // Only this renderer's own context is released: another one made since stays current.
+  if (eglGetCurrentContext() == impl_->context)
+    eglMakeCurrent(impl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   if (impl_->surface != EGL_NO_SURFACE) eglDestroySurface(impl_->display, impl_->surface);
   if (impl_->context != EGL_NO_CONTEXT) eglDestroyContext(impl_->display, impl_->context);
   // No eglTerminate: the display is shared with any other renderer in the process.
@@ -348,6 +193,10 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
                                 "x" + std::to_string(eye.k.height) + ", the renderer " +
                                 std::to_string(g.width) + "x" + std::to_string(g.height));
   const cv::Size size(g.width, g.height);
+  // With two renderers on a thread, the one drawing needs its own context current.
+  if (eglGetCurrentContext() != g.context &&
+      !eglMakeCurrent(g.display, g.surface, g.surface, g.context))
+    throw std::runtime_error(egl_error("cannot make the OpenGL context current"));
   const bool has_color = !eye.background.empty();
   const bool has_depth = !eye.depth_mm.empty();
   if ((has_color && eye.background.size() != size) || (has_depth && eye.depth_mm.size() != size))
@@ -382,34 +231,13 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
   glEnable(GL_DEPTH_TEST);
   glDisable(GL_CULL_FACE);
 
+  const glm::mat4 projection = projection_from_intrinsics(eye.k, kNear_m, kFar_m);
+  if (has_depth)
+    g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips, g.depth_upload);
   // The body, hidden where the remote scene is nearer.
   glDepthFunc(GL_LESS);
-  glUseProgram(g.capsule);
-  const glm::mat4 projection = projection_from_intrinsics(eye.k, kNear_m, kFar_m);
-  glUniformMatrix4fv(glGetUniformLocation(g.capsule, "u_projection"), 1, GL_FALSE,
-                     glm::value_ptr(projection));
-  glUniform1f(glGetUniformLocation(g.capsule, "u_near"), static_cast<float>(kNear_m));
-  glUniform1f(glGetUniformLocation(g.capsule, "u_far"), static_cast<float>(kFar_m));
-  g.instances.clear();
-  for (const Capsule& c : capsules) {
-    const glm::dvec3 a = c.a - eye.p_RightEye, b = c.b - eye.p_RightEye;
-    if (!(c.radius_m > 0.0) || !std::isfinite(c.radius_m) || !std::isfinite(a.x + a.y + a.z) ||
-        !std::isfinite(b.x + b.y + b.z))
-      continue;
-    g.instances.push_back(
-        {{static_cast<float>(a.x), static_cast<float>(a.y), static_cast<float>(a.z)},
-         {static_cast<float>(b.x), static_cast<float>(b.y), static_cast<float>(b.z)},
-         static_cast<float>(c.radius_m),
-         {c.bgr[2] / 255.0f, c.bgr[1] / 255.0f, c.bgr[0] / 255.0f}});
-  }
-  if (!g.instances.empty()) {
-    glBindBuffer(GL_ARRAY_BUFFER, g.boxes.instances);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.instances.size() * sizeof(Instance)),
-                 g.instances.data(), GL_STREAM_DRAW);
-    glBindVertexArray(g.boxes.vao);
-    glDrawArraysInstanced(GL_TRIANGLES, 0, g.boxes.vertices,
-                          static_cast<GLsizei>(g.instances.size()));
-  }
+  g.body->draw_body(projection, eye.p_RightEye, capsules,
+                    exposure_from_image(has_color ? eye.background : cv::Mat3b()));
 
   g.readback.create(size);
   glReadPixels(0, 0, g.width, g.height, GL_BGRA, GL_UNSIGNED_BYTE, g.readback.data);

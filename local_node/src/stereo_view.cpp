@@ -10,6 +10,7 @@
 
 #include "telex/common/colorize.h"
 #include "telex/common/registration.h"
+#include "telex/local/fig7_view.h"
 #include "telex/local/status_band.h"
 
 namespace telex::local {
@@ -28,11 +29,11 @@ cv::Vec3b pressure_bgr(double n) {
           static_cast<unsigned char>(80 + 175 * t)};
 }
 
-// The overlay: the normal-map inset (top right, a quarter of the width) and the status text,
-// wrapped to fit the width.
-void overlay(cv::Mat3b& img, const StereoViewInputs& in) {
-  if (in.surface != nullptr && !in.surface->normals.empty()) {
-    const cv::Mat3b inset = colorize_normals(in.surface->normals);
+// The overlay: the normal-map inset (top right, a quarter of the width; none when empty) and the
+// status text, wrapped to fit the width.
+void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3f& normals) {
+  if (!normals.empty()) {
+    const cv::Mat3b inset = colorize_normals(normals);
     const int w = img.cols / 4, h = w * inset.rows / std::max(1, inset.cols);
     if (w > 0 && h > 0 && h < img.rows) {
       cv::Mat3b small;
@@ -99,13 +100,27 @@ std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in) {
     const FingertipForce& f = in.forces[i];
     if (!hand.tips[i].valid || !f.contact) continue;
     const glm::dvec3 p = f.p_ModelProxy;
-    out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N)});
+    out.push_back({p, p, 0.010, pressure_bgr(f.normal_force_N), false});
     const glm::dvec3 end = p + f.force_N * in.arrow_m_per_N;
     if (glm::length(end - p) > 1e-4) {
-      out.push_back({p, end, 0.002, {0, 200, 255}});
-      out.push_back({end, end, 0.004, {0, 200, 255}});
+      out.push_back({p, end, 0.002, {0, 200, 255}, false});
+      out.push_back({end, end, 0.004, {0, 200, 255}, false});
     }
   }
+  return out;
+}
+
+std::vector<glm::dvec3> view_fingertips(const HandState& hand) {
+  std::vector<glm::dvec3> out;
+  bool right_tracked = false;
+  for (const Side side : kSides) {
+    const ArmTrack& a = hand.arms[index_of(side)];
+    if (!a.wrist_valid) continue;
+    right_tracked = right_tracked || side == Side::Right;
+    for (const auto& finger : a.joints_camera) out.push_back(finger[3]);
+  }
+  if (!right_tracked && hand.skeleton_valid)
+    for (const auto& finger : hand.joints_camera) out.push_back(finger[3]);
   return out;
 }
 
@@ -159,33 +174,66 @@ void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> e
   for (const Side side : kSides) {
     EyeView& e = *eyes[index_of(side)];
     auto& w = warp_[index_of(side)];
-    if (!w) w = std::make_unique<DepthWarp>(in.k.width, in.k.height);
+    if (!w) w = std::make_unique<DepthWarp>(e.k.width, e.k.height);
     WarpedEye warped =
-        w->warp(e.background, e.depth_mm, in.k,
+        w->warp(e.background, e.depth_mm, e.k,
                 eye_display_from_capture(R_DisplayCapture, e.p_RightEye), R_DisplayPrevious);
     e.background = std::move(warped.bgr);
     e.depth_mm = std::move(warped.depth_mm);
   }
 }
 
+Intrinsics eye_intrinsics(const Intrinsics& k, cv::Size size) {
+  const double s = std::max(static_cast<double>(size.width) / k.width,
+                            static_cast<double>(size.height) / k.height);
+  Intrinsics out = k;
+  out.fx = k.fx * s;
+  out.fy = k.fy * s;
+  // Pixel centres scale as (c + 0.5) s - 0.5; the overhang of the scaled image is cut evenly.
+  out.cx = (k.cx + 0.5) * s - 0.5 - (k.width * s - size.width) / 2.0;
+  out.cy = (k.cy + 0.5) * s - 0.5 - (k.height * s - size.height) / 2.0;
+  out.width = size.width;
+  out.height = size.height;
+  return out;
+}
+
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         int interpolation, const cv::Scalar& border) {
+  if (image.empty() || (from == to && image.cols == to.width && image.rows == to.height))
+    return image;
+  // Output pixel (u, v) sees the ray ((u - to.cx) / to.fx, ...): in `image` at this affine map.
+  const double sx = from.fx / to.fx, sy = from.fy / to.fy;
+  const cv::Matx23d M(sx, 0.0, from.cx - sx * to.cx, 0.0, sy, from.cy - sy * to.cy);
+  cv::Mat out;
+  cv::warpAffine(image, out, M, {to.width, to.height}, interpolation | cv::WARP_INVERSE_MAP,
+                 cv::BORDER_CONSTANT, border);
+  return out;
+}
+
 StereoViewImages StereoView::render(const StereoViewInputs& in) {
   StereoViewImages out;
-  const cv::Size size(in.k.width, in.k.height);
+  const cv::Size depth_size(in.k.width, in.k.height);
+  cv::Size size = in.eye_size;
+  if (size.empty()) {
+    const cv::Mat3b& video = in.eye_bgr[1].empty() ? in.eye_bgr[0] : in.eye_bgr[1];
+    size = video.empty() ? depth_size : video.size();
+  }
+  const Intrinsics k_eye = size == depth_size ? in.k : eye_intrinsics(in.k, size);
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
     for (auto& w : warp_) w.reset();  // their objects live in the old renderer's context
+    // The old renderer goes first: its end releases the thread's current context.
+    renderer_.reset();
     renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
-  const auto fit = [&size](const cv::Mat3b& m) {
-    if (m.empty() || m.size() == size) return m;
-    cv::Mat3b r;
-    cv::resize(m, r, size, 0, 0, cv::INTER_AREA);
-    return r;
+  // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
+  const auto fit = [&](const cv::Mat3b& m) -> cv::Mat3b {
+    if (m.empty()) return m;
+    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k_eye, cv::INTER_LINEAR);
   };
-  // A calibrated eye is undistorted (and the left one rectified) into the depth's camera; an
-  // uncalibrated one is only resized to it.
+  // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], in.k) : fit(in.eye_bgr[i]);
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_eye) : fit(in.eye_bgr[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   out.one_eye = eye[0].empty() != eye[1].empty();
@@ -194,15 +242,19 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
 
   const std::vector<Capsule> capsules = view_capsules(body_, in);
   EyeView right, left;
-  right.k = left.k = in.k;
+  right.k = left.k = k_eye;
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
+  right.fingertips = left.fingertips = view_fingertips(in.hand);
   right.background = eye[index_of(Side::Right)];
   left.background = eye[index_of(Side::Left)];
-  if (!in.depth_mm.empty() && in.depth_mm.size() == size) {
-    right.depth_mm = in.depth_mm;
+  if (!in.depth_mm.empty() && in.depth_mm.size() == depth_size) {
     // The remote depth is registered to the right eye; the left eye sees it from B to the left.
+    // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
+    // an edge) at each eye pixel's ray.
     const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
-    left.depth_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+    const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+    right.depth_mm = resample_pinhole(in.depth_mm, in.k, k_eye, cv::INTER_NEAREST);
+    left.depth_mm = resample_pinhole(left_mm, in.k, k_eye, cv::INTER_NEAREST);
     if (in.R_BaseCapture && in.R_BaseDisplay && !eye[0].empty()) {
       warp_eyes(in, {&left, &right});
       out.warped = true;
@@ -215,8 +267,18 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
   }
   out.right = renderer_->render(right, capsules);
   out.left = renderer_->render(left, capsules);
-  overlay(out.left, in);
-  overlay(out.right, in);
+  // The normal map the view shows: full-frame, computed here when the haptic path built only
+  // fingertip windows.
+  const bool depth_fits = !in.depth_mm.empty() && in.depth_mm.size() == depth_size;
+  const cv::Mat3f normals =
+      depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
+  if (in.fig7) {
+    cv::Mat3b interaction = out.right.clone();
+    overlay(interaction, in, {});
+    out.fig7 = fig7_layout(interaction, k_eye, normals, in.k, in.forces, in.arrow_m_per_N);
+  }
+  overlay(out.left, in, normals);
+  overlay(out.right, in, normals);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }

@@ -308,8 +308,9 @@ TEST(NatNetTracker, BothArmsWithShouldersAndElbowsReachTheViewsBody) {
     EXPECT_EQ(arm.elbow_from, ElbowFrom::Marker) << elbow_from_name(arm.elbow_from);
     EXPECT_LT(glm::length(arm.elbow - st.arms[index_of(side)].p_CameraElbow), 0.06);
   }
-  // Two arms of 2 segments + 5 fingers x 4 capsules each.
-  EXPECT_EQ(capsules.size(), 2u * (2 + 5 * 4));
+  // Two arms: the upper arm and the forearm in two, and per finger its palm capsule, three
+  // phalanges and three joint balls.
+  EXPECT_EQ(capsules.size(), 2u * (3 + 5 * 7));
 }
 
 TEST(NatNetTracker, SpecErrors) {

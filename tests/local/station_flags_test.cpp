@@ -52,6 +52,13 @@ TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
   EXPECT_FALSE(f.cfg.status_line);
 }
 
+TEST(StationFlags, EyeSizeReachesTheConfigAndDefaultsToTheVideos) {
+  EXPECT_TRUE(parse({}).cfg.eye_size.empty());
+  EXPECT_EQ(parse({"--eye-size", "1280x720"}).cfg.eye_size, cv::Size(1280, 720));
+  EXPECT_EQ(parse({}).cfg.view_layout, "sbs");
+  EXPECT_EQ(parse({"--view-layout", "fig7"}).cfg.view_layout, "fig7");
+}
+
 TEST(StationFlags, BadValuesNameTheFlag) {
   const struct {
     std::vector<std::string> args;
@@ -64,6 +71,10 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--rate", "5"}, "--rate"},
       {{"--transport", "sctp"}, "--transport"},
       {{"--warp", "yes"}, "--warp"},
+      {{"--eye-size", "1280"}, "--eye-size"},
+      {{"--eye-size", "1280x720x3"}, "--eye-size"},
+      {{"--eye-size", "8x8"}, "--eye-size"},
+      {{"--view-layout", "quad"}, "--view-layout"},
   };
   for (const auto& c : cases) {
     try {

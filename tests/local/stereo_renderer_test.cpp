@@ -8,6 +8,7 @@
 
 #include <cstdlib>
 #include <iostream>
+#include <memory>
 
 namespace telex::local {
 namespace {
@@ -104,6 +105,17 @@ TEST(StereoRenderer, BadSizesAreRefusedWithTheSizes) {
   e.k = kinect_v1_intrinsics(320, 240);
   e.background = cv::Mat3b(100, 100);
   EXPECT_THROW(r.render(e, {}), std::invalid_argument);
+}
+
+TEST(StereoRenderer, TwoOnOneThreadEachDrawsWithItsOwnContext) {
+  auto first = std::make_unique<StereoRenderer>(320, 240);
+  StereoRenderer second(640, 480);
+  EyeView small = eye(false, {});
+  small.k = kinect_v1_intrinsics(320, 240);
+  small.background = cv::Mat3b(240, 320, cv::Vec3b(40, 40, 40));
+  EXPECT_EQ(first->render(small, {}).size(), cv::Size(320, 240));
+  first.reset();  // its end must not take the second's context away
+  EXPECT_EQ(second.render(eye(false, {}), {}).size(), cv::Size(640, 480));
 }
 
 TEST(StereoRendererDeathTest, NoEglVendorIsAClearError) {

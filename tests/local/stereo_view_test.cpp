@@ -129,5 +129,52 @@ TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
   EXPECT_NEAR(green_x(turned.left), 320.0 - in.k.fx * std::tan(a), 1.5);
 }
 
+TEST(StereoView, EyesComeOutAtTheRequestedSizeElseTheVideosElseTheDepths) {
+  StereoView view(640, 480);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{2000});
+  in.eye_size = {1280, 720};
+  in.eye_bgr = {cv::Mat3b(480, 640, cv::Vec3b(60, 60, 60)),
+                cv::Mat3b(480, 640, cv::Vec3b(60, 60, 60))};
+  StereoViewImages v = view.render(in);
+  EXPECT_EQ(v.left.size(), cv::Size(1280, 720));
+  EXPECT_EQ(v.right.size(), cv::Size(1280, 720));
+  EXPECT_EQ(v.sbs.size(), cv::Size(2560, 720));
+  in.eye_size = {};
+  in.eye_bgr = {cv::Mat3b(720, 1280, cv::Vec3b(60, 60, 60)), cv::Mat3b()};
+  EXPECT_EQ(view.render(in).right.size(), cv::Size(1280, 720));
+  in.eye_bgr = {};
+  EXPECT_EQ(view.render(in).right.size(), cv::Size(640, 480));
+}
+
+// A wall 30 cm away fills the depth's rows above `edge_row` (640x480); the rest is far. The
+// 1280x720 eyes see the depth camera at twice its scale with 120 rows cropped top and bottom, so
+// the wall must end at the eye row that sees depth row `edge_row`, not at a stretched one.
+TEST(StereoView, TheRemoteDepthHidesTheBodyWhereItsRaysMeetItAtTheEyesSize) {
+  StereoView view(1280, 720);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  in.eye_size = {1280, 720};
+  const glm::dvec3 tip = in.hand.joints_camera[1][3];
+  const double tip_row_depth = in.k.fy * tip.y / tip.z + in.k.cy;
+  const Intrinsics k_eye = eye_intrinsics(in.k, in.eye_size);
+  EXPECT_DOUBLE_EQ(k_eye.fx, 2.0 * in.k.fx);
+  EXPECT_DOUBLE_EQ(k_eye.cy, (in.k.cy + 0.5) * 2.0 - 0.5 - 120.0);
+  const int u = static_cast<int>(std::lround(k_eye.fx * tip.x / tip.z + k_eye.cx));
+  const int v = static_cast<int>(std::lround(k_eye.fy * tip.y / tip.z + k_eye.cy));
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  const auto right_at_tip = [&](int edge_row) {
+    in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{3000});
+    in.depth_mm(cv::Rect(0, 0, 640, edge_row)).setTo(300);
+    return view.render(in).right(v, u);
+  };
+  const int row = static_cast<int>(tip_row_depth);
+  EXPECT_FALSE(skin(right_at_tip(row + 3))) << "the wall reaches 3 depth rows below the tip";
+  EXPECT_TRUE(skin(right_at_tip(row - 3))) << "the wall ends 3 depth rows above the tip";
+}
+
 }  // namespace
 }  // namespace telex::local

@@ -420,9 +420,14 @@ TEST_F(OnXvfb, TheStereoRenderersThreadFeedsTheWindowOnTheMainThread) {
   save(screen, "renderer_thread");
   const cv::Rect lb = letterbox(last.size(), {1920, 1080});
   EXPECT_LT(mean_difference(screen, lb, last), 3.0);
-  // The capsule (red above blue) in both halves on the screen.
-  for (const double cx : {320.0, 960.0})
-    EXPECT_EQ(screen_at(screen, lb, last.size(), {cx, 240}), last(240, static_cast<int>(cx)));
+  // The capsule (red above blue) in both halves on the screen; the window's scaling blends
+  // neighbouring pixels, and the body's light varies across it, so within a few levels.
+  for (const double cx : {320.0, 960.0}) {
+    const cv::Vec3b got = screen_at(screen, lb, last.size(), {cx, 240});
+    const cv::Vec3b want = last(240, static_cast<int>(cx));
+    EXPECT_GT(want[2], want[0] + 60) << "the capsule is not at the frame's centre";
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], 3) << "channel " << c;
+  }
 }
 
 }  // namespace

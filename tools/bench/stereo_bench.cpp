@@ -1,13 +1,16 @@
 // SPDX-License-Identifier: MIT
 // The stereo view (issue 12's goal: one 640x480 pair, both eyes, rendered headless in at most
-// 8 ms median on this 2-core machine with Mesa's llvmpipe): background image, remote depth and
-// both arms and hands (50 capsules) per eye, read back to BGR.
+// 8 ms median on this 2-core machine with Mesa's llvmpipe; issue 29's: a 1280x720 pair): background
+// image, remote depth, the fingertips' contact shadows and both smooth arms and hands per eye,
+// read back to BGR.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "telex/local/fig7_view.h"
 #include "telex/local/stereo_renderer.h"
+#include "telex/local/stereo_view.h"
 
 namespace telex::local {
 namespace {
@@ -33,19 +36,26 @@ BodyState reaching_body() {
   return b.update(in);
 }
 
-void BM_StereoPair640x480(benchmark::State& state) {
-  StereoRenderer r(640, 480);
-  const auto capsules = body_capsules(reaching_body(), [](const glm::dvec3& p) { return p; });
+// One pair at `width` x `height` (the depth and image at that size): background upload, depth
+// upload, contact shadows of the ten fingertips, both smooth arms and hands, readback.
+void stereo_pair(benchmark::State& state, int width, int height) {
+  StereoRenderer r(width, height);
+  const BodyState body = reaching_body();
+  const auto capsules = body_capsules(body, [](const glm::dvec3& p) { return p; });
   EyeView right, left;
-  right.k = left.k = kinect_v1_intrinsics(640, 480);
+  right.k = left.k = kinect_v1_intrinsics(640, 480).scaled(width, height);
   left.p_RightEye = {-0.064, 0.0, 0.0};
-  cv::Mat3b image(480, 640);
+  cv::Mat3b image(height, width);
   cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
-  cv::Mat1w depth(480, 640);
-  for (int y = 0; y < 480; ++y)
-    for (int x = 0; x < 640; ++x) depth(y, x) = static_cast<std::uint16_t>(600 + y + x / 4);
+  cv::Mat1w depth(height, width);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      depth(y, x) = static_cast<std::uint16_t>(600 + (y + x / 4) * 480 / height);
   right.background = left.background = image;
   right.depth_mm = left.depth_mm = depth;
+  for (const ArmState& arm : body.arms)
+    for (const auto& finger : arm.hand.joints) right.fingertips.push_back(finger[3]);
+  left.fingertips = right.fingertips;
   for (auto _ : state) {
     const cv::Mat3b a = r.render(right, capsules);
     const cv::Mat3b b = r.render(left, capsules);
@@ -53,7 +63,33 @@ void BM_StereoPair640x480(benchmark::State& state) {
   }
   state.counters["capsules"] = static_cast<double>(capsules.size());
 }
+
+void BM_StereoPair640x480(benchmark::State& state) { stereo_pair(state, 640, 480); }
 BENCHMARK(BM_StereoPair640x480)->Unit(benchmark::kMillisecond)->UseRealTime();
+// The issue 29 goal: a 1280x720 pair (render + warp <= 16 ms on llvmpipe).
+void BM_StereoPair1280x720(benchmark::State& state) { stereo_pair(state, 1280, 720); }
+BENCHMARK(BM_StereoPair1280x720)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Fig. 7's own normal map (the view thread's work when the haptic path builds only fingertip
+// windows) and its composition at 1280x720 eyes.
+void BM_Fig7NormalMapAndLayout(benchmark::State& state) {
+  const Intrinsics k = kinect_v1_intrinsics(640, 480);
+  cv::Mat1w depth(480, 640);
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) depth(y, x) = static_cast<std::uint16_t>(700 + y + x / 4);
+  const Intrinsics k_eye = eye_intrinsics(k, {1280, 720});
+  const cv::Mat3b interaction(720, 1280, cv::Vec3b(90, 90, 90));
+  std::array<FingertipForce, kFingerCount> forces{};
+  forces[1].contact = true;
+  forces[1].p_ModelProxy = {0.0, 0.0, 0.9};
+  forces[1].force_N = {0.3, 0.0, -1.5};
+  for (auto _ : state) {
+    const cv::Mat3f normals = display_normals(depth, k);
+    const cv::Mat3b fig7 = fig7_layout(interaction, k_eye, normals, k, forces, 0.02);
+    benchmark::DoNotOptimize(fig7.data[0]);
+  }
+}
+BENCHMARK(BM_Fig7NormalMapAndLayout)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace telex::local

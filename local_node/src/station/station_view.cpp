@@ -157,7 +157,8 @@ void StationView::run_stereo(std::stop_token stop) {
   // (SCHED_FIFO, or its own thread at nice 0).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
   try {
-    StereoView view(640, 480, cfg_.body);
+    const cv::Size first = cfg_.eye_size.empty() ? cv::Size(640, 480) : cfg_.eye_size;
+    StereoView view(first.width, first.height, cfg_.body);
     view.set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
     for (;;) {
       StereoViewInputs in;
@@ -187,6 +188,8 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
   if (!vs) return false;
   in.surface = vs.get();
   in.k = vs->intrinsics;
+  in.eye_size = cfg_.eye_size;
+  in.fig7 = cfg_.view_layout == "fig7";
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
   // Each eye's frame captured nearest to the depth drawn over it; the larger gap is shown.
@@ -220,7 +223,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     warned_one_eye_ = true;
   }
   if (spec_.on_screen())
-    sbs_for_window_.put(v.sbs);
+    sbs_for_window_.put(in.fig7 ? v.fig7 : v.sbs);
   else
     write_stereo_files(v);
   return true;
@@ -228,8 +231,9 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
 
 void StationView::write_stereo_files(const StereoViewImages& v) const {
   const std::filesystem::path& dir = spec_.dir;
-  for (const auto& [name, img] :
-       {std::pair{"left", &v.left}, std::pair{"right", &v.right}, std::pair{"sbs", &v.sbs}}) {
+  for (const auto& [name, img] : {std::pair{"left", &v.left}, std::pair{"right", &v.right},
+                                  std::pair{"sbs", &v.sbs}, std::pair{"fig7", &v.fig7}}) {
+    if (img->empty()) continue;
     const auto tmp = dir / (std::string(name) + ".tmp.png");
     if (cv::imwrite(tmp.string(), *img))
       std::filesystem::rename(tmp, dir / (std::string(name) + ".png"));

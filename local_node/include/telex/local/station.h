@@ -69,6 +69,12 @@ struct StationConfig {
   // --view-at: png views are written once, this many seconds after the first haptic tick (a hand
   // script's time zero), instead of once a second and at the end (< 0: off).
   double view_at_s = -1.0;
+  // --eye-size: each eye of the stereo view rendered at this size; empty: the eye video's size
+  // when video comes, else the depth's.
+  cv::Size eye_size;
+  // --view-layout: "sbs" (the eyes side by side) or "fig7" (the right eye beside the normal map
+  // with the touch vectors; png:DIR also writes fig7.png, a window shows it instead of the pair).
+  std::string view_layout = "sbs";
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The operator's stereo view, one eye at a time: that eye's camera image as the background, the
-// remote depth registered to that eye written into the depth buffer, and the virtual body drawn as
-// shaded capsules, so the real scene hides the body wherever it is nearer. OpenGL 3.3 core through
+// remote depth registered to that eye written into the depth buffer, fingertips' contact shadows
+// on it, and the virtual body drawn as one smooth shaded surface over its capsules, so the real
+// scene hides the body wherever it is nearer. OpenGL 3.3 core through
 // libepoxy, on a headless EGL context (Mesa's llvmpipe runs it with no display and no GPU).
 #pragma once
 
@@ -19,12 +20,16 @@
 
 namespace telex::local {
 
-// A segment with round ends (two spheres joined by a cylinder), in the right eye's camera frame
-// (x right, y down, z forward, metres). a == b draws a sphere.
+// A segment with round ends (two spheres joined by a cylinder, or a cone tangent to both when the
+// radii differ), in the right eye's camera frame (x right, y down, z forward, metres). a == b
+// draws a sphere. Lit capsules that share an end (within 1 mm) blend into one smooth surface.
 struct Capsule {
   glm::dvec3 a{0.0}, b{0.0};
-  double radius_m = 0.01;
+  double radius_m = 0.01;  // at a
   cv::Vec3b bgr{180, 200, 230};
+  // Skin, lit as the scene (the eye image's brightness); false: a marker in its own colour.
+  bool lit = true;
+  double radius_b_m = -1.0;  // at b; negative: radius_m
 };
 
 struct EyeView {
@@ -34,6 +39,9 @@ struct EyeView {
   glm::dvec3 p_RightEye{0.0};
   cv::Mat3b background;  // BGR, k's size; empty: dark grey
   cv::Mat1w depth_mm;    // the remote depth registered to this eye, k's size; 0 or empty: no data
+  // Fingertips in the right eye's frame: each darkens the remote surface near it (a soft contact
+  // shadow, 5 cm reach).
+  std::vector<glm::dvec3> fingertips;
 };
 
 class StereoRenderer {
@@ -45,7 +53,8 @@ class StereoRenderer {
   StereoRenderer(const StereoRenderer&) = delete;
   StereoRenderer& operator=(const StereoRenderer&) = delete;
 
-  // One eye: background, depth, then the capsules with depth test. BGR, top row first. The
+  // One eye: background, depth, contact shadows, then the body with depth test; the skin's light
+  // follows the background's brightness. BGR, top row first. The
   // calling thread must be the one that constructed the renderer (the context is current there).
   cv::Mat3b render(const EyeView& eye, std::span<const Capsule> capsules);
 
@@ -58,8 +67,9 @@ class StereoRenderer {
 };
 
 // The visible arms and hands of `body` as capsules in the right eye's frame: upper arm and
-// forearm (radii 4.5 and 3.5 cm), the palm as a capsule from the wrist to each knuckle, three
-// phalanges per finger. `to_right_eye` maps a world point into the right eye's camera frame.
+// forearm tapering to the wrist, the palm as a fan of capsules from the wrist to the knuckles,
+// three tapering phalanges per finger and a slightly fuller ball at each finger joint (the
+// knuckles). `to_right_eye` maps a world point into the right eye's camera frame.
 std::vector<Capsule> body_capsules(const BodyState& body,
                                    const std::function<glm::dvec3(const glm::dvec3&)>& to_right_eye,
                                    cv::Vec3b skin_bgr = {150, 175, 225});

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
-// The operator's stereo view (--view png:DIR writes left.png, right.png, sbs.png): each eye's
-// camera image, the remote depth registered to that eye hiding the virtual body where the remote
-// scene is nearer, the arm and hand as shaded capsules, fingertips in contact coloured by pressure
-// with their force arrows in 3D, and the normal-map inset and status text as an overlay that fits.
+// The operator's stereo view (--view png:DIR writes left.png, right.png, sbs.png, and fig7.png
+// with --view-layout fig7): each eye's camera image, the remote depth registered to that eye
+// hiding the virtual body where the remote scene is nearer, the arm and hand as one smooth shaded
+// body with their contact shadows, fingertips in contact coloured by pressure with their force
+// arrows in 3D, and the normal-map inset and status text as an overlay that fits.
 #pragma once
 
 #include <array>
@@ -24,15 +25,19 @@ namespace telex::local {
 struct StereoViewInputs {
   std::array<cv::Mat3b, 2> eye_bgr;  // by Side (left 0, right 1); an empty one: the other eye's
   cv::Mat1w depth_mm;                // the remote depth, registered to the right eye
-  Intrinsics k;                      // the right eye's (and, rectified, the left eye's)
-  double baseline_m = 0.065;         // the left eye sits this far to the right eye's left
-  HandState hand;                    // camera (right eye) frame
+  Intrinsics k;                      // the depth's: the right eye's camera at the depth's size
+  // Each eye's image size (--eye-size); empty: the eye video's size when video came, else the
+  // depth's. The eyes see the depth's camera through eye_intrinsics(k, eye_size).
+  cv::Size eye_size;
+  double baseline_m = 0.065;  // the left eye sits this far to the right eye's left
+  HandState hand;             // camera (right eye) frame
   // The tick re-expressed in the camera (reexpress): there the Model frame is the Camera.
   std::array<FingertipForce, kFingerCount> forces{};
   const Surface* surface = nullptr;  // for the normal-map inset; may be null
   std::string status;
   double arrow_m_per_N = 0.02;        // force arrow length in the scene per newton
   cv::Vec3b skin_bgr{150, 175, 225};  // the body's colour (the rig's operator.skin_rgb)
+  bool fig7 = false;                  // also compose Fig. 7 (--view-layout fig7)
   // Where the operator's shoulders sit in the camera (right eye) frame, by Side, when the tracker
   // has no shoulder body: 30 cm below and 10 cm behind the eyes, the right one 20 cm right of the
   // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
@@ -47,6 +52,7 @@ struct StereoViewInputs {
 
 struct StereoViewImages {
   cv::Mat3b left, right, sbs;
+  cv::Mat3b fig7;        // with StereoViewInputs::fig7: the right eye beside the normal map
   bool one_eye = false;  // only one eye's image came: it was used for both
   bool warped = false;   // the eyes were reprojected to the operator's pose
 };
@@ -97,6 +103,16 @@ class StereoView {
   Body body_;
 };
 
+// The depth camera `k` at another image size: the same centre and square-pixel scale, the larger
+// of the two axes' scales, so the image is filled and the depth's field of view cropped on the
+// other axis (a 640x480 depth seen by 1280x720 eyes: scale 2, 120 rows cropped top and bottom).
+Intrinsics eye_intrinsics(const Intrinsics& k, cv::Size size);
+
+// `image`, taken with intrinsics `from`, resampled into intrinsics `to` (the same camera centre and
+// orientation), `to`'s size; outside `image`: `border`. Nearest keeps depth edges unblended.
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         int interpolation, const cv::Scalar& border = {});
+
 // Index of the capture time in `captures` nearest to `want_ns` (the first of equals); nullopt
 // for none. The view pairs each eye's video with the depth frame it draws over this way.
 std::optional<std::size_t> nearest_capture(std::span<const std::int64_t> captures,
@@ -104,5 +120,9 @@ std::optional<std::size_t> nearest_capture(std::span<const std::int64_t> capture
 
 // The arm and hand of `hand` (camera frame) and the fingertips' contact and force capsules.
 std::vector<Capsule> view_capsules(Body& body, const StereoViewInputs& in);
+
+// The tracked fingertips of both hands in the camera (right eye) frame: the contact shadows'
+// casters.
+std::vector<glm::dvec3> view_fingertips(const HandState& hand);
 
 }  // namespace telex::local

@@ -1,0 +1,537 @@
+// SPDX-License-Identifier: MIT
+// The body pass: round cones joined by a smooth minimum and sphere-traced per box, lit to the
+// video's brightness, and the fingertips' contact shadows on the remote scene.
+#include "body_pass.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <glm/gtc/type_ptr.hpp>
+#include <opencv2/core.hpp>
+#include <stdexcept>
+#include <string>
+
+namespace telex::local {
+namespace {
+
+// Each capsule's box (a unit cube's corner c in [0, 1]^3 placed around the segment a-b with room
+// for the blend), rasterised once per capsule: Mesa's llvmpipe pays per triangle, so a box of 12
+// triangles with the surface found per fragment beats a tessellated hand.
+constexpr const char* kBodyVs = R"(#version 330 core
+layout(location = 0) in vec3 a_corner;
+layout(location = 1) in vec3 a_a;        // per instance, this eye's frame
+layout(location = 2) in vec3 a_b;
+layout(location = 3) in vec2 a_radii;    // at a, at b
+layout(location = 4) in vec4 a_color;    // rgb, lit (1) or a flat marker (0)
+layout(location = 6) in ivec4 a_n0;      // blend neighbours, -1 ends the list
+layout(location = 7) in ivec4 a_n1;
+uniform mat4 u_projection;
+out vec3 v_position;
+flat out vec3 v_center;
+flat out vec3 v_u;
+flat out vec3 v_w;
+flat out vec3 v_axis;
+flat out vec3 v_half;
+flat out vec4 v_color;
+flat out vec4 v_self_a;
+flat out vec4 v_self_b;
+flat out ivec4 v_n0;
+flat out ivec4 v_n1;
+flat out int v_count;
+void main() {
+  vec3 d = a_b - a_a;
+  float len = length(d);
+  vec3 axis = len > 1e-9 ? d / len : vec3(0.0, 0.0, 1.0);
+  vec3 helper = abs(axis.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 u = normalize(cross(axis, helper));
+  vec3 w = cross(axis, u);
+  // Room for the smooth union's fillet (it lies within a quarter of the smaller radius).
+  float r = max(a_radii.x, a_radii.y) * 1.2 + 5e-4;
+  vec3 p = a_a + u * (a_corner.x * 2.0 - 1.0) * r + w * (a_corner.y * 2.0 - 1.0) * r +
+           axis * (-r + a_corner.z * (len + 2.0 * r));
+  v_position = p;
+  v_center = a_a + axis * (0.5 * len);
+  v_u = u;
+  v_w = w;
+  v_axis = axis;
+  v_half = vec3(r, r, 0.5 * len + r);
+  v_color = a_color;
+  v_self_a = vec4(a_a, a_radii.x);
+  v_self_b = vec4(a_b, a_radii.y);
+  v_n0 = a_n0;
+  v_n1 = a_n1;
+  int count = 0;
+  for (int k = 0; k < 4; ++k) count += int(a_n0[k] >= 0) + int(a_n1[k] >= 0);
+  v_count = count;
+  gl_Position = u_projection * vec4(p, 1.0);
+}
+)";
+
+// The eye sits at the origin. The ray through this fragment is marched from where it enters the
+// box (or the near plane, with the eye inside it) on the field of this capsule smoothly joined to
+// its neighbours; each pixel is worked once per box (face culling keeps one face a pixel).
+constexpr const char* kBodyFs = R"(#version 330 core
+layout(std140) uniform Capsules { vec4 u_caps[512]; };
+uniform float u_near;
+uniform float u_far;
+uniform float u_exposure;
+in vec3 v_position;
+flat in vec3 v_center;
+flat in vec3 v_u;
+flat in vec3 v_w;
+flat in vec3 v_axis;
+flat in vec3 v_half;
+flat in vec4 v_color;
+flat in vec4 v_self_a;  // a, radius at a
+flat in vec4 v_self_b;
+flat in ivec4 v_n0;
+flat in ivec4 v_n1;
+flat in int v_count;
+out vec4 o_color;
+
+float dot2(vec3 v) { return dot(v, v); }
+// Quilez's round cone: spheres of radii r1 at a and r2 at b and the cone tangent to both.
+float round_cone(vec3 p, vec3 a, vec3 b, float r1, float r2) {
+  vec3 ba = b - a;
+  float l2 = dot(ba, ba);
+  float rr = r1 - r2;
+  float a2 = l2 - rr * rr;
+  vec3 pa = p - a;
+  if (l2 < 1e-12 || a2 <= 1e-12) return min(length(pa) - r1, length(p - b) - r2);
+  float il2 = 1.0 / l2;
+  float y = dot(pa, ba);
+  float z = y - l2;
+  float x2 = dot2(pa * l2 - ba * y);
+  float y2 = y * y * l2;
+  float z2 = z * z * l2;
+  float k = sign(rr) * rr * rr * x2;
+  if (sign(z) * a2 * z2 > k) return sqrt(x2 + z2) * il2 - r2;
+  if (sign(y) * a2 * y2 < k) return sqrt(x2 + y2) * il2 - r1;
+  return (sqrt(x2 * a2 * il2) + y * rr) * il2 - r1;
+}
+float smin(float a, float b, float k) {
+  if (k <= 0.0) return min(a, b);
+  float h = max(k - abs(a - b), 0.0) / k;
+  return min(a, b) - h * h * k * 0.25;
+}
+float capsule(int i, vec3 p) {
+  vec4 a = u_caps[2 * i], b = u_caps[2 * i + 1];
+  return round_cone(p, a.xyz, b.xyz, a.w, b.w);
+}
+float radius(int i) { return max(u_caps[2 * i].w, u_caps[2 * i + 1].w); }
+// llvmpipe runs both sides of a branch but leaves a loop once every pixel of a block is done: the
+// neighbours are looped over by their count (the same for the whole box), never skipped by a test.
+// g_blend: how deep in a fillet the last point was (0 on a lone capsule, 1 in a crease).
+float g_blend = 0.0;
+float field(vec3 p) {
+  float d = round_cone(p, v_self_a.xyz, v_self_b.xyz, v_self_a.w, v_self_b.w);
+  float r = max(v_self_a.w, v_self_b.w);
+  g_blend = 0.0;
+  for (int k = 0; k < v_count; ++k) {
+    int j = k < 4 ? v_n0[k] : v_n1[k - 4];
+    float kj = 0.7 * min(r, radius(j));
+    float dj = capsule(j, p);
+    g_blend = max(g_blend, max(kj - abs(d - dj), 0.0) / kj);
+    d = smin(d, dj, kj);
+  }
+  return d;
+}
+// Where the ray from the eye along rd enters the capsule a-b of radius r (Quilez), -1: a miss.
+float capsule_entry(vec3 rd, vec3 a, vec3 b, float r) {
+  vec3 ba = b - a, oa = -a;
+  float baba = dot(ba, ba), bard = dot(ba, rd), baoa = dot(ba, oa);
+  float rdoa = dot(rd, oa), oaoa = dot(oa, oa);
+  float qa = baba - bard * bard;
+  if (qa > 1e-9 * max(baba, 1e-12)) {
+    float qb = baba * rdoa - baoa * bard;
+    float qc = baba * oaoa - baoa * baoa - r * r * baba;
+    float h = qb * qb - qa * qc;
+    if (h >= 0.0) {
+      float t = (-qb - sqrt(h)) / qa;
+      float y = baoa + t * bard;
+      if (y > 0.0 && y < baba) return t;
+    }
+  }
+  // The round ends: the nearer of the two spheres' entries.
+  float best = -1.0;
+  for (int e = 0; e < 2; ++e) {
+    vec3 c = e == 0 ? a : b;
+    float pb = dot(rd, c);
+    float h = pb * pb - (dot(c, c) - r * r);
+    if (h < 0.0) continue;
+    float t = pb - sqrt(h);
+    if (t > 0.0 && (best < 0.0 || t < best)) best = t;
+  }
+  return best;
+}
+void main() {
+  vec3 rd = normalize(v_position);
+  // The ray in the box's frame: slab entry and exit.
+  mat3 to_box = transpose(mat3(v_u, v_w, v_axis));
+  vec3 o = to_box * -v_center, dir = to_box * rd;
+  vec3 inv = 1.0 / dir;
+  vec3 t_lo = (-v_half - o) * inv, t_hi = (v_half - o) * inv;
+  vec3 t_min = min(t_lo, t_hi), t_max = max(t_lo, t_hi);
+  float t_enter = max(max(t_min.x, t_min.y), t_min.z);
+  float t_exit = min(min(t_max.x, t_max.y), t_max.z);
+  // This capsule grown by the blend's reach bounds what the pixel can meet: with the eye outside
+  // it, a miss is discarded here and a hit starts the march at its entry.
+  vec4 ca = v_self_a, cb = v_self_b;
+  float reach = max(ca.w, cb.w) * 1.2 + 5e-4;
+  float t = max(t_enter, u_near);
+  vec3 ab = cb.xyz - ca.xyz;
+  float along = clamp(dot(-ca.xyz, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
+  if (length(ca.xyz + along * ab) > reach) {
+    float t_cap = capsule_entry(rd, ca.xyz, cb.xyz, reach);
+    if (t_cap < 0.0) discard;
+    t = max(t, t_cap);
+  }
+  bool hit = false;
+  for (int i = 0; i < 32 && t < t_exit; ++i) {
+    float d = field(rd * t);
+    if (d < 1.5e-4 + 2e-4 * t) { hit = true; break; }
+    t += d;
+  }
+  if (!hit) discard;
+  vec3 p = rd * t;
+  // The crease depth at the hit, then the normal from three forward differences (the field is
+  // about zero at the hit).
+  float d0 = field(p);
+  float crease = g_blend;
+  const float e = 2e-4;
+  vec3 n = normalize(vec3(field(p + vec3(e, 0.0, 0.0)), field(p + vec3(0.0, e, 0.0)),
+                          field(p + vec3(0.0, 0.0, e))) - d0);
+  float facing = max(dot(n, -rd), 0.0);
+  vec3 albedo = v_color.rgb;
+  vec3 c;
+  if (v_color.a > 0.5) {
+    // Skin: a key light from above and to the left (the camera's y is down), wrapped so the
+    // shadow side stays soft, a sky-and-ground ambient, the creases (deep in a fillet between two
+    // capsules) darkened, a warm rim where light scatters under the skin, and a faint sheen.
+    vec3 l = normalize(vec3(-0.35, -0.85, -0.4));
+    float diffuse = max((dot(n, l) + 0.35) / 1.35, 0.0);
+    float ambient = 0.22 + 0.14 * (0.5 - 0.5 * n.y);
+    float ao = 1.0 - 0.12 * crease * crease;
+    vec3 rim = vec3(0.85, 0.35, 0.25) * pow(1.0 - facing, 3.0) * 0.12;
+    float sheen = pow(max(dot(reflect(-l, n), -rd), 0.0), 20.0) * 0.06;
+    c = (albedo * (0.78 * diffuse + ambient) * ao + rim + sheen) * u_exposure;
+  } else {
+    c = albedo * (0.55 + 0.45 * facing);
+  }
+  o_color = vec4(c, 1.0);
+  float z = clamp(p.z, u_near, u_far);
+  float ndc = (u_far + u_near) / (u_far - u_near) - 2.0 * u_far * u_near / ((u_far - u_near) * z);
+  gl_FragDepth = ndc * 0.5 + 0.5;
+}
+)";
+
+// A screen rectangle (NDC, from u_rect) around one fingertip; the remote surface point of each
+// pixel is rebuilt from the eye's depth and darkened by its nearness to the fingertip: an
+// occluding ball's falloff, (r / d)^2, faded out by kShadowReach_m.
+constexpr const char* kShadowVs = R"(#version 330 core
+uniform vec4 u_rect;  // x0, y0, x1, y1 in NDC
+void main() {
+  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
+  gl_Position = vec4(mix(u_rect.xy, u_rect.zw, c), 0.0, 1.0);
+}
+)";
+constexpr const char* kShadowFs = R"(#version 330 core
+uniform sampler2D u_depth;  // window depths, rows top-down
+uniform vec4 u_k;           // fx, fy, cx, cy
+uniform vec3 u_tip;         // this eye's frame
+uniform float u_near;
+uniform float u_far;
+uniform float u_radius;
+uniform float u_reach;
+out vec4 o_color;
+void main() {
+  float wd = texelFetch(u_depth, ivec2(gl_FragCoord.xy), 0).r;
+  if (wd >= 1.0) discard;
+  float ndc = wd * 2.0 - 1.0;
+  float z = 2.0 * u_far * u_near / ((u_far + u_near) - ndc * (u_far - u_near));
+  vec2 px = gl_FragCoord.xy - 0.5;
+  vec3 p = vec3((px.x - u_k.z) / u_k.x * z, (px.y - u_k.w) / u_k.y * z, z);
+  float d = max(distance(p, u_tip), 1e-4);
+  float occ = min(u_radius * u_radius / (d * d), 1.0) * (1.0 - smoothstep(0.4 * u_reach, u_reach, d));
+  o_color = vec4(vec3(1.0 - 0.65 * occ), 1.0);
+}
+)";
+
+constexpr double kShadowReach_m = 0.05;
+constexpr double kShadowRadius_m = 0.012;
+
+GLuint compile(GLenum type, const char* source) {
+  const GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &source, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    glDeleteShader(s);
+    throw std::runtime_error(std::string("stereo view: body shader does not compile: ") + log);
+  }
+  return s;
+}
+
+GLuint link(const char* vs, const char* fs) {
+  const GLuint p = glCreateProgram();
+  const GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
+  glAttachShader(p, v);
+  glAttachShader(p, f);
+  glLinkProgram(p);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetProgramInfoLog(p, sizeof log, nullptr, log);
+    throw std::runtime_error(std::string("stereo view: body shaders do not link: ") + log);
+  }
+  return p;
+}
+
+// One capsule as the box shader takes it.
+struct Instance {
+  std::array<float, 3> a, b;
+  std::array<float, 2> radii;
+  std::array<float, 4> rgba;
+  std::array<std::int32_t, kMaxBlendNeighbours> neighbours;
+};
+
+std::array<float, 3> f3(const glm::dvec3& v) {
+  return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
+}
+
+bool finite(const glm::dvec3& v) { return std::isfinite(v.x + v.y + v.z); }
+
+// Whether a capsule's box (the vertex shader's: 1.2 times the larger radius around the segment)
+// may hold the eye or meet the near plane: such boxes are drawn by their far faces. Conservative
+// (the box's corner reach and twice the near distance).
+bool box_near_eye(const glm::dvec3& a, const glm::dvec3& b, double r) {
+  const glm::dvec3 ab = b - a;
+  const double len2 = glm::dot(ab, ab);
+  const double u = len2 > 1e-18 ? std::clamp(glm::dot(-a, ab) / len2, 0.0, 1.0) : 0.0;
+  const double d = glm::length(a + u * ab);
+  return d < (r * 1.2 + 5e-4) * std::sqrt(3.0) + 2.0 * StereoRenderer::kNear_m;
+}
+
+double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.radius_b_m; }
+
+}  // namespace
+
+std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
+    std::span<const Capsule> capsules) {
+  constexpr double kSameEnd_m = 1e-3;
+  const auto near = [](const glm::dvec3& p, const glm::dvec3& q) {
+    return glm::length(p - q) < kSameEnd_m;
+  };
+  std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> out(capsules.size());
+  for (std::size_t i = 0; i < capsules.size(); ++i) {
+    out[i].fill(-1);
+    std::size_t n = 0;
+    const Capsule& c = capsules[i];
+    for (std::size_t j = 0; j < capsules.size() && n < kMaxBlendNeighbours; ++j) {
+      const Capsule& o = capsules[j];
+      if (j == i || c.lit != o.lit) continue;
+      if (near(c.a, o.a) || near(c.a, o.b) || near(c.b, o.a) || near(c.b, o.b))
+        out[i][n++] = static_cast<std::int32_t>(j);
+    }
+  }
+  return out;
+}
+
+float exposure_from_image(const cv::Mat3b& bgr) {
+  if (bgr.empty()) return 1.0f;
+  // Every 8th pixel of every 8th row is plenty for a mean.
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (int y = 0; y < bgr.rows; y += 8)
+    for (int x = 0; x < bgr.cols; x += 8) {
+      const cv::Vec3b& c = bgr(y, x);
+      sum += 0.114 * c[0] + 0.587 * c[1] + 0.299 * c[2];
+      ++n;
+    }
+  // The square root keeps a dark room's skin readable while still following its brightness.
+  return static_cast<float>(std::clamp(std::sqrt(sum / static_cast<double>(n) / 118.0), 0.3, 1.5));
+}
+
+struct BodyPass::Gl {
+  GLuint body = 0, shadow = 0;
+  GLuint vao = 0, corners = 0, instances = 0, ubo = 0;
+  GLuint empty_vao = 0, depth_tex = 0;
+  cv::Size depth_size;
+  GLsizei vertices = 0;
+  std::vector<Instance> instance_data, around_eye;
+  std::vector<float> caps;
+};
+
+BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
+  Gl& g = *gl_;
+  g.body = link(kBodyVs, kBodyFs);
+  g.shadow = link(kShadowVs, kShadowFs);
+  glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Capsules"), 0);
+  const float c[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                         {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  // Counter-clockwise seen from outside the cube (the box frame is right-handed).
+  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                           {3, 7, 6, 2}, {0, 4, 7, 3}, {1, 2, 6, 5}};
+  std::vector<float> corners;
+  for (const auto& f : faces)
+    for (int k : {0, 1, 2, 0, 2, 3}) corners.insert(corners.end(), c[f[k]], c[f[k]] + 3);
+  g.vertices = static_cast<GLsizei>(corners.size() / 3);
+  glGenVertexArrays(1, &g.vao);
+  glGenVertexArrays(1, &g.empty_vao);
+  glGenBuffers(1, &g.corners);
+  glGenBuffers(1, &g.instances);
+  glGenBuffers(1, &g.ubo);
+  glBindVertexArray(g.vao);
+  glBindBuffer(GL_ARRAY_BUFFER, g.corners);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(corners.size() * sizeof(float)),
+               corners.data(), GL_STATIC_DRAW);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+  glEnableVertexAttribArray(0);
+  glBindBuffer(GL_ARRAY_BUFFER, g.instances);
+  const auto attrib = [](GLuint loc, GLint n, std::size_t offset, bool integer) {
+    const auto* at = reinterpret_cast<const void*>(offset);
+    if (integer)
+      glVertexAttribIPointer(loc, n, GL_INT, sizeof(Instance), at);
+    else
+      glVertexAttribPointer(loc, n, GL_FLOAT, GL_FALSE, sizeof(Instance), at);
+    glEnableVertexAttribArray(loc);
+    glVertexAttribDivisor(loc, 1);
+  };
+  attrib(1, 3, offsetof(Instance, a), false);
+  attrib(2, 3, offsetof(Instance, b), false);
+  attrib(3, 2, offsetof(Instance, radii), false);
+  attrib(4, 4, offsetof(Instance, rgba), false);
+  attrib(6, 4, offsetof(Instance, neighbours), true);
+  attrib(7, 4, offsetof(Instance, neighbours) + 4 * sizeof(std::int32_t), true);
+  glBindVertexArray(0);
+  glBindBuffer(GL_UNIFORM_BUFFER, g.ubo);
+  glBufferData(GL_UNIFORM_BUFFER, static_cast<GLsizeiptr>(kMaxCapsules * 8 * sizeof(float)),
+               nullptr, GL_STREAM_DRAW);
+  glGenTextures(1, &g.depth_tex);
+  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+}
+
+BodyPass::~BodyPass() = default;  // the GL objects go with the context
+
+void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                                    std::span<const glm::dvec3> fingertips,
+                                    const cv::Mat1f& window_depth) {
+  if (fingertips.empty() || window_depth.empty()) return;
+  Gl& g = *gl_;
+  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
+  if (window_depth.size() != g.depth_size) {
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, window_depth.cols, window_depth.rows, 0, GL_RED,
+                 GL_FLOAT, nullptr);
+    g.depth_size = window_depth.size();
+  }
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, window_depth.cols, window_depth.rows, GL_RED, GL_FLOAT,
+                  window_depth.data);
+  glUseProgram(g.shadow);
+  glUniform1i(glGetUniformLocation(g.shadow, "u_depth"), 0);
+  glUniform4f(glGetUniformLocation(g.shadow, "u_k"), static_cast<float>(k.fx),
+              static_cast<float>(k.fy), static_cast<float>(k.cx), static_cast<float>(k.cy));
+  glUniform1f(glGetUniformLocation(g.shadow, "u_near"),
+              static_cast<float>(StereoRenderer::kNear_m));
+  glUniform1f(glGetUniformLocation(g.shadow, "u_far"), static_cast<float>(StereoRenderer::kFar_m));
+  glUniform1f(glGetUniformLocation(g.shadow, "u_radius"), static_cast<float>(kShadowRadius_m));
+  glUniform1f(glGetUniformLocation(g.shadow, "u_reach"), static_cast<float>(kShadowReach_m));
+  glActiveTexture(GL_TEXTURE0);
+  glBindVertexArray(g.empty_vao);
+  glDisable(GL_DEPTH_TEST);
+  glDepthMask(GL_FALSE);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_DST_COLOR, GL_ZERO);  // multiplies what is there
+  for (const glm::dvec3& tip_right : fingertips) {
+    const glm::dvec3 tip = tip_right - p_RightEye;
+    if (!finite(tip) || tip.z <= StereoRenderer::kNear_m + kShadowReach_m) continue;
+    // The reach's ball on screen, a little generously (the ball's centre is nearer the eye than
+    // the nearest point of the surface it shades).
+    const double u = k.fx * tip.x / tip.z + k.cx, v = k.fy * tip.y / tip.z + k.cy;
+    const double half = k.fx * kShadowReach_m / (tip.z - kShadowReach_m) + 2.0;
+    const auto ndc = [](double px, int size) {
+      return static_cast<float>(std::clamp(2.0 * px / size - 1.0, -1.0, 1.0));
+    };
+    glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(u - half, k.width),
+                ndc(v - half, k.height), ndc(u + half + 1.0, k.width),
+                ndc(v + half + 1.0, k.height));
+    glUniform3f(glGetUniformLocation(g.shadow, "u_tip"), static_cast<float>(tip.x),
+                static_cast<float>(tip.y), static_cast<float>(tip.z));
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+  }
+  glDisable(GL_BLEND);
+  glDepthMask(GL_TRUE);
+  glEnable(GL_DEPTH_TEST);
+  glBindVertexArray(0);
+}
+
+void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure) {
+  Gl& g = *gl_;
+  if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
+  const auto neighbours = blend_neighbours(capsules);
+  g.instance_data.clear();
+  g.around_eye.clear();
+  g.caps.assign(capsules.size() * 8, 0.0f);
+  for (std::size_t i = 0; i < capsules.size(); ++i) {
+    const Capsule& c = capsules[i];
+    const glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
+    const double ra = c.radius_m, rb = radius_b(c);
+    if (!(ra > 0.0) || !(rb > 0.0) || !std::isfinite(ra + rb) || !finite(a) || !finite(b)) continue;
+    const auto fa = f3(a), fb = f3(b);
+    std::copy(fa.begin(), fa.end(), g.caps.begin() + static_cast<std::ptrdiff_t>(i * 8));
+    g.caps[i * 8 + 3] = static_cast<float>(ra);
+    std::copy(fb.begin(), fb.end(), g.caps.begin() + static_cast<std::ptrdiff_t>(i * 8 + 4));
+    g.caps[i * 8 + 7] = static_cast<float>(rb);
+    Instance in{fa,
+                fb,
+                {static_cast<float>(ra), static_cast<float>(rb)},
+                {c.bgr[2] / 255.0f, c.bgr[1] / 255.0f, c.bgr[0] / 255.0f, c.lit ? 1.0f : 0.0f},
+                neighbours[i]};
+    (box_near_eye(a, b, std::max(ra, rb)) ? g.around_eye : g.instance_data).push_back(in);
+  }
+  const std::size_t outside = g.instance_data.size();
+  g.instance_data.insert(g.instance_data.end(), g.around_eye.begin(), g.around_eye.end());
+  if (g.instance_data.empty()) return;
+  glUseProgram(g.body);
+  glUniformMatrix4fv(glGetUniformLocation(g.body, "u_projection"), 1, GL_FALSE,
+                     glm::value_ptr(projection));
+  glUniform1f(glGetUniformLocation(g.body, "u_near"), static_cast<float>(StereoRenderer::kNear_m));
+  glUniform1f(glGetUniformLocation(g.body, "u_far"), static_cast<float>(StereoRenderer::kFar_m));
+  glUniform1f(glGetUniformLocation(g.body, "u_exposure"), exposure);
+  glBindBuffer(GL_UNIFORM_BUFFER, g.ubo);
+  glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(g.caps.size() * sizeof(float)),
+                  g.caps.data());
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, g.ubo);
+  glBindBuffer(GL_ARRAY_BUFFER, g.instances);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.instance_data.size() * sizeof(Instance)),
+               g.instance_data.data(), GL_STREAM_DRAW);
+  glBindVertexArray(g.vao);
+  // The projection turns y down, which mirrors the winding: faces toward the eye arrive
+  // clockwise, as GL's back faces.
+  glEnable(GL_CULL_FACE);
+  if (outside > 0) {
+    glCullFace(GL_FRONT);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, g.vertices, static_cast<GLsizei>(outside));
+  }
+  if (g.instance_data.size() > outside) {
+    // Rebound from the first of them: a 3.3 context has no base instance.
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.around_eye.size() * sizeof(Instance)),
+                 g.around_eye.data(), GL_STREAM_DRAW);
+    glCullFace(GL_BACK);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, g.vertices, static_cast<GLsizei>(g.around_eye.size()));
+  }
+  glDisable(GL_CULL_FACE);
+  glBindVertexArray(0);
+}
+
+}  // namespace telex::local
