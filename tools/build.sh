@@ -3,7 +3,9 @@
 # Installs missing dependencies and builds into build/ (or $TELEX_BUILD_DIR). Extra args go to cmake.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+t0=$SECONDS
 "$root/tools/setup.sh"
+t_setup=$((SECONDS - t0))
 build="${TELEX_BUILD_DIR:-$root/build}"
 jobs="${TELEX_JOBS:-$(nproc)}"
 if [ ! -f "$build/build.ninja" ]; then
@@ -11,4 +13,7 @@ if [ ! -f "$build/build.ninja" ]; then
 elif [ $# -gt 0 ]; then
   cmake "$build" "$@" >/dev/null
 fi
+t_configure=$((SECONDS - t0 - t_setup))
 cmake --build "$build" -j "$jobs"
+# How long each phase took (build/.ninja_log has each translation unit's own time).
+echo "build.sh: install ${t_setup} s, configure ${t_configure} s, build $((SECONDS - t0 - t_setup - t_configure)) s" >&2

@@ -8,7 +8,9 @@
 # both. Extra arguments go to telex-local (e.g. --hand script:press).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+t0=$SECONDS
 "$root/tools/build.sh"
+echo "demo: built in $((SECONDS - t0)) s; both nodes start now" >&2
 bin="${TELEX_BUILD_DIR:-$root/build}/tools"
 duration="${TELEX_DEMO_SECONDS:-20}"
 port="${TELEX_DEMO_PORT:-7300}"
