@@ -41,6 +41,7 @@ struct OutFrame {
   std::vector<Buffer> items;
   std::size_t next = 0;
   bool counts_as_frame = true;  // video frames are not counted in frames_sent
+  bool video = false;           // an encoded stereo pair: its bytes count as video
   // false for resent tiles and for tiles streamed ahead of their part's manifest: not counted
   // against the queue's bound and never dropped (each is a few tiles).
   bool trimmable = true;
@@ -72,7 +73,7 @@ struct Session {
   std::string peer;
 
   // The next datagram or message of the queued frames, advancing the queue.
-  Buffer next_frame_item(bool& frame_done, bool& counts) {
+  Buffer next_frame_item(bool& frame_done, bool& counts, bool& video) {
     while (!frames.empty() && frames.front().next >= frames.front().items.size())
       frames.pop_front();
     if (frames.empty()) return nullptr;
@@ -80,6 +81,7 @@ struct Session {
     Buffer b = f.items[f.next++];
     frame_done = f.next == f.items.size();
     counts = f.counts_as_frame;
+    video = f.video;
     if (frame_done) frames.pop_front();
     return b;
   }
@@ -100,9 +102,8 @@ class RemoteServer::Impl {
   FrameRequest take_request();
   void publish(const ProcessedFrame& frame);
   void publish_tiles(const ProcessedFrame& part, std::size_t from);
-  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
-                     const std::vector<std::uint8_t>& left, const std::vector<std::uint8_t>& right,
-                     int width, int height);
+  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns, bool is_intra,
+                     std::vector<std::uint8_t> encoded_pair);
   ClientState state() const { return connected_ ? ClientState::Connected : ClientState::Waiting; }
   bool video_wanted() const { return video_wanted_; }
   ServerCounters counters_;
@@ -155,7 +156,7 @@ class RemoteServer::Impl {
   // reassembler counts an id that arrives after a later one as lost).
   void post_frame(const Link& l, std::uint32_t frame_id,
                   std::vector<std::pair<proto::Header, proto::Message>> msgs, bool counts_as_frame,
-                  bool depth, bool trimmable = true);
+                  bool depth, bool trimmable = true, bool video = false);
   // Sends StreamConfig first when the session or the frame's shape or codec is new.
   void announce(const Link& l, const ProcessedFrame& frame);
   // One message per tile of tiles[from, end), with the part's header flags.
