@@ -103,6 +103,11 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       ask_for_intra(proto::PictureLossReason::DecodeError);
       return;
     case video::DecodeStatus::NoPicture:
+      // libavcodec holds back pictures without their references: as lost as a damaged one.
+      if (d.decoder.needs_intra()) {
+        counters_.damaged.fetch_add(1, std::memory_order_relaxed);
+        ask_for_intra(proto::PictureLossReason::MissingReference);
+      }
       return;
   }
 }

@@ -30,7 +30,7 @@ struct VideoReceiverCounters {
   std::atomic<std::uint64_t> received{0};       // EncodedVideo messages taken
   std::atomic<std::uint64_t> queue_dropped{0};  // dropped before decoding: the decoder fell behind
   std::atomic<std::uint64_t> decoded{0};        // pairs decoded whole (shown when asked for)
-  std::atomic<std::uint64_t> damaged{0};        // pairs decoded on a missing reference (not shown)
+  std::atomic<std::uint64_t> damaged{0};  // decoded on a missing reference or held back: not shown
   std::atomic<std::uint64_t> decode_errors{0};  // bad header or refused by the codec
   std::atomic<std::uint64_t> intra{0};          // intra pairs decoded
   std::atomic<std::uint64_t> plis_sent{0};      //
