@@ -57,7 +57,8 @@ class EyeStream {
   // Any thread; applied before the next pair. The station lost a reference (a PLI).
   void request_intra();
   // Any thread: the rate controller's output (bit/s), clamped to 50 kbit/s..1 Gbit/s. The
-  // extension point for issue 28's controller: RemoteDaemon::on_receiver_report calls it.
+  // extension point for issue 28's controller, to be called from RemoteDaemon::on_receiver_report
+  // (which today only records the report for the stats line).
   void set_bitrate(std::int64_t bitrate_bps);
   std::int64_t bitrate_bps() const { return bitrate_bps_.load(); }
   const std::string& encoder_name() const { return encoder_name_; }
