@@ -230,9 +230,17 @@ void add_frame_options(CLI::App& app, RemoteFlags& f) {
   app.add_option("--fps", f.cfg.source_options.synthetic_fps, "Frame rate of synthetic sources");
   app.add_option("--size", f.size, "Render size WxH of synthetic sources");
   app.add_option("--seed", f.cfg.source_options.seed, "Noise seed of synthetic sources");
-  app.add_option("--jpeg-quality", f.cfg.jpeg_quality, "JPEG quality of the video (1..100)");
+  app.add_option("--jpeg-quality", f.cfg.jpeg_quality,
+                 "JPEG quality of the video with --video-codec mjpeg (1..100)");
   app.add_option("--video-size", f.video_size,
-                 "Video size WxH sent to the operator (0x0 = source size)");
+                 "Video size WxH of each eye sent to the operator (0x0 = source size)");
+  app.add_option("--video-codec", f.cfg.video_codec,
+                 "The eyes' codec, both eyes side by side in one picture: h264 (libx264, "
+                 "software) | h264-vaapi | h264-nvenc (hardware: a start that cannot open it "
+                 "fails naming libavcodec's reason, exit 2) | mjpeg (camera MJPEG passes through "
+                 "unchanged) | auto (the first hardware encoder that opens, else h264)");
+  app.add_option("--video-bitrate", f.video_bitrate,
+                 "The eyes' H.264 target in bit/s (4M, 2500k, 800000; 50k..1G)");
 }
 
 // The operator's session and the daemon's run.
@@ -328,6 +336,8 @@ void resolve_sizes(RemoteFlags& f) {
     throw std::invalid_argument(fmt::format("--size '{}' is not WxH within 16..4096", f.size));
   if (!parse_size(f.video_size, cfg.video_width, cfg.video_height))
     throw std::invalid_argument(fmt::format("--video-size '{}' is not WxH", f.video_size));
+  cfg.video_bitrate_bps = parse_bitrate_bps(f.video_bitrate);
+  video_encoder_names(cfg.video_codec);  // throws naming --video-codec
 }
 
 // The registration flags, then the rig (the flags given win) and the rig's robot head.

@@ -21,7 +21,7 @@ struct RemoteFlags {
   std::optional<Rig> rig;  // --rig, read before the flags
   std::string rig_file;
   std::string listen = "127.0.0.1:7300", transport = "udp", codec = "zip", tile = "80x60",
-              size = "640x480", video_size = "0x0";
+              size = "640x480", video_size = "0x0", video_bitrate = "4M";
   int client_timeout_ms = 3000;
   std::string register_mode = "none", register_baseline = "0.025,0,0", register_rotation = "0,0,0",
               register_eye;

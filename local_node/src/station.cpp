@@ -168,6 +168,7 @@ void Station::Run::connect() {
   client_cfg.realtime_priority = path_priority;
   client_ = std::make_unique<SurfaceClient>(client_cfg, std::move(events));
   surface_.attach(*client_);
+  view_.attach(*client_);
   if (view_.stereo())
     stereo_thread_ = std::jthread([this](std::stop_token st) { view_.run_stereo(st); });
   // The surface thread warms its buffers before the first frame can arrive.
@@ -343,7 +344,7 @@ void Station::Run::print_status() {
   // The eyes, when the view shows them: a remote whose eye source ended or never delivered says
   // so here, not only as a grey background.
   if (view_.stereo())
-    text += eye_fps > 0.0 ? fmt::format(" | eyes {:.1f} images/s", eye_fps)
+    text += eye_fps > 0.0 ? fmt::format(" | eyes {:.1f} pairs/s", eye_fps)
                           : std::string(
                                 " | eyes none (no video from the remote: its --stereo "
                                 "source ended or never delivered, see its stats line)");
@@ -386,6 +387,9 @@ StationSummary Station::Run::summarize() {
   s.udp_datagrams = cs.datagrams.load();
   s.udp_lost = cs.udp_lost.load();
   s.bytes_in = cs.bytes_in.load();
+  s.video_bytes = cs.video_bytes.load();
+  s.depth_bytes = cs.depth_bytes.load();
+  view_.summarize(s);
   for (std::size_t n = 0; n < s.udp_messages_by_fragments.size(); ++n)
     s.udp_messages_by_fragments[n] = cs.udp_messages_by_fragments[n].load();
   return s;

@@ -10,6 +10,14 @@ double StationSummary::stream_mbit_per_s() const {
   return haptic_span_s > 0.0 ? static_cast<double>(bytes_in) * 8e-6 / haptic_span_s : 0.0;
 }
 
+double StationSummary::video_mbit_per_s() const {
+  return haptic_span_s > 0.0 ? static_cast<double>(video_bytes) * 8e-6 / haptic_span_s : 0.0;
+}
+
+double StationSummary::depth_mbit_per_s() const {
+  return haptic_span_s > 0.0 ? static_cast<double>(depth_bytes) * 8e-6 / haptic_span_s : 0.0;
+}
+
 namespace {
 
 nlohmann::json tracker_json(const TrackerStats& t) {
@@ -70,6 +78,20 @@ nlohmann::json StationSummary::to_json() const {
                    // The stream's mean rate over the run (the remote's stats line gives each
                    // second's): issue 16's 10 Mbit/s goal.
                    {"stream_mbit_per_s", stream_mbit_per_s()},
+                   // The eyes beside depth (issue 28): message bytes, so the two add up to a
+                   // little less than the stream (fragment headers and seals).
+                   {"video_mbit_s", video_mbit_per_s()},
+                   {"depth_mbit_s", depth_mbit_per_s()},
+                   {"video_pairs_received", video_pairs_received},
+                   {"video_pairs_decoded", video_pairs_decoded},
+                   {"video_pairs_damaged", video_pairs_damaged},
+                   {"video_decode_errors", video_decode_errors},
+                   {"video_pairs_shown", video_pairs_shown},
+                   {"video_plis_sent", video_plis_sent},
+                   {"shown_frame_age_ms_median", shown_frame_age_ms_median},
+                   {"shown_frame_age_ms_p99", shown_frame_age_ms_p99},
+                   {"video_eye_width_px", video_eye_width_px},
+                   {"video_eye_height_px", video_eye_height_px},
                    {"udp_messages_by_fragments", udp_messages_by_fragments},
                    // Repair (docs/PROTOCOL.md 2.5) and tile ages in frame periods (issue 16).
                    {"tiles_missing", tiles_missing},

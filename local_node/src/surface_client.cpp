@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "telex/base/periodic.h"
+#include "telex/local/receiver_report.h"
 #include "telex/proto/fragment.h"
 #include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
@@ -85,6 +86,7 @@ struct SurfaceClient::Impl {
   std::vector<std::uint8_t> udp_plain;
   bool handshake_failed = false;  // on this connection, or the remote said why (Reject)
   std::int64_t last_warning_ns = 0;
+  ReceiverReportBuilder report;  // the remote's datagrams since the last ReceiverReport
 
   std::uint64_t generation = 0;  // bumps on every (re)connect so stale handlers bail out
   std::uint32_t session_id = 0;
@@ -210,6 +212,7 @@ struct SurfaceClient::Impl {
     reassembler = proto::Reassembler();
     udp_lost_counted = 0;
     by_fragments_counted = {};
+    report = ReceiverReportBuilder{};
     std::uint16_t udp_port = 0;
     if (cfg.use_udp) {
       // Receive UDP on the interface the TCP session uses, so loopback stays loopback.
@@ -304,6 +307,8 @@ struct SurfaceClient::Impl {
     const auto now = static_cast<std::uint64_t>(monotonic_ns());
     const auto before = reassembler.counters().malformed;
     auto whole = reassembler.push(d, now);
+    report.add_datagram(d.size());
+    report.add_lost(reassembler.counters().lost() - udp_lost_counted);
     stats.udp_lost.fetch_add(reassembler.counters().lost() - udp_lost_counted);
     udp_lost_counted = reassembler.counters().lost();
     for (std::size_t n = 0; n < by_fragments_counted.size(); ++n) {
@@ -317,6 +322,10 @@ struct SurfaceClient::Impl {
         count_drop(r, "UDP");
         return;
       }
+      const auto& h = r.envelope->header;
+      report.add_message(static_cast<std::int64_t>(h.capture_ns),
+                         static_cast<std::int64_t>(now) + stats.clock_offset_ns.load(),
+                         h.type == proto::MsgType::EncodedVideo ? whole->size() : 0);
       handle(*r.envelope);
     } else if (reassembler.counters().malformed != before) {
       stats.dropped_malformed.fetch_add(1);
@@ -370,6 +379,12 @@ struct SurfaceClient::Impl {
       stats.dropped_foreign.fetch_add(1);
       return;
     }
+    const std::uint64_t message_bytes = proto::kHeaderSize + h.payload_len;
+    if (h.type == proto::MsgType::EncodedVideo)
+      stats.video_bytes.fetch_add(message_bytes);
+    else if (h.type == proto::MsgType::DepthTile || h.type == proto::MsgType::FrameManifest ||
+             h.type == proto::MsgType::StreamConfig)
+      stats.depth_bytes.fetch_add(message_bytes);
     std::visit(
         [&](const auto& m) {
           using T = std::decay_t<decltype(m)>;
@@ -400,7 +415,7 @@ struct SurfaceClient::Impl {
             if (ev.on_tile) ev.on_tile(h, m);
           } else if constexpr (std::is_same_v<T, proto::FrameManifest>) {
             if (ev.on_manifest) ev.on_manifest(h, m);
-          } else if constexpr (std::is_same_v<T, proto::VideoFrame>) {
+          } else if constexpr (std::is_same_v<T, proto::EncodedVideo>) {
             if (ev.on_video) ev.on_video(h, m);
           }
         },
@@ -433,6 +448,12 @@ struct SurfaceClient::Impl {
       // Probes start with the session: before Accept there is no session key to tag them with.
       if (session_id != 0)
         send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
+      // With each probe, what arrived over UDP since the last one (PROTOCOL.md 2.7).
+      const auto r = report.take(monotonic_ns());
+      if (session_id != 0 && cfg.use_udp && r) {
+        send(*r);
+        stats.receiver_reports.fetch_add(1);
+      }
       arm_heartbeat();
     });
   }
@@ -533,6 +554,12 @@ void SurfaceClient::send_nack(const proto::TileNack& nack) {
 void SurfaceClient::send_head(const proto::HeadCommand& head) {
   asio::post(impl_->io, [this, head] {
     if (impl_->session_id != 0 && impl_->link_open()) impl_->send(head);
+  });
+}
+
+void SurfaceClient::send_picture_loss(const proto::PictureLoss& pli) {
+  asio::post(impl_->io, [this, pli] {
+    if (impl_->session_id != 0 && impl_->link_open()) impl_->send(pli);
   });
 }
 

@@ -9,6 +9,7 @@
 
 #include "byte_io.h"
 #include "telex/proto/crc32c.h"
+#include "video_messages.h"
 
 namespace telex::proto {
 namespace {
@@ -96,13 +97,9 @@ void put_payload(Writer& w, const FrameManifest& m) {
   for (std::uint16_t t : m.changed_tiles) w.u16(t);
   put_head(w, m.head.valid, m.head.joint_rad);
 }
-void put_payload(Writer& w, const VideoFrame& m) {
-  w.u8(m.eye);
-  w.u16(m.width);
-  w.u16(m.height);
-  w.u32(static_cast<std::uint32_t>(m.jpeg.size()));
-  w.bytes(m.jpeg);
-}
+void put_payload(Writer& w, const EncodedVideo& m) { detail::put_video(w, m); }
+void put_payload(Writer& w, const PictureLoss& m) { detail::put_picture_loss(w, m); }
+void put_payload(Writer& w, const ReceiverReport& m) { detail::put_receiver_report(w, m); }
 void put_payload(Writer& w, const RoiRequest& m) {
   require(m.rects.size() <= kMaxRoiRects, "RoiRequest has more than 16 rectangles");
   w.u8(static_cast<std::uint8_t>(m.rects.size()));
@@ -347,19 +344,11 @@ PayloadResult get_head_command(Reader& r) {
   m.deadman = static_cast<DeadmanState>(deadman);
   return m;
 }
-PayloadResult get_video(Reader& r) {
-  VideoFrame m;
-  m.eye = r.u8();
-  m.width = r.u16();
-  m.height = r.u16();
-  const std::uint32_t n = r.u32();
-  if (!r.ok()) return truncated("VideoFrame fields");
-  if (m.eye > 1) return bad("VideoFrame eye not 0/1");
-  if (m.width == 0 || m.height == 0) return bad("VideoFrame empty size");
-  if (n != r.remaining())
-    return n > r.remaining() ? truncated("VideoFrame jpeg") : bad("VideoFrame trailing bytes");
-  auto p = r.bytes(n);
-  m.jpeg.assign(p.begin(), p.end());
+// The eyes' messages (video_messages.cpp).
+template <typename M, typename Get>
+PayloadResult get_eyes(Reader& r, Get get) {
+  M m;
+  if (const auto e = get(r, m)) return Bad{e->reason, e->detail};
   return m;
 }
 PayloadResult get_roi(Reader& r, const DecodeLimits& lim) {
@@ -438,8 +427,8 @@ PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
       return get_depth_tile(r, lim);
     case MsgType::FrameManifest:
       return get_manifest(r);
-    case MsgType::VideoFrame:
-      return get_video(r);
+    case MsgType::EncodedVideo:
+      return get_eyes<EncodedVideo>(r, detail::get_video);
     case MsgType::RoiRequest:
       return get_roi(r, lim);
     case MsgType::Stats:
@@ -448,6 +437,10 @@ PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
       return get_nack(r);
     case MsgType::HeadCommand:
       return get_head_command(r);
+    case MsgType::PictureLoss:
+      return get_eyes<PictureLoss>(r, detail::get_picture_loss);
+    case MsgType::ReceiverReport:
+      return get_eyes<ReceiverReport>(r, detail::get_receiver_report);
   }
   return Bad{ErrorReason::UnknownType, "message type"};
 }
@@ -463,9 +456,9 @@ Result failure(ErrorReason reason, const char* detail) {
 
 std::string_view msg_type_name(MsgType type) {
   static constexpr std::string_view kNames[kMsgTypeCount] = {
-      "Hello",        "Accept",    "Reject",        "Heartbeat",  "Bye",
-      "StreamConfig", "DepthTile", "FrameManifest", "VideoFrame", "RoiRequest",
-      "Stats",        "TileNack",  "HeadCommand"};
+      "Hello",        "Accept",    "Reject",        "Heartbeat",    "Bye",
+      "StreamConfig", "DepthTile", "FrameManifest", "EncodedVideo", "RoiRequest",
+      "Stats",        "TileNack",  "HeadCommand",   "PictureLoss",  "ReceiverReport"};
   const auto i = static_cast<std::size_t>(type);
   return i < kMsgTypeCount ? kNames[i] : std::string_view("unknown");
 }

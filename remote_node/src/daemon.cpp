@@ -9,8 +9,6 @@
 #include <boost/asio.hpp>
 #include <iostream>
 #include <iterator>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
@@ -24,6 +22,10 @@ void validate(const DaemonConfig& c) {
   if (c.depth_source.empty()) throw std::invalid_argument("--source must not be empty");
   if (c.jpeg_quality < 1 || c.jpeg_quality > 100)
     throw std::invalid_argument(fmt::format("--jpeg-quality {} is outside 1..100", c.jpeg_quality));
+  video_encoder_names(c.video_codec);  // throws naming --video-codec
+  if (c.video_bitrate_bps < 50'000 || c.video_bitrate_bps > 1'000'000'000)
+    throw std::invalid_argument(
+        fmt::format("--video-bitrate {} bit/s is outside 50k..1G", c.video_bitrate_bps));
   if (c.video_width < 0 || c.video_height < 0 || (c.video_width == 0) != (c.video_height == 0))
     throw std::invalid_argument(
         "--video-size must be WxH with both positive (or 0x0 for the source size)");
@@ -75,7 +77,9 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
   return fmt::format(
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
-      "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} | client {} (accepted {} "
+      "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} pairs {:.2f} Mbit/s "
+      "(target {:.2f}) depth {:.2f} Mbit/s failed {} plis {} intra {} | station lost {} delay "
+      "{:.1f} ms | client {} (accepted {} "
       "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unsealed {} replayed {} udp-ignored {} | "
       "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
@@ -96,14 +100,22 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       static_cast<double>(now.bytes_sent - before.bytes_sent) / dt / 1000.0,
       static_cast<double>(now.bytes_sent - before.bytes_sent) * 8.0 / dt / 1e6,
       now.tiles_sent - before.tiles_sent, now.tiles_skipped - before.tiles_skipped,
-      now.video_frames - before.video_frames, client_state_name(now.client), now.clients_accepted,
-      now.clients_rejected, now.client_timeouts, ended.empty() ? std::string(" none") : ended,
-      now.source_errors, now.malformed_in, now.auth_failed, now.unsealed, now.replayed,
-      now.udp_ignored, now.key_frame_requests, now.nacks_in, now.repair_tiles_sent,
-      now.repair_unavailable, now.repair_duplicates, now.repair_over_budget, now.repair_over_queue,
-      now.control_dropped, now.frames_sent, now.head_commands_in, now.head_control.clamped,
-      now.head_control.rate_limited, now.head_control.accel_limited, now.head_control.link_losses,
-      now.head_control.stale_holds, now.head_control.repeat_holds, now.head_control.deadman_holds,
+      now.video_frames - before.video_frames,
+      static_cast<double>(now.video_bytes_sent - before.video_bytes_sent) * 8.0 / dt / 1e6,
+      static_cast<double>(now.video_bitrate_bps) / 1e6,
+      static_cast<double>((now.bytes_sent - now.video_bytes_sent) -
+                          (before.bytes_sent - before.video_bytes_sent)) *
+          8.0 / dt / 1e6,
+      now.video_failed, now.plis_in, now.video_intra_requests, now.last_report.fragments_lost,
+      static_cast<double>(now.last_report.delay_mean_us) / 1e3, client_state_name(now.client),
+      now.clients_accepted, now.clients_rejected, now.client_timeouts,
+      ended.empty() ? std::string(" none") : ended, now.source_errors, now.malformed_in,
+      now.auth_failed, now.unsealed, now.replayed, now.udp_ignored, now.key_frame_requests,
+      now.nacks_in, now.repair_tiles_sent, now.repair_unavailable, now.repair_duplicates,
+      now.repair_over_budget, now.repair_over_queue, now.control_dropped, now.frames_sent,
+      now.head_commands_in, now.head_control.clamped, now.head_control.rate_limited,
+      now.head_control.accel_limited, now.head_control.link_losses, now.head_control.stale_holds,
+      now.head_control.repeat_holds, now.head_control.deadman_holds,
       now.head_holding ? std::string(" holding (") + head_hold_name(now.head_hold) + ")" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
           now.head.hardware_errors + now.head.io_errors,
@@ -145,6 +157,7 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
   }
   depth_ = make_depth_source(config_.depth_source, config_.source_options);
   stereo_ = make_eye_source(config_.depth_source, config_.stereo_source, config_.source_options);
+  if (stereo_) open_eyes();
   config_.server.video_available = stereo_ != nullptr;
   config_.server.codec = config_.pipeline.codec;
 }
@@ -258,7 +271,12 @@ DaemonStats RemoteDaemon::stats() const {
     for (std::size_t i = 0; i < kSessionEndCount; ++i) s.sessions_ended[i] = c.sessions_ended[i];
     s.client = server_->state();
     s.head_commands_in = c.head_commands_in;
+    s.video_bytes_sent = c.video_bytes_sent;
+    s.video_pairs_sent = c.video_pairs_sent;
+    s.plis_in = c.plis_in;
+    s.receiver_reports_in = c.receiver_reports_in;
   }
+  if (eye_stream_) s.video_bitrate_bps = eye_stream_->bitrate_bps();
   {
     std::lock_guard lock(head_mu_);
     s.head_control = head_control_.stats();
@@ -483,27 +501,6 @@ void RemoteDaemon::process_loop() {
     stats_.tiles_skipped += p.tiles_skipped;
     stats_.stage_ms_sum += p.times;
     stats_.first_part_ms_sum += p.first_part_ms;
-  }
-}
-
-void RemoteDaemon::video_loop() {
-  const std::vector<int> params{cv::IMWRITE_JPEG_QUALITY, config_.jpeg_quality};
-  while (running_) {
-    auto frame = stereo_slot_.take(100ms);
-    // Encoding costs CPU: only when the operator asked for video.
-    if (!frame || !server_->video_wanted()) continue;
-    std::vector<std::uint8_t> left, right;
-    cv::Mat3b l = frame->left_bgr, r = frame->right_bgr;
-    if (config_.video_width > 0) {
-      cv::resize(l, l, cv::Size(config_.video_width, config_.video_height), 0, 0, cv::INTER_AREA);
-      cv::resize(r, r, cv::Size(config_.video_width, config_.video_height), 0, 0, cv::INTER_AREA);
-    }
-    cv::imencode(".jpg", l, left, params);
-    cv::imencode(".jpg", r, right, params);
-    server_->publish_video(static_cast<std::uint32_t>(frame->frame_id), frame->capture_ns, left,
-                           right, r.cols, r.rows);
-    std::lock_guard lock(stats_mu_);
-    ++stats_.video_frames;
   }
 }
 

@@ -114,6 +114,24 @@ std::vector<telex::proto::Message> messages() {
   m.push_back(Stats{{{"key_frame_request", 1}}});
   m.push_back(TileNack{41, {9, 10, 17}});
   m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}, 77, 4500, DeadmanState::Pressed});
+  // The eyes (docs/PROTOCOL.md 2.7): an encoded pair, a PLI, a receiver report.
+  {
+    telex::video::EncodedFrameHeader h;
+    h.frame_id = 7;
+    h.encode_seq = 3;
+    h.capture_ns = 1'700'000'000'123'456'789;
+    h.is_intra = true;
+    h.eye_width_px = 64;
+    h.eye_height_px = 48;
+    const Bytes payload{0, 0, 0, 1, 0x65, 0x88, 0x84};
+    h.payload_bytes = static_cast<std::uint32_t>(payload.size());
+    Bytes frame;
+    telex::video::serialize_header(h, frame);
+    frame.insert(frame.end(), payload.begin(), payload.end());
+    m.push_back(EncodedVideo{frame});
+  }
+  m.push_back(PictureLoss{2, PictureLossReason::MissingReference});
+  m.push_back(ReceiverReport{250'000, 180'000, 120'000, 140, 3, 40, 21'500, 23'000, -35.5f});
   return m;
 }
 

@@ -30,7 +30,7 @@ TEST(Messages, HeaderLayoutIsLittleEndianFieldByField) {
                                  'L',
                                  'X',
                                  '1',                                      // magic
-                                 4,                                        // version
+                                 kProtocolVersion,                         // version
                                  static_cast<std::uint8_t>(MsgType::Bye),  // type
                                  0x01,
                                  0x00,  // flags
@@ -130,7 +130,7 @@ TEST(Messages, RejectsBadVersion) {
 }
 
 TEST(Messages, RejectsBadLength) {
-  auto b = encode(test::sample_header(), VideoFrame{0, 2, 2, std::vector<std::uint8_t>(100, 7)});
+  auto b = encode(test::sample_header(), EncodedVideo{test::encoded_pair(100)});
   EXPECT_EQ(decode_bytes(b, {.max_message_bytes = 64}).error, ErrorReason::BadLength);
   b.push_back(0);  // a byte beyond payload_len
   EXPECT_EQ(decode_bytes(b).error, ErrorReason::BadLength);

@@ -82,7 +82,7 @@ class TestClient {
   std::optional<proto::Reject> reject_;
   std::optional<proto::StreamConfig> config_;
   std::vector<proto::Heartbeat> heartbeats_;
-  std::vector<proto::VideoFrame> video_;
+  std::vector<proto::EncodedVideo> video_;
   std::map<std::uint32_t, ReceivedFrame> frames_;
   std::uint64_t decode_errors_ = 0;
   std::string last_error_;
@@ -172,7 +172,7 @@ class TestClient {
               frame_ = cv::Mat1w(m.height, m.width, std::uint16_t(0));
           } else if constexpr (std::is_same_v<T, proto::Heartbeat>) {
             heartbeats_.push_back(m);
-          } else if constexpr (std::is_same_v<T, proto::VideoFrame>) {
+          } else if constexpr (std::is_same_v<T, proto::EncodedVideo>) {
             video_.push_back(m);
           } else if constexpr (std::is_same_v<T, proto::DepthTile>) {
             current_bytes_ += wire_bytes;

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 #include <span>
 
+#include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
 #include "telex/local/operator_view.h"
 
@@ -35,7 +36,19 @@ StationView::StationView(const StationConfig& cfg, StationFaults& faults)
     : cfg_(cfg),
       faults_(faults),
       spec_(ViewSpec::parse(cfg.view_spec)),
-      window_(spec_.on_screen() ? std::make_unique<ViewWindow>(spec_) : nullptr) {}
+      window_(spec_.on_screen() ? std::make_unique<ViewWindow>(spec_) : nullptr) {
+  if (!spec_.stereo()) return;
+  VideoReceiver::Hooks hooks;
+  hooks.send_pli = [this](const proto::PictureLoss& pli) {
+    if (auto* c = client_.load()) c->send_picture_loss(pli);
+  };
+  hooks.rtt_ns = [this] {
+    auto* c = client_.load();
+    return c ? c->stats().rtt_ns.load() : std::int64_t{0};
+  };
+  hooks.now_ns = [] { return monotonic_ns(); };
+  video_ = std::make_unique<VideoReceiver>(std::move(hooks));
+}
 
 void StationView::open() {
   if (spec_.kind == ViewSpec::Kind::Png) std::filesystem::create_directories(spec_.dir);
@@ -48,13 +61,27 @@ void StationView::open() {
 }
 
 void StationView::bind(ClientEvents& events) {
-  events.on_video = [this](const proto::Header& h, const proto::VideoFrame& v) {
-    std::lock_guard lock(video_mu_);
-    auto& q = eye_frames_[v.eye == 0 ? 0 : 1];
-    q.push_back({static_cast<std::int64_t>(h.capture_ns), v.jpeg});
-    if (q.size() > 8) q.pop_front();
-    eye_frames_received_.fetch_add(1, std::memory_order_relaxed);
+  if (!video_) return;
+  events.on_video = [this](const proto::Header&, const proto::EncodedVideo& v) {
+    video_->push(v.frame);
   };
+}
+
+void StationView::summarize(StationSummary& s) const {
+  if (!video_) return;
+  const auto& c = video_->counters();
+  s.video_pairs_received = c.received.load();
+  s.video_pairs_decoded = c.decoded.load();
+  s.video_pairs_damaged = c.damaged.load();
+  s.video_decode_errors = c.decode_errors.load();
+  s.video_plis_sent = c.plis_sent.load();
+  s.video_eye_width_px = c.eye_width_px.load();
+  s.video_eye_height_px = c.eye_height_px.load();
+  std::lock_guard lock(shown_mu_);
+  s.video_pairs_shown = pairs_shown_;
+  std::vector<double> age = shown_age_ms_;
+  s.shown_frame_age_ms_median = percentile(age, 0.5);
+  s.shown_frame_age_ms_p99 = percentile(age, 0.99);
 }
 
 void StationView::show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm) {
@@ -93,27 +120,23 @@ cv::Mat3b StationView::render_2d(const std::array<FingertipForce, kFingerCount>&
   vi.hand = hand_;
   vi.forces = forces;
   vi.status = status;
-  vi.camera_bgr = eye_image(1);
+  if (const auto pair = show_pair()) vi.camera_bgr = pair->right_bgr;
   return render_operator_view(vi);
 }
 
-cv::Mat3b StationView::eye_image(int eye, std::int64_t want_capture_ns, std::int64_t* offset_ns) {
-  std::vector<std::uint8_t> jpeg;
-  {
-    std::lock_guard lock(video_mu_);
-    const auto& q = eye_frames_[static_cast<std::size_t>(eye)];
-    if (q.empty()) return {};
-    std::size_t pick = q.size() - 1;
-    if (want_capture_ns != 0) {
-      std::array<std::int64_t, 8> captures{};
-      for (std::size_t i = 0; i < q.size(); ++i) captures[i] = q[i].capture_ns;
-      pick = *nearest_capture(std::span(captures.data(), q.size()), want_capture_ns);
-      if (offset_ns) *offset_ns = q[pick].capture_ns - want_capture_ns;
-    }
-    jpeg = q[pick].jpeg;
-  }
-  if (jpeg.empty()) return {};
-  return cv::imdecode(jpeg, cv::IMREAD_COLOR);
+std::shared_ptr<const EyePair> StationView::show_pair(std::int64_t want_capture_ns) {
+  if (!video_) return nullptr;
+  auto pair = video_->pair(want_capture_ns);
+  if (!pair) return nullptr;
+  auto* c = client_.load();
+  // Display time on the remote's clock (the heartbeat's offset), as the capture time.
+  const std::int64_t now_remote_ns = monotonic_ns() + (c ? c->stats().clock_offset_ns.load() : 0);
+  std::lock_guard lock(shown_mu_);
+  if (pairs_shown_ == 0 || pair->frame_id != last_shown_frame_id_) ++pairs_shown_;
+  last_shown_frame_id_ = pair->frame_id;
+  if (shown_age_ms_.size() < kMaxAgeSamples)
+    shown_age_ms_.push_back(static_cast<double>(now_remote_ns - pair->capture_ns) / 1e6);
+  return pair;
 }
 
 void StationView::request_stereo(const std::array<FingertipForce, kFingerCount>& forces,
@@ -192,12 +215,10 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
   in.fig7 = cfg_.view_layout == "fig7";
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
-  // Each eye's frame captured nearest to the depth drawn over it; the larger gap is shown.
-  std::int64_t gap_left = 0, gap_right = 0;
-  in.eye_bgr = {eye_image(0, vs->capture_ns, &gap_left), eye_image(1, vs->capture_ns, &gap_right)};
-  if (!in.eye_bgr[0].empty() || !in.eye_bgr[1].empty()) {
-    const double gap_ms =
-        static_cast<double>(std::max(std::abs(gap_left), std::abs(gap_right))) / 1e6;
+  // The pair (one instant for both eyes) captured nearest to the depth drawn over it.
+  if (const auto pair = show_pair(vs->capture_ns)) {
+    in.eye_bgr = {pair->left_bgr, pair->right_bgr};
+    const double gap_ms = static_cast<double>(std::abs(pair->capture_ns - vs->capture_ns)) / 1e6;
     char pairing[48];
     std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms", gap_ms);
     in.status += pairing;

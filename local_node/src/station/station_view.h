@@ -21,6 +21,7 @@
 #include "telex/local/station.h"
 #include "telex/local/stereo_view.h"
 #include "telex/local/surface_client.h"
+#include "telex/local/video_receiver.h"
 #include "telex/local/view_window.h"
 
 namespace telex::local {
@@ -35,10 +36,16 @@ class StationView {
   void open();
   // The eyes' video from the network thread.
   void bind(ClientEvents& events);
+  // The client the eyes' Picture Loss Indications go to (and its round trip and clock offset).
+  void attach(SurfaceClient& client) { client_ = &client; }
   bool stereo() const { return spec_.stereo(); }
   bool window() const { return window_ != nullptr; }
-  // Eye frames received so far (both eyes): the status line's eye rate.
-  std::uint64_t eye_frames_received() const { return eye_frames_received_.load(); }
+  // Encoded pairs received so far: the status line's eye rate.
+  std::uint64_t eye_frames_received() const {
+    return video_ ? video_->counters().received.load() : 0;
+  }
+  // The eyes in the run's summary: pairs shown, PLIs sent, shown-frame age.
+  void summarize(StationSummary& s) const;
 
   // Surface thread: what the view draws (a frame's rest that changed nothing only its depth).
   void show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm);
@@ -64,9 +71,9 @@ class StationView {
   void run_stereo(std::stop_token stop);
 
  private:
-  // Eye 0 (left) or 1 (right): the received frame captured nearest to `want_capture_ns` (0: the
-  // newest), decoded; *offset_ns is its capture time minus the one wanted.
-  cv::Mat3b eye_image(int eye, std::int64_t want_capture_ns = 0, std::int64_t* offset_ns = nullptr);
+  // The decoded pair captured nearest to `want_capture_ns` (0: the newest), counted as shown now
+  // (its age: display time minus capture time); null before the first.
+  std::shared_ptr<const EyePair> show_pair(std::int64_t want_capture_ns = 0);
   cv::Mat3b render_2d(const std::array<FingertipForce, kFingerCount>& forces,
                       const std::string& status);
   // The stereo pair for one request, or false when there is no surface to draw yet.
@@ -79,13 +86,13 @@ class StationView {
   // GLFW's window, used on the main thread only.
   std::unique_ptr<ViewWindow> window_;
 
-  std::mutex video_mu_;
-  std::atomic<std::uint64_t> eye_frames_received_{0};
-  struct EyeFrame {
-    std::int64_t capture_ns = 0;  // sender clock, as the depth frames'
-    std::vector<std::uint8_t> jpeg;
-  };
-  std::array<std::deque<EyeFrame>, 2> eye_frames_;  // by eye (0 left, 1 right): the last 8
+  std::atomic<SurfaceClient*> client_{nullptr};
+  std::unique_ptr<VideoReceiver> video_;  // with a view: decodes the eyes on its own thread
+  mutable std::mutex shown_mu_;
+  std::uint32_t last_shown_frame_id_ = 0;  // guarded by shown_mu_, as the two below
+  std::uint64_t pairs_shown_ = 0;
+  std::vector<double> shown_age_ms_;  // at most kMaxAgeSamples
+  static constexpr std::size_t kMaxAgeSamples = 1 << 20;
 
   std::mutex surface_mu_;
   std::shared_ptr<const Surface> surface_;

@@ -253,10 +253,9 @@ void RemoteServer::publish(const ProcessedFrame& frame) { impl_->publish(frame);
 void RemoteServer::publish_tiles(const ProcessedFrame& part, std::size_t from) {
   impl_->publish_tiles(part, from);
 }
-void RemoteServer::publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
-                                 const std::vector<std::uint8_t>& left,
-                                 const std::vector<std::uint8_t>& right, int width, int height) {
-  impl_->publish_video(frame_id, capture_ns, left, right, width, height);
+void RemoteServer::publish_video(std::uint32_t frame_id, std::int64_t capture_ns, bool is_intra,
+                                 std::vector<std::uint8_t> encoded_pair) {
+  impl_->publish_video(frame_id, capture_ns, is_intra, std::move(encoded_pair));
 }
 
 }  // namespace telex::remote

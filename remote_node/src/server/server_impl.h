@@ -77,9 +77,8 @@ class RemoteServer::Impl {
   FrameRequest take_request();
   void publish(const ProcessedFrame& frame);
   void publish_tiles(const ProcessedFrame& part, std::size_t from);
-  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
-                     const std::vector<std::uint8_t>& left, const std::vector<std::uint8_t>& right,
-                     int width, int height);
+  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns, bool is_intra,
+                     std::vector<std::uint8_t> encoded_pair);
   ClientState state() const { return connected_ ? ClientState::Connected : ClientState::Waiting; }
   bool video_wanted() const { return video_wanted_; }
   ServerCounters counters_;

@@ -99,6 +99,12 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
         } else if constexpr (std::is_same_v<T, proto::HeadCommand>) {
           ++counters_.head_commands_in;
           if (config_.on_head_command) config_.on_head_command(m, steady_now_ns());
+        } else if constexpr (std::is_same_v<T, proto::PictureLoss>) {
+          ++counters_.plis_in;
+          if (config_.on_picture_loss) config_.on_picture_loss(m);
+        } else if constexpr (std::is_same_v<T, proto::ReceiverReport>) {
+          ++counters_.receiver_reports_in;
+          if (config_.on_receiver_report) config_.on_receiver_report(m, steady_now_ns());
         } else if constexpr (std::is_same_v<T, proto::Bye>) {
           end_session(SessionEnd::ClientBye);
         } else {
@@ -257,18 +263,19 @@ void RemoteServer::Impl::send_control(Buffer buf) {
 void RemoteServer::Impl::kick_tcp(const std::shared_ptr<Session>& a) {
   if (a->tcp_writing) return;
   Buffer buf;
-  bool frame_done = false, counts = false, is_data = false;
+  bool frame_done = false, counts = false, is_data = false, video = false;
   Lane lane = Lane::Depth;
   if (!a->control.empty()) {
     buf = a->control.front();
     a->control.pop_front();
   } else if (!a->over_udp) {
     buf = a->queue.next_item(frame_done, counts, lane);
+    video = lane == Lane::Video;
     is_data = true;
   }
   if (!buf) return;
   a->tcp_writing = true;
-  a->link->async_write(asio::buffer(*buf), [this, a, buf, frame_done, counts, is_data](
+  a->link->async_write(asio::buffer(*buf), [this, a, buf, frame_done, counts, is_data, video](
                                                boost::system::error_code ec, std::size_t n) {
     a->tcp_writing = false;
     if (active_ != a) return;
@@ -280,6 +287,8 @@ void RemoteServer::Impl::kick_tcp(const std::shared_ptr<Session>& a) {
       counters_.bytes_sent += n;
       ++counters_.messages_sent;
       if (frame_done && counts) ++counters_.frames_sent;
+      if (video) counters_.video_bytes_sent += n;
+      if (video && frame_done) ++counters_.video_pairs_sent;
     }
     kick_tcp(a);
   });

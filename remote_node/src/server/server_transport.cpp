@@ -115,23 +115,13 @@ void RemoteServer::Impl::publish(const ProcessedFrame& frame) {
 }
 
 void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
-                                       const std::vector<std::uint8_t>& left,
-                                       const std::vector<std::uint8_t>& right, int width,
-                                       int height) {
+                                       bool is_intra, std::vector<std::uint8_t> encoded_pair) {
   const auto l = link();
-  if (!l || !video_wanted_) return;
+  if (!l || !video_wanted_ || encoded_pair.empty()) return;
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
-  for (std::uint8_t eye : {std::uint8_t{0}, std::uint8_t{1}}) {
-    const auto& jpeg = eye == 0 ? left : right;
-    if (jpeg.empty()) continue;
-    proto::VideoFrame v;
-    v.eye = eye;
-    v.width = static_cast<std::uint16_t>(width);
-    v.height = static_cast<std::uint16_t>(height);
-    v.jpeg = jpeg;
-    msgs.emplace_back(header(l->session_id, frame_id, capture_ns, false), std::move(v));
-  }
-  post_frame(*l, frame_id, std::move(msgs), false, false);
+  msgs.emplace_back(header(l->session_id, frame_id, capture_ns, is_intra),
+                    proto::EncodedVideo{std::move(encoded_pair)});
+  post_frame(*l, frame_id, std::move(msgs), false, false, true);
 }
 
 // Hands a frame's messages to the io thread, which packs them for the session they were made for
@@ -185,11 +175,12 @@ void RemoteServer::Impl::kick_udp(const std::shared_ptr<Session>& a) {
   bool frame_done = false, counts = false;
   Lane lane = Lane::Depth;
   Buffer buf = a->queue.next_item(frame_done, counts, lane);
+  const bool video = lane == Lane::Video;
   if (!buf) return;
   a->udp_sending = true;
   udp_.async_send_to(
       asio::buffer(*buf), a->udp_peer,
-      [this, a, buf, frame_done, counts](boost::system::error_code ec, std::size_t n) {
+      [this, a, buf, frame_done, counts, video](boost::system::error_code ec, std::size_t n) {
         a->udp_sending = false;
         if (active_ != a) return;
         // A refused or failed datagram is lost like any other; key frames repair it.
@@ -197,6 +188,8 @@ void RemoteServer::Impl::kick_udp(const std::shared_ptr<Session>& a) {
           counters_.bytes_sent += n;
           ++counters_.datagrams_sent;
           if (frame_done && counts) ++counters_.frames_sent;
+          if (video) counters_.video_bytes_sent += n;
+          if (video && frame_done) ++counters_.video_pairs_sent;
         }
         kick_udp(a);
       });

@@ -17,6 +17,7 @@
 
 #include "source_impl.h"
 #include "telex/remote/v4l2_convert.h"
+#include "telex/video/eye_pairer.h"
 
 namespace telex::remote {
 
@@ -109,8 +110,9 @@ class V4l2Camera {
   }
 
   // Dequeues one frame within the timeout: BGR image plus the driver's timestamp (monotonic ns).
-  ReadStatus read(std::chrono::milliseconds timeout, cv::Mat3b& bgr, std::int64_t& stamp_ns,
-                  std::string& error) {
+  // An MJPEG camera's JPEG is kept in `jpeg` as it came (for pass-through); else it is cleared.
+  ReadStatus read(std::chrono::milliseconds timeout, cv::Mat3b& bgr,
+                  std::vector<std::uint8_t>& jpeg, std::int64_t& stamp_ns, std::string& error) {
     pollfd pfd{fd_, POLLIN, 0};
     const int pr = ::poll(&pfd, 1, static_cast<int>(timeout.count()));
     if (pr == 0) return ReadStatus::Timeout;
@@ -130,6 +132,10 @@ class V4l2Camera {
     const std::span<const std::uint8_t> bytes(static_cast<const std::uint8_t*>(mapped.data),
                                               buf.bytesused);
     auto converted = convert_v4l2_buffer(format_, bytes, width_, height_, bytes_per_line_);
+    if (format_ == kFourccMjpeg)
+      jpeg.assign(bytes.begin(), bytes.end());
+    else
+      jpeg.clear();
     // Drivers stamp with CLOCK_MONOTONIC, the same clock as steady_clock on Linux.
     const bool monotonic =
         (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
@@ -180,16 +186,31 @@ class V4l2StereoSource final : public StereoSource {
     left_.stop();
     right_.stop();
   }
+  // The two cameras run free: each eye's frames are paired by their driver timestamps within half
+  // a 30 Hz period (video::EyePairer); a frame the other eye has no partner for is dropped. The
+  // eye with fewer frames waiting is read next, so a pair needs two reads when both keep time.
   ReadResult<StereoFrame> read(std::chrono::milliseconds timeout) override {
     ReadResult<StereoFrame> out;
-    std::int64_t stamp_l = 0, stamp_r = 0;
-    out.status = left_.read(timeout, out.frame.left_bgr, stamp_l, out.error);
-    if (out.status != ReadStatus::Frame) return out;
-    out.status = right_.read(timeout, out.frame.right_bgr, stamp_r, out.error);
-    if (out.status != ReadStatus::Frame) return out;
-    // The pair is as old as its older half.
-    out.frame.capture_ns = std::min(stamp_l, stamp_r);
-    out.frame.frame_id = ++frames_;
+    for (int reads = 0; reads < 4; ++reads) {
+      const auto eye = pairer_.waiting(video::Eye::Left) <= pairer_.waiting(video::Eye::Right)
+                           ? video::Eye::Left
+                           : video::Eye::Right;
+      EyeImage image;
+      std::int64_t stamp_ns = 0;
+      out.status = (eye == video::Eye::Left ? left_ : right_)
+                       .read(timeout, image.bgr, image.jpeg, stamp_ns, out.error);
+      if (out.status != ReadStatus::Frame) return out;
+      auto pair = pairer_.push(eye, std::move(image), stamp_ns);
+      if (!pair) continue;
+      out.frame.left_bgr = pair->left.bgr;
+      out.frame.right_bgr = pair->right.bgr;
+      out.frame.left_jpeg = std::move(pair->left.jpeg);
+      out.frame.right_jpeg = std::move(pair->right.jpeg);
+      out.frame.capture_ns = pair->capture_ns;  // the older eye's
+      out.frame.frame_id = ++frames_;
+      return out;
+    }
+    out.status = ReadStatus::Timeout;  // no pair yet: the eyes' clocks disagree, or one stalls
     return out;
   }
   std::string describe() const override {
@@ -197,7 +218,12 @@ class V4l2StereoSource final : public StereoSource {
   }
 
  private:
+  struct EyeImage {
+    cv::Mat3b bgr;
+    std::vector<std::uint8_t> jpeg;  // MJPEG cameras: the JPEG as it came
+  };
   V4l2Camera left_, right_;
+  video::EyePairer<EyeImage> pairer_{1'000'000'000 / 30};
   std::uint64_t frames_ = 0;
 };
 

@@ -57,6 +57,15 @@ struct StationSummary {
   std::uint64_t udp_datagrams = 0, udp_lost = 0;
   std::uint64_t bytes_in = 0;  // everything the remote sent (TCP and UDP, headers and tags)
   std::array<std::uint64_t, 8> udp_messages_by_fragments{};  // [n - 1]: messages of n fragments
+  // Whole messages' bytes by stream (ClientStats): the eyes' EncodedVideo and depth.
+  std::uint64_t video_bytes = 0, depth_bytes = 0;
+  // The eyes (VideoReceiver): pairs received, decoded whole, decoded on a missing reference (not
+  // shown), refused; distinct pairs the view showed; PLIs sent; and the age of each pair shown
+  // (display time minus capture time, the remote's clock).
+  std::uint64_t video_pairs_received = 0, video_pairs_decoded = 0, video_pairs_damaged = 0;
+  std::uint64_t video_decode_errors = 0, video_pairs_shown = 0, video_plis_sent = 0;
+  double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
+  int video_eye_width_px = 0, video_eye_height_px = 0;  // of the newest pair decoded
   // Repair (FrameAssembler's counters) and tile ages in frame periods at each closed frame: the
   // tiles under the fingertip windows, and all tiles.
   std::uint64_t tiles_missing = 0, frames_incomplete = 0, frames_unclosed = 0, tiles_expired = 0;
@@ -83,6 +92,8 @@ struct StationSummary {
 
   // The stream's mean rate over the haptic loop's span (0 before the loop ran).
   double stream_mbit_per_s() const;
+  double video_mbit_per_s() const;  // whole EncodedVideo messages, over the same span
+  double depth_mbit_per_s() const;
   // telex-local --json-summary: every key once, here (docs/BENCHMARKS.md and the tests read them).
   nlohmann::json to_json() const;
   // The run in one line: ticks, rate, jitter, latencies, peak forces.

@@ -21,7 +21,7 @@ struct ClientConfig {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7300;
   bool use_udp = true;      // ask for depth over UDP (the remote may still choose TCP)
-  bool want_video = false;  // ask for the right-eye video
+  bool want_video = false;  // ask for the eyes' video (EncodedVideo)
   bool frame_parts = true;  // take frames as an ROI part and a rest (PROTOCOL.md 2.4)
   bool repair = true;       // announce kCapRepair: the remote caches tiles for TileNacks (2.5)
   std::int64_t heartbeat_ns = 250'000'000;
@@ -69,7 +69,11 @@ struct ClientStats {
   std::atomic<std::uint64_t> unsealed{0};
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> heartbeats{0};
-  std::atomic<std::int64_t> clock_offset_ns{0};  // remote clock minus local clock (NTP estimate)
+  // Whole messages by stream (header + payload, without fragment headers and seals): the eyes'
+  // EncodedVideo, and depth (tiles, manifests, stream configs).
+  std::atomic<std::uint64_t> video_bytes{0}, depth_bytes{0};
+  std::atomic<std::uint64_t> receiver_reports{0};  // ReceiverReports sent (PROTOCOL.md 2.7)
+  std::atomic<std::int64_t> clock_offset_ns{0};    // remote clock minus local clock (NTP estimate)
   std::atomic<std::int64_t> rtt_ns{0};
   std::atomic<std::uint8_t> state{static_cast<std::uint8_t>(ClientState::Stopped)};
 };
@@ -79,7 +83,7 @@ struct ClientEvents {
   std::function<void(const proto::StreamConfig&)> on_config;
   std::function<void(const proto::Header&, const proto::DepthTile&)> on_tile;
   std::function<void(const proto::Header&, const proto::FrameManifest&)> on_manifest;
-  std::function<void(const proto::Header&, const proto::VideoFrame&)> on_video;
+  std::function<void(const proto::Header&, const proto::EncodedVideo&)> on_video;
   std::function<void(ClientState, const std::string&)> on_state;  // with a human-readable reason
   // Dropped messages, at most one call a second (counts are in ClientStats).
   std::function<void(const std::string&)> on_warning;
@@ -102,6 +106,9 @@ class SurfaceClient {
   // The operator's head as joint targets (PROTOCOL.md 2.6); dropped while not connected.
   void send_head(const proto::HeadCommand& head);
   void request_key_frame();
+  // Thread-safe: a Picture Loss Indication for the eyes (PROTOCOL.md 2.7); dropped when no
+  // session is up.
+  void send_picture_loss(const proto::PictureLoss& pli);
 
   const ClientStats& stats() const { return stats_; }
   // What the network thread got (try_realtime's description); empty before start().

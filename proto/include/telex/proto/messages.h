@@ -14,12 +14,15 @@
 #include <vector>
 
 #include "telex/proto/depth_codec.h"
+#include "telex/video/frame_header.h"
 
 namespace telex::proto {
 
 // "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
-inline constexpr std::uint8_t kProtocolVersion = 4;
+// 5: message 8 carries an encoded stereo pair (EncodedVideo) instead of one eye's JPEG; messages
+// 13 and 14 (PictureLoss, ReceiverReport) are new.
+inline constexpr std::uint8_t kProtocolVersion = 5;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
@@ -34,13 +37,15 @@ enum class MsgType : std::uint8_t {
   StreamConfig = 5,
   DepthTile = 6,
   FrameManifest = 7,
-  VideoFrame = 8,
+  EncodedVideo = 8,
   RoiRequest = 9,
   Stats = 10,
   TileNack = 11,
   HeadCommand = 12,
+  PictureLoss = 13,
+  ReceiverReport = 14,
 };
-inline constexpr int kMsgTypeCount = 13;
+inline constexpr int kMsgTypeCount = 15;
 std::string_view msg_type_name(MsgType type);
 
 // Header flag bits.
@@ -196,11 +201,49 @@ struct FrameManifest {
   bool operator==(const FrameManifest&) const = default;
 };
 
-struct VideoFrame {
-  std::uint8_t eye = 1;  // 0 left, 1 right
-  std::uint16_t width = 0, height = 0;
-  std::vector<std::uint8_t> jpeg;
-  bool operator==(const VideoFrame&) const = default;
+// One encoded stereo pair (remote -> station, fragmented and sealed like depth): the bytes
+// video::EyeEncoder wrote, a video::EncodedFrameHeader (30 bytes) then exactly its payload_bytes
+// of H.264 or MJPEG. decode() checks them with video::parse_frame (geometry, codec, lengths).
+struct EncodedVideo {
+  std::vector<std::uint8_t> frame;
+  bool operator==(const EncodedVideo&) const = default;
+};
+
+// Why the station asks for an intra pair (PROTOCOL.md 2.7). Wire values; never renumber.
+enum class PictureLossReason : std::uint8_t {
+  MissingReference = 0,  // a pair was lost (encode_seq gap, or it never completed in time)
+  DecodeError = 1,       // the decoder refused a pair
+};
+inline constexpr std::uint8_t kMaxPictureLossReason = 1;
+
+// Picture Loss Indication (RFC 4585 6.3.1; station -> remote): the eyes' decoder lacks a
+// reference; the remote's encoder makes its next pair intra.
+struct PictureLoss {
+  std::uint32_t last_good_seq = 0;  // encode_seq of the last pair decoded whole (0 when none)
+  PictureLossReason reason = PictureLossReason::MissingReference;
+  bool operator==(const PictureLoss&) const = default;
+};
+
+// Bounds of ReceiverReport (decode rejects values beyond them).
+inline constexpr std::uint32_t kMaxReportIntervalUs = 10'000'000;
+inline constexpr std::int32_t kMaxReportDelayUs = 60'000'000;
+
+// What the station received over UDP in the last interval (station -> remote, every heartbeat):
+// the input of a delay- and loss-based rate controller (WebRTC's GCC). Delays are one-way, from
+// capture (the message header's capture_ns, remote clock) to the whole message's arrival (station
+// clock moved to the remote's by the heartbeat offset): their level carries the clock estimate's
+// error and the remote's processing; their change (the gradient) is what a controller reads.
+struct ReceiverReport {
+  std::uint32_t interval_us = 0;     // 1..kMaxReportIntervalUs: time the counts cover
+  std::uint64_t bytes_received = 0;  // datagram bytes (depth and video) in the interval
+  std::uint64_t video_bytes = 0;     // of them, whole EncodedVideo messages
+  std::uint32_t datagrams_received = 0;
+  std::uint32_t fragments_lost = 0;   // ReassemblerCounters::lost() in the interval
+  std::uint32_t delay_samples = 0;    // whole messages the delays below are over (0: all 0)
+  std::int32_t delay_mean_us = 0;     // |.| <= kMaxReportDelayUs
+  std::int32_t delay_last_us = 0;     //
+  float delay_gradient_us_per_s = 0;  // least-squares slope of delay over arrival time; finite
+  bool operator==(const ReceiverReport&) const = default;
 };
 
 struct RoiRect {
@@ -250,7 +293,8 @@ struct HeadCommand {
 
 // Alternative index == MsgType wire value.
 using Message = std::variant<Hello, Accept, Reject, Heartbeat, Bye, StreamConfig, DepthTile,
-                             FrameManifest, VideoFrame, RoiRequest, Stats, TileNack, HeadCommand>;
+                             FrameManifest, EncodedVideo, RoiRequest, Stats, TileNack, HeadCommand,
+                             PictureLoss, ReceiverReport>;
 
 MsgType type_of(const Message& message);
 

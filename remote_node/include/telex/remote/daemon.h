@@ -17,6 +17,7 @@
 
 #include "telex/base/latest_slot.h"
 #include "telex/common/rig.h"
+#include "telex/remote/eye_stream.h"
 #include "telex/remote/head.h"
 #include "telex/remote/pipeline.h"
 #include "telex/remote/server.h"
@@ -30,9 +31,12 @@ struct DaemonConfig {
   SourceOptions source_options;
   PipelineConfig pipeline;
   ServerConfig server;
-  int jpeg_quality = 80;  // 1..100
+  int jpeg_quality = 80;  // 1..100, --video-codec mjpeg
   int video_width = 0;    // 0: the stereo source's size
   int video_height = 0;
+  // --video-codec h264 | h264-vaapi | h264-nvenc | mjpeg | auto and --video-bitrate (bit/s).
+  std::string video_codec = "h264";
+  std::int64_t video_bitrate_bps = 4'000'000;
   double duration_s = 0.0;    // 0: until SIGINT/SIGTERM
   bool stats_line = true;     // one line a second on stderr
   std::string head = "none";  // the robot head's driver: see make_head_driver
@@ -77,7 +81,13 @@ struct DaemonStats {
   std::uint64_t tiles_skipped = 0;
   std::uint64_t bytes_sent = 0;
   std::uint64_t source_errors = 0;
-  std::uint64_t video_frames = 0;
+  std::uint64_t video_frames = 0;  // pairs encoded and published
+  // The eyes: encoder refusals, PLIs applied, bytes and pairs on the wire (bytes_sent holds
+  // them too), the encoder's target, the station's newest receiver report.
+  std::uint64_t video_failed = 0, video_intra_requests = 0;
+  std::uint64_t video_bytes_sent = 0, video_pairs_sent = 0, plis_in = 0, receiver_reports_in = 0;
+  std::int64_t video_bitrate_bps = 0;
+  proto::ReceiverReport last_report;
   std::uint64_t malformed_in = 0;
   std::uint64_t auth_failed = 0, unsealed = 0, replayed = 0, udp_ignored = 0;
   // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
@@ -137,7 +147,13 @@ class RemoteDaemon {
   void capture_loop();
   void stereo_loop();
   void process_loop();
+  // The eyes' encoder (throws std::invalid_argument naming --video-codec) and its hooks into the
+  // server: PLIs and receiver reports.
+  void open_eyes();
   void video_loop();
+  // Network thread: the station's receiver report. The rate controller's extension point: it
+  // reads the report and sets the eyes' bit rate with eye_stream_->set_bitrate().
+  void on_receiver_report(const proto::ReceiverReport& report, std::int64_t received_ns);
   void head_loop();
   // The head's measured pose at time t (the remote's steady clock): interpolated between the head
   // loop's readings, extrapolated at most 20 ms past the newest; invalid without readings.
@@ -147,6 +163,7 @@ class RemoteDaemon {
   std::vector<std::pair<std::string, std::string>> scheduling_;  // set by start()
   std::unique_ptr<DepthSource> depth_;
   std::unique_ptr<StereoSource> stereo_;
+  std::unique_ptr<EyeStream> eye_stream_;  // with stereo_: the eyes' encoder (video thread)
   std::unique_ptr<HeadDriver> head_;
   std::unique_ptr<RemoteServer> server_;
   FramePipeline pipeline_;

@@ -41,6 +41,11 @@ struct ServerConfig {
   // The operator's head as joint targets (PROTOCOL.md 2.6), with the time it was received (steady
   // clock): called on the network thread, so it must not block. Unset: counted and dropped.
   std::function<void(const proto::HeadCommand&, std::int64_t received_ns)> on_head_command;
+  // The station's Picture Loss Indications and receiver reports (PROTOCOL.md 2.7), on the network
+  // thread (must not block): the eyes' encoder makes an intra pair; a rate controller reads the
+  // reports. Unset: counted only.
+  std::function<void(const proto::PictureLoss&)> on_picture_loss;
+  std::function<void(const proto::ReceiverReport&, std::int64_t received_ns)> on_receiver_report;
   // SCHED_FIFO priority of the network thread, which packs and sends every depth tile (0: the
   // scheduling it was started with). The daemon asks for kRemotePathPriority.
   int realtime_priority = 0;
@@ -70,6 +75,10 @@ struct ServerCounters {
   std::atomic<std::uint64_t> messages_sent{0};
   std::atomic<std::uint64_t> datagrams_sent{0};
   std::atomic<std::uint64_t> bytes_sent{0};  // depth + video payload bytes on the wire (UDP or TCP)
+  std::atomic<std::uint64_t> video_bytes_sent{0};     // of them the eyes' (EncodedVideo)
+  std::atomic<std::uint64_t> video_pairs_sent{0};     // EncodedVideo messages sent whole
+  std::atomic<std::uint64_t> plis_in{0};              // PictureLoss from the station
+  std::atomic<std::uint64_t> receiver_reports_in{0};  // ReceiverReport from the station
   std::atomic<std::uint64_t> malformed_in{0};  // messages from the client rejected by the parser
   // Refused by authentication (not in malformed_in): auth_failed counts TLS handshakes that failed
   // (another key, no TLS, a certificate the CA does not vouch for) and datagrams to the server's
@@ -136,10 +145,10 @@ class RemoteServer {
   // Queues tiles[from, end) of a part still being encoded (FramePipeline's tile sink) ahead of
   // it; publish() of the finished part then sends only what was not streamed, and the manifest.
   void publish_tiles(const ProcessedFrame& part, std::size_t from);
-  // Queues JPEG views (eye 0 left, 1 right).
-  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns,
-                     const std::vector<std::uint8_t>& left_jpeg,
-                     const std::vector<std::uint8_t>& right_jpeg, int width, int height);
+  // Queues one encoded stereo pair (EyeEncoder's bytes: EncodedFrameHeader + payload) for a
+  // client that asked for video; no-op otherwise.
+  void publish_video(std::uint32_t frame_id, std::int64_t capture_ns, bool is_intra,
+                     std::vector<std::uint8_t> encoded_pair);
 
  private:
   class Impl;

@@ -40,6 +40,9 @@ struct StereoFrame {
   cv::Mat3b right_bgr;
   std::int64_t capture_ns = 0;
   std::uint64_t frame_id = 0;
+  // The cameras' own JPEGs when they deliver MJPEG (else empty): --video-codec mjpeg sends them
+  // as they came, without decoding and encoding again.
+  std::vector<std::uint8_t> left_jpeg, right_jpeg;
 };
 
 // Result of one read: the running capture loop never throws, it acts on the status.

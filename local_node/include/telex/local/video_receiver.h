@@ -1,0 +1,85 @@
+// SPDX-License-Identifier: MIT
+// The eyes on the station: encoded pairs from the network thread are decoded in order on their
+// own thread (never the haptic or network thread); a lost reference sends a Picture Loss
+// Indication, at most one per round trip (and 100 ms); the view takes the newest whole pair.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <thread>
+#include <vector>
+
+#include "telex/proto/messages.h"
+
+namespace telex::local {
+
+// One decoded pair, as the remote captured it.
+struct EyePair {
+  std::uint32_t frame_id = 0;
+  std::int64_t capture_ns = 0;  // the remote's clock
+  cv::Mat3b left_bgr, right_bgr;
+};
+
+struct VideoReceiverCounters {
+  std::atomic<std::uint64_t> received{0};       // EncodedVideo messages taken
+  std::atomic<std::uint64_t> queue_dropped{0};  // dropped before decoding: the decoder fell behind
+  std::atomic<std::uint64_t> decoded{0};        // pairs decoded whole (shown when asked for)
+  std::atomic<std::uint64_t> damaged{0};  // decoded on a missing reference or held back: not shown
+  std::atomic<std::uint64_t> decode_errors{0};  // bad header or refused by the codec
+  std::atomic<std::uint64_t> intra{0};          // intra pairs decoded
+  std::atomic<std::uint64_t> plis_sent{0};      //
+  std::atomic<std::uint64_t> plis_held{0};      // PLIs not sent: one went out less than an RTT ago
+  std::atomic<int> eye_width_px{0}, eye_height_px{0};  // of the newest pair decoded whole
+};
+
+class VideoReceiver {
+ public:
+  struct Hooks {
+    std::function<void(const proto::PictureLoss&)> send_pli;  // any thread
+    std::function<std::int64_t()> rtt_ns;                     // the link's round trip (0: unknown)
+    std::function<std::int64_t()> now_ns;                     // monotonic
+  };
+  explicit VideoReceiver(Hooks hooks);
+  ~VideoReceiver();
+  VideoReceiver(const VideoReceiver&) = delete;
+  VideoReceiver& operator=(const VideoReceiver&) = delete;
+
+  // Network thread: takes the pair's bytes (never blocks on the decoder).
+  void push(std::vector<std::uint8_t> frame);
+  // Any thread: the whole pair captured nearest `want_capture_ns` (0: the newest) among the last
+  // few decoded, or null before the first.
+  std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
+  const VideoReceiverCounters& counters() const { return counters_; }
+
+  // The shortest time between two PLIs, whatever the round trip.
+  static constexpr std::int64_t kMinPliIntervalNs = 100'000'000;
+
+ private:
+  void run();
+  void decode_one(const std::vector<std::uint8_t>& bytes);
+  void ask_for_intra(proto::PictureLossReason reason);
+
+  Hooks hooks_;
+  VideoReceiverCounters counters_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::vector<std::uint8_t>> queue_;  // guarded by mu_
+  bool stopping_ = false;                        // guarded by mu_
+  mutable std::mutex pairs_mu_;
+  std::deque<std::shared_ptr<const EyePair>> pairs_;  // the last kKeptPairs, oldest first
+  static constexpr std::size_t kKeptPairs = 4;
+  static constexpr std::size_t kMaxQueued = 8;
+  std::int64_t last_pli_ns_ = 0;     // decode thread
+  std::uint32_t last_good_seq_ = 0;  // decode thread
+  struct Decoder;
+  std::unique_ptr<Decoder> decoder_;  // decode thread
+  std::thread thread_;
+};
+
+}  // namespace telex::local

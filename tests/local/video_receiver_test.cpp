@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: MIT
+// VideoReceiver: pairs decoded off the caller's thread, a lost pair answered with one PLI per
+// round trip, and the picture back after the intra pair the PLI asks for.
+#include "telex/local/video_receiver.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <mutex>
+#include <opencv2/imgproc.hpp>
+#include <thread>
+
+#include "telex/video/eye_encoder.h"
+
+namespace telex::local {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Waits (bounded) for the decode thread to get to a count; the test's outcome never depends on
+// how long it took.
+template <typename Pred>
+bool eventually(Pred p) {
+  for (int i = 0; i < 2000 && !p(); ++i) std::this_thread::sleep_for(5ms);
+  return p();
+}
+
+struct Fixture {
+  std::mutex mu;
+  std::vector<proto::PictureLoss> plis;
+  std::atomic<std::int64_t> now_ns{1'000'000'000};
+  std::unique_ptr<video::EyeEncoder> encoder;
+  std::unique_ptr<VideoReceiver> receiver;
+  std::uint32_t frame_id = 0;
+
+  Fixture() {
+    video::EncoderConfig c;
+    c.eye_width_px = 96;
+    c.eye_height_px = 64;
+    c.threads = 1;
+    encoder = video::EyeEncoder::create(c);
+    VideoReceiver::Hooks h;
+    h.send_pli = [this](const proto::PictureLoss& p) {
+      std::lock_guard lock(mu);
+      plis.push_back(p);
+    };
+    h.rtt_ns = [] { return std::int64_t{20'000'000}; };
+    h.now_ns = [this] { return now_ns.load(); };
+    receiver = std::make_unique<VideoReceiver>(std::move(h));
+  }
+  std::vector<std::uint8_t> next_pair() {
+    ++frame_id;
+    cv::Mat3b left(64, 96, cv::Vec3b(20, 40, static_cast<std::uint8_t>(frame_id * 3)));
+    cv::Mat3b right(64, 96, cv::Vec3b(200, 40, static_cast<std::uint8_t>(frame_id * 3)));
+    cv::circle(left, {static_cast<int>(frame_id % 90), 30}, 8, {255, 255, 255}, -1);
+    std::vector<std::uint8_t> out;
+    EXPECT_EQ(encoder->encode(left, right, frame_id, frame_id * 33'000'000ll, out),
+              video::EncodeStatus::Ok);
+    return out;
+  }
+  std::size_t pli_count() {
+    std::lock_guard lock(mu);
+    return plis.size();
+  }
+};
+
+TEST(VideoReceiver, DecodesPairsOfTheRightSizeInOrder) {
+  Fixture f;
+  EXPECT_EQ(f.receiver->pair(), nullptr);
+  for (int i = 0; i < 5; ++i) f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 5; }));
+  const auto p = f.receiver->pair();
+  ASSERT_NE(p, nullptr);
+  EXPECT_EQ(p->frame_id, 5u);
+  EXPECT_EQ(p->left_bgr.size(), cv::Size(96, 64));
+  EXPECT_EQ(p->right_bgr.size(), cv::Size(96, 64));
+  EXPECT_GT(p->right_bgr(5, 5)[0], 150);  // the right eye is the right eye
+  EXPECT_LT(p->left_bgr(5, 5)[0], 60);
+  EXPECT_EQ(f.receiver->pair(3 * 33'000'000ll)->frame_id, 3u);  // nearest capture among the kept
+  EXPECT_EQ(f.pli_count(), 0u);
+}
+
+TEST(VideoReceiver, ALostPairSendsOnePliPerRoundTripAndTheIntraPairRecovers) {
+  Fixture f;
+  for (int i = 0; i < 3; ++i) f.receiver->push(f.next_pair());
+  (void)f.next_pair();  // lost on the way
+  f.receiver->push(f.next_pair());
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().damaged.load() == 2; }));
+  // Both damaged pairs came within one round trip: one PLI, one held.
+  ASSERT_EQ(f.pli_count(), 1u);
+  EXPECT_EQ(f.plis[0].last_good_seq, 2u);
+  EXPECT_EQ(f.plis[0].reason, proto::PictureLossReason::MissingReference);
+  EXPECT_EQ(f.receiver->counters().plis_held.load(), 1u);
+  EXPECT_EQ(f.receiver->pair()->frame_id, 3u);  // the damaged pairs are not shown
+  // After a round trip the still-missing reference asks again.
+  f.now_ns += 150'000'000;
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().damaged.load() == 3; }));
+  EXPECT_EQ(f.pli_count(), 2u);
+  // The remote answers with an intra pair: whole pairs again.
+  f.encoder->request_intra();
+  f.receiver->push(f.next_pair());
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 5; }));
+  EXPECT_EQ(f.receiver->counters().intra.load(), 2u);  // the first pair and the answer
+  EXPECT_EQ(f.receiver->pair()->frame_id, 9u);
+  EXPECT_EQ(f.pli_count(), 2u);
+}
+
+}  // namespace
+}  // namespace telex::local
