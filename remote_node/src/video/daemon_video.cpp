@@ -21,6 +21,7 @@ void RemoteDaemon::open_eyes() {
   eye_stream_ =
       std::make_unique<EyeStream>(v, v.width_px > 0 ? v.width_px : config_.source_options.width,
                                   v.width_px > 0 ? v.height_px : config_.source_options.height);
+  eye_rate_ = std::make_unique<EyeRate>(config_.video_bitrate_bps);
   config_.server.on_picture_loss = [this](const proto::PictureLoss&) {
     eye_stream_->request_intra();
   };
@@ -48,9 +49,10 @@ void RemoteDaemon::video_loop() {
   }
 }
 
-void RemoteDaemon::on_receiver_report(const proto::ReceiverReport& report, std::int64_t) {
-  // No controller yet: the encoder keeps --video-bitrate, and the stats line shows what the
-  // station measured. A rate controller reads `report` here and calls eye_stream_->set_bitrate().
+void RemoteDaemon::on_receiver_report(const proto::ReceiverReport& report,
+                                      std::int64_t received_ns) {
+  // The link's budget less the depth's rate, capped by --video-bitrate (eye_rate.h).
+  if (eye_stream_ && eye_rate_) eye_stream_->set_bitrate(eye_rate_->on_report(report, received_ns));
   std::lock_guard lock(stats_mu_);
   stats_.last_report = report;
 }

@@ -17,6 +17,7 @@
 
 #include "telex/base/latest_slot.h"
 #include "telex/common/rig.h"
+#include "telex/remote/eye_rate.h"
 #include "telex/remote/eye_stream.h"
 #include "telex/remote/head.h"
 #include "telex/remote/pipeline.h"
@@ -151,8 +152,7 @@ class RemoteDaemon {
   // server: PLIs and receiver reports.
   void open_eyes();
   void video_loop();
-  // Network thread: the station's receiver report. The rate controller's extension point: it
-  // reads the report and sets the eyes' bit rate with eye_stream_->set_bitrate().
+  // Network thread: the station's receiver report sets the eyes' bit rate (EyeRate).
   void on_receiver_report(const proto::ReceiverReport& report, std::int64_t received_ns);
   void head_loop();
   // The head's measured pose at time t (the remote's steady clock): interpolated between the head
@@ -164,6 +164,7 @@ class RemoteDaemon {
   std::unique_ptr<DepthSource> depth_;
   std::unique_ptr<StereoSource> stereo_;
   std::unique_ptr<EyeStream> eye_stream_;  // with stereo_: the eyes' encoder (video thread)
+  std::unique_ptr<EyeRate> eye_rate_;      // its bit rate from receiver reports (network thread)
   std::unique_ptr<HeadDriver> head_;
   std::unique_ptr<RemoteServer> server_;
   FramePipeline pipeline_;
