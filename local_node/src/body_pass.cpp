@@ -18,28 +18,18 @@ namespace {
 
 // Each capsule's box (a unit cube's corner c in [0, 1]^3 placed around the segment a-b with room
 // for the blend), rasterised once per capsule: Mesa's llvmpipe pays per triangle, so a box of 12
-// triangles with the surface found per fragment beats a tessellated hand.
+// triangles with the surface found per fragment beats a tessellated hand. The fragments get the
+// capsule's index alone and read the rest from uniform blocks: llvmpipe loads every input of a
+// fragment shader up front, and some forty flat inputs cost more than the read.
 constexpr const char* kBodyVs = R"(#version 330 core
 layout(location = 0) in vec3 a_corner;
 layout(location = 1) in vec3 a_a;        // per instance, this eye's frame
 layout(location = 2) in vec3 a_b;
 layout(location = 3) in vec2 a_radii;    // at a, at b
-layout(location = 4) in vec4 a_color;    // rgb, lit (1) or a flat marker (0)
-layout(location = 6) in ivec4 a_n0;      // blend neighbours, -1 ends the list
-layout(location = 7) in ivec4 a_n1;
+layout(location = 4) in int a_id;
 uniform mat4 u_projection;
 out vec3 v_position;
-flat out vec3 v_center;
-flat out vec3 v_u;
-flat out vec3 v_w;
-flat out vec3 v_axis;
-flat out vec3 v_half;
-flat out vec4 v_color;
-flat out vec4 v_self_a;
-flat out vec4 v_self_b;
-flat out ivec4 v_n0;
-flat out ivec4 v_n1;
-flat out int v_count;
+flat out int v_id;  // this capsule in Capsules
 void main() {
   vec3 d = a_b - a_a;
   float len = length(d);
@@ -52,19 +42,7 @@ void main() {
   vec3 p = a_a + u * (a_corner.x * 2.0 - 1.0) * r + w * (a_corner.y * 2.0 - 1.0) * r +
            axis * (-r + a_corner.z * (len + 2.0 * r));
   v_position = p;
-  v_center = a_a + axis * (0.5 * len);
-  v_u = u;
-  v_w = w;
-  v_axis = axis;
-  v_half = vec3(r, r, 0.5 * len + r);
-  v_color = a_color;
-  v_self_a = vec4(a_a, a_radii.x);
-  v_self_b = vec4(a_b, a_radii.y);
-  v_n0 = a_n0;
-  v_n1 = a_n1;
-  int count = 0;
-  for (int k = 0; k < 4; ++k) count += int(a_n0[k] >= 0) + int(a_n1[k] >= 0);
-  v_count = count;
+  v_id = a_id;
   gl_Position = u_projection * vec4(p, 1.0);
 }
 )";
@@ -73,22 +51,15 @@ void main() {
 // box (or the near plane, with the eye inside it) on the field of this capsule smoothly joined to
 // its neighbours; each pixel is worked once per box (face culling keeps one face a pixel).
 constexpr const char* kBodyFs = R"(#version 330 core
-layout(std140) uniform Capsules { vec4 u_caps[512]; };
+// Per capsule: a and its radius, b and its radius, rgb and lit (1) or a flat marker (0).
+layout(std140) uniform Capsules { vec4 u_caps[3 * 256]; };
+// Per capsule its blend neighbours, -1 ending the list.
+layout(std140) uniform Neighbours { ivec4 u_neighbours[2 * 256]; };
 uniform float u_near;
 uniform float u_far;
 uniform float u_exposure;
 in vec3 v_position;
-flat in vec3 v_center;
-flat in vec3 v_u;
-flat in vec3 v_w;
-flat in vec3 v_axis;
-flat in vec3 v_half;
-flat in vec4 v_color;
-flat in vec4 v_self_a;  // a, radius at a
-flat in vec4 v_self_b;
-flat in ivec4 v_n0;
-flat in ivec4 v_n1;
-flat in int v_count;
+flat in int v_id;
 out vec4 o_color;
 
 float dot2(vec3 v) { return dot(v, v); }
@@ -117,20 +88,23 @@ float smin(float a, float b, float k) {
   return min(a, b) - h * h * k * 0.25;
 }
 float capsule(int i, vec3 p) {
-  vec4 a = u_caps[2 * i], b = u_caps[2 * i + 1];
+  vec4 a = u_caps[3 * i], b = u_caps[3 * i + 1];
   return round_cone(p, a.xyz, b.xyz, a.w, b.w);
 }
-float radius(int i) { return max(u_caps[2 * i].w, u_caps[2 * i + 1].w); }
+float radius(int i) { return max(u_caps[3 * i].w, u_caps[3 * i + 1].w); }
+vec4 g_self_a, g_self_b;  // this capsule
+int g_near_lo, g_near_hi;  // the neighbours near this pixel's ray, a byte each
+int g_count;
 // llvmpipe runs both sides of a branch but leaves a loop once every pixel of a block is done: the
 // neighbours are looped over by their count (the same for the whole box), never skipped by a test.
 // g_blend: how deep in a fillet the last point was (0 on a lone capsule, 1 in a crease).
 float g_blend = 0.0;
 float field(vec3 p) {
-  float d = round_cone(p, v_self_a.xyz, v_self_b.xyz, v_self_a.w, v_self_b.w);
-  float r = max(v_self_a.w, v_self_b.w);
+  float d = round_cone(p, g_self_a.xyz, g_self_b.xyz, g_self_a.w, g_self_b.w);
+  float r = max(g_self_a.w, g_self_b.w);
   g_blend = 0.0;
-  for (int k = 0; k < v_count; ++k) {
-    int j = k < 4 ? v_n0[k] : v_n1[k - 4];
+  for (int k = 0; k < g_count; ++k) {
+    int j = ((k < 4 ? g_near_lo : g_near_hi) >> (8 * (k & 3))) & 255;
     float kj = 0.7 * min(r, radius(j));
     float dj = capsule(j, p);
     g_blend = max(g_blend, max(kj - abs(d - dj), 0.0) / kj);
@@ -138,8 +112,11 @@ float field(vec3 p) {
   }
   return d;
 }
-// Where the ray from the eye along rd enters the capsule a-b of radius r (Quilez), -1: a miss.
-float capsule_entry(vec3 rd, vec3 a, vec3 b, float r) {
+// Where the ray from the eye along rd is inside the capsule a-b of radius r: (enter, leave), or
+// enter > leave on a miss. The capsule is convex: its interval is the union of its cylinder's and
+// its two balls'.
+vec2 capsule_span(vec3 rd, vec3 a, vec3 b, float r) {
+  vec2 span = vec2(1e30, -1e30);
   vec3 ba = b - a, oa = -a;
   float baba = dot(ba, ba), bard = dot(ba, rd), baoa = dot(ba, oa);
   float rdoa = dot(rd, oa), oaoa = dot(oa, oa);
@@ -149,64 +126,131 @@ float capsule_entry(vec3 rd, vec3 a, vec3 b, float r) {
     float qc = baba * oaoa - baoa * baoa - r * r * baba;
     float h = qb * qb - qa * qc;
     if (h >= 0.0) {
-      float t = (-qb - sqrt(h)) / qa;
-      float y = baoa + t * bard;
-      if (y > 0.0 && y < baba) return t;
+      float s = sqrt(h);
+      vec2 cyl = vec2(-qb - s, -qb + s) / qa;
+      // Between the end planes: y(t) = baoa + t bard in [0, baba].
+      if (abs(bard) > 1e-20) {
+        vec2 ends = vec2(-baoa, baba - baoa) / bard;
+        cyl = vec2(max(cyl.x, min(ends.x, ends.y)), min(cyl.y, max(ends.x, ends.y)));
+      } else if (baoa < 0.0 || baoa > baba) {
+        cyl = vec2(1e30, -1e30);
+      }
+      if (cyl.x <= cyl.y) span = cyl;
     }
   }
-  // The round ends: the nearer of the two spheres' entries.
-  float best = -1.0;
   for (int e = 0; e < 2; ++e) {
     vec3 c = e == 0 ? a : b;
     float pb = dot(rd, c);
     float h = pb * pb - (dot(c, c) - r * r);
     if (h < 0.0) continue;
-    float t = pb - sqrt(h);
-    if (t > 0.0 && (best < 0.0 || t < best)) best = t;
+    float s = sqrt(h);
+    span = vec2(min(span.x, pb - s), max(span.y, pb + s));
+  }
+  return span;
+}
+// Where the ray from the eye along rd enters the round cone (Quilez's intersector), with the
+// outward normal there; x < 0: a miss.
+vec4 round_cone_hit(vec3 rd, vec3 pa, vec3 pb, float ra, float rb) {
+  vec3 ba = pb - pa, oa = -pa, ob = -pb;
+  float rr = ra - rb;
+  float m0 = dot(ba, ba), m1 = dot(ba, oa), m2 = dot(ba, rd), m3 = dot(rd, oa), m5 = dot(oa, oa);
+  float m6 = dot(ob, rd), m7 = dot(ob, ob);
+  float d2 = m0 - rr * rr;
+  if (d2 > 1e-6 * max(m0, 1e-12)) {
+    // The cone's side, where it touches neither ball.
+    float k2 = d2 - m2 * m2;
+    float k1 = d2 * m3 - m1 * m2 + m2 * rr * ra;
+    float k0 = d2 * m5 - m1 * m1 + m1 * rr * ra * 2.0 - m0 * ra * ra;
+    float h = k1 * k1 - k0 * k2;
+    if (abs(k2) > 1e-12 && h >= 0.0) {
+      float t = (-sqrt(h) - k1) / k2;
+      float y = m1 - ra * rr + t * m2;
+      if (t > 0.0 && y > 0.0 && y < d2) return vec4(t, normalize(d2 * (oa + t * rd) - ba * y));
+    }
+  }
+  // The balls (the larger alone where it holds the other).
+  vec4 best = vec4(-1.0);
+  float h1 = m3 * m3 - m5 + ra * ra, h2 = m6 * m6 - m7 + rb * rb;
+  if (h1 >= 0.0) {
+    float t = -m3 - sqrt(h1);
+    if (t > 0.0) best = vec4(t, (oa + t * rd) / ra);
+  }
+  if (h2 >= 0.0) {
+    float t = -m6 - sqrt(h2);
+    if (t > 0.0 && (best.x < 0.0 || t < best.x)) best = vec4(t, (ob + t * rd) / rb);
   }
   return best;
 }
 void main() {
   vec3 rd = normalize(v_position);
-  // The ray in the box's frame: slab entry and exit.
-  mat3 to_box = transpose(mat3(v_u, v_w, v_axis));
-  vec3 o = to_box * -v_center, dir = to_box * rd;
-  vec3 inv = 1.0 / dir;
-  vec3 t_lo = (-v_half - o) * inv, t_hi = (v_half - o) * inv;
-  vec3 t_min = min(t_lo, t_hi), t_max = max(t_lo, t_hi);
-  float t_enter = max(max(t_min.x, t_min.y), t_min.z);
-  float t_exit = min(min(t_max.x, t_max.y), t_max.z);
-  // This capsule grown by the blend's reach bounds what the pixel can meet: with the eye outside
-  // it, a miss is discarded here and a hit starts the march at its entry.
-  vec4 ca = v_self_a, cb = v_self_b;
-  float reach = max(ca.w, cb.w) * 1.2 + 5e-4;
-  float t = max(t_enter, u_near);
-  vec3 ab = cb.xyz - ca.xyz;
-  float along = clamp(dot(-ca.xyz, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
-  if (length(ca.xyz + along * ab) > reach) {
-    float t_cap = capsule_entry(rd, ca.xyz, cb.xyz, reach);
-    if (t_cap < 0.0) discard;
-    t = max(t, t_cap);
+  g_self_a = u_caps[3 * v_id];
+  g_self_b = u_caps[3 * v_id + 1];
+  vec4 color = u_caps[3 * v_id + 2];
+  // This capsule grown by the blend's reach bounds what the pixel can meet (the box holds it; the
+  // eye may be inside it): a miss is discarded here.
+  vec4 ca = g_self_a, cb = g_self_b;
+  float r = max(ca.w, cb.w);
+  vec2 span = capsule_span(rd, ca.xyz, cb.xyz, r * 1.2 + 5e-4);
+  if (span.x > span.y || span.y < u_near) discard;
+  float t = max(span.x, u_near), t_exit = span.y;
+  // A neighbour j changes the smooth union only where this capsule's distance and j's differ by
+  // less than k_j and the union is below zero: within 1.25 k_j of j. Only the neighbours whose
+  // so grown capsule the ray meets are kept (their indices packed a byte each: llvmpipe runs a
+  // loop as long as its longest lane, and indexes local arrays slowly), and the ray is marched
+  // only from where it meets the first of them; elsewhere the surface is this round cone's,
+  // found and shaded exactly.
+  ivec4 n0 = u_neighbours[2 * v_id], n1 = u_neighbours[2 * v_id + 1];
+  g_near_lo = 0;
+  g_near_hi = 0;
+  g_count = 0;
+  float blend_lo = 1e30, blend_hi = -1e30;
+  for (int k = 0; k < 8; ++k) {
+    int j = k < 4 ? n0[k] : n1[k - 4];
+    if (j < 0) break;
+    float rj = radius(j);
+    vec2 s = capsule_span(rd, u_caps[3 * j].xyz, u_caps[3 * j + 1].xyz,
+                          rj + 0.875 * min(r, rj) + 2e-4);
+    if (s.x <= s.y && s.y > t && s.x < t_exit) {
+      if (g_count < 4) g_near_lo |= j << (8 * g_count);
+      else g_near_hi |= j << (8 * (g_count - 4));
+      ++g_count;
+      blend_lo = min(blend_lo, s.x);
+      blend_hi = max(blend_hi, s.y);
+    }
   }
-  bool hit = false;
-  for (int i = 0; i < 32 && t < t_exit; ++i) {
+  vec4 self_hit = round_cone_hit(rd, ca.xyz, cb.xyz, ca.w, cb.w);
+  bool exact = self_hit.x > 0.0 && (g_count == 0 || self_hit.x <= blend_lo);
+  if (!exact && g_count == 0) discard;
+  // Past the blends the field is this cone's alone again.
+  float t_end = min(t_exit, blend_hi);
+  bool hit = exact;
+  t = exact ? self_hit.x : max(t, blend_lo);
+  for (int i = 0; i < 32 && !hit && t < t_end; ++i) {
     float d = field(rd * t);
-    if (d < 1.5e-4 + 2e-4 * t) { hit = true; break; }
-    t += d;
+    if (d < 1.5e-4 + 2e-4 * t) hit = true;
+    else t += d;
+  }
+  if (!hit && self_hit.x >= t_end && t >= t_end) {
+    t = self_hit.x;
+    hit = exact = true;
   }
   if (!hit) discard;
   vec3 p = rd * t;
-  // The crease depth at the hit, then the normal from three forward differences (the field is
-  // about zero at the hit).
-  float d0 = field(p);
-  float crease = g_blend;
-  const float e = 2e-4;
-  vec3 n = normalize(vec3(field(p + vec3(e, 0.0, 0.0)), field(p + vec3(0.0, e, 0.0)),
-                          field(p + vec3(0.0, 0.0, e))) - d0);
+  vec3 n = self_hit.yzw;
+  float crease = 0.0;
+  if (!exact) {
+    // The crease depth at the hit, then the normal from three forward differences (the field is
+    // about zero at the hit).
+    float d0 = field(p);
+    crease = g_blend;
+    const float e = 2e-4;
+    n = normalize(vec3(field(p + vec3(e, 0.0, 0.0)), field(p + vec3(0.0, e, 0.0)),
+                       field(p + vec3(0.0, 0.0, e))) - d0);
+  }
   float facing = max(dot(n, -rd), 0.0);
-  vec3 albedo = v_color.rgb;
+  vec3 albedo = color.rgb;
   vec3 c;
-  if (v_color.a > 0.5) {
+  if (color.a > 0.5) {
     // Skin: a key light from above and to the left (the camera's y is down), wrapped so the
     // shadow side stays soft, a sky-and-ground ambient, the creases (deep in a fillet between two
     // capsules) darkened, a warm rim where light scatters under the skin, and a faint sheen.
@@ -299,9 +343,9 @@ GLuint link(const char* vs, const char* fs) {
 struct Instance {
   std::array<float, 3> a, b;
   std::array<float, 2> radii;
-  std::array<float, 4> rgba;
-  std::array<std::int32_t, kMaxBlendNeighbours> neighbours;
+  std::int32_t id;  // in the Capsules and Neighbours blocks
 };
+constexpr std::size_t kCapsuleFloats = 12;  // a, radius at a, b, radius at b, rgba
 
 std::array<float, 3> f3(const glm::dvec3& v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
@@ -362,12 +406,13 @@ float exposure_from_image(const cv::Mat3b& bgr) {
 
 struct BodyPass::Gl {
   GLuint body = 0, shadow = 0;
-  GLuint vao = 0, corners = 0, instances = 0, ubo = 0;
+  GLuint vao = 0, corners = 0, instances = 0, ubo = 0, neighbours_ubo = 0;
   GLuint empty_vao = 0, depth_tex = 0;
   cv::Size depth_size;
   GLsizei vertices = 0;
   std::vector<Instance> instance_data, around_eye;
   std::vector<float> caps;
+  std::vector<std::int32_t> neighbours;
 };
 
 BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
@@ -375,6 +420,7 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   g.body = link(kBodyVs, kBodyFs);
   g.shadow = link(kShadowVs, kShadowFs);
   glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Capsules"), 0);
+  glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Neighbours"), 1);
   const float c[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
                          {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
   // Counter-clockwise seen from outside the cube (the box frame is right-handed).
@@ -389,6 +435,7 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   glGenBuffers(1, &g.corners);
   glGenBuffers(1, &g.instances);
   glGenBuffers(1, &g.ubo);
+  glGenBuffers(1, &g.neighbours_ubo);
   glBindVertexArray(g.vao);
   glBindBuffer(GL_ARRAY_BUFFER, g.corners);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(corners.size() * sizeof(float)),
@@ -408,12 +455,15 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   attrib(1, 3, offsetof(Instance, a), false);
   attrib(2, 3, offsetof(Instance, b), false);
   attrib(3, 2, offsetof(Instance, radii), false);
-  attrib(4, 4, offsetof(Instance, rgba), false);
-  attrib(6, 4, offsetof(Instance, neighbours), true);
-  attrib(7, 4, offsetof(Instance, neighbours) + 4 * sizeof(std::int32_t), true);
+  attrib(4, 1, offsetof(Instance, id), true);
   glBindVertexArray(0);
   glBindBuffer(GL_UNIFORM_BUFFER, g.ubo);
-  glBufferData(GL_UNIFORM_BUFFER, static_cast<GLsizeiptr>(kMaxCapsules * 8 * sizeof(float)),
+  glBufferData(GL_UNIFORM_BUFFER,
+               static_cast<GLsizeiptr>(kMaxCapsules * kCapsuleFloats * sizeof(float)), nullptr,
+               GL_STREAM_DRAW);
+  glBindBuffer(GL_UNIFORM_BUFFER, g.neighbours_ubo);
+  glBufferData(GL_UNIFORM_BUFFER,
+               static_cast<GLsizeiptr>(kMaxCapsules * kMaxBlendNeighbours * sizeof(std::int32_t)),
                nullptr, GL_STREAM_DRAW);
   glGenTextures(1, &g.depth_tex);
   glBindTexture(GL_TEXTURE_2D, g.depth_tex);
@@ -481,22 +531,27 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   const auto neighbours = blend_neighbours(capsules);
   g.instance_data.clear();
   g.around_eye.clear();
-  g.caps.assign(capsules.size() * 8, 0.0f);
+  g.caps.assign(capsules.size() * kCapsuleFloats, 0.0f);
+  g.neighbours.assign(capsules.size() * kMaxBlendNeighbours, -1);
   for (std::size_t i = 0; i < capsules.size(); ++i) {
     const Capsule& c = capsules[i];
     const glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
     const double ra = c.radius_m, rb = radius_b(c);
     if (!(ra > 0.0) || !(rb > 0.0) || !std::isfinite(ra + rb) || !finite(a) || !finite(b)) continue;
     const auto fa = f3(a), fb = f3(b);
-    std::copy(fa.begin(), fa.end(), g.caps.begin() + static_cast<std::ptrdiff_t>(i * 8));
-    g.caps[i * 8 + 3] = static_cast<float>(ra);
-    std::copy(fb.begin(), fb.end(), g.caps.begin() + static_cast<std::ptrdiff_t>(i * 8 + 4));
-    g.caps[i * 8 + 7] = static_cast<float>(rb);
-    Instance in{fa,
-                fb,
-                {static_cast<float>(ra), static_cast<float>(rb)},
-                {c.bgr[2] / 255.0f, c.bgr[1] / 255.0f, c.bgr[0] / 255.0f, c.lit ? 1.0f : 0.0f},
-                neighbours[i]};
+    float* cap = g.caps.data() + i * kCapsuleFloats;
+    std::copy(fa.begin(), fa.end(), cap);
+    cap[3] = static_cast<float>(ra);
+    std::copy(fb.begin(), fb.end(), cap + 4);
+    cap[7] = static_cast<float>(rb);
+    cap[8] = c.bgr[2] / 255.0f;
+    cap[9] = c.bgr[1] / 255.0f;
+    cap[10] = c.bgr[0] / 255.0f;
+    cap[11] = c.lit ? 1.0f : 0.0f;
+    std::copy(neighbours[i].begin(), neighbours[i].end(),
+              g.neighbours.begin() + static_cast<std::ptrdiff_t>(i * kMaxBlendNeighbours));
+    Instance in{
+        fa, fb, {static_cast<float>(ra), static_cast<float>(rb)}, static_cast<std::int32_t>(i)};
     (box_near_eye(a, b, std::max(ra, rb)) ? g.around_eye : g.instance_data).push_back(in);
   }
   const std::size_t outside = g.instance_data.size();
@@ -512,6 +567,11 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(g.caps.size() * sizeof(float)),
                   g.caps.data());
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, g.ubo);
+  glBindBuffer(GL_UNIFORM_BUFFER, g.neighbours_ubo);
+  glBufferSubData(GL_UNIFORM_BUFFER, 0,
+                  static_cast<GLsizeiptr>(g.neighbours.size() * sizeof(std::int32_t)),
+                  g.neighbours.data());
+  glBindBufferBase(GL_UNIFORM_BUFFER, 1, g.neighbours_ubo);
   glBindBuffer(GL_ARRAY_BUFFER, g.instances);
   glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.instance_data.size() * sizeof(Instance)),
                g.instance_data.data(), GL_STREAM_DRAW);
