@@ -50,7 +50,7 @@ void StationView::bind(ClientEvents& events) {
   events.on_video = [this](const proto::Header& h, const proto::VideoFrame& v) {
     std::lock_guard lock(video_mu_);
     auto& q = eye_frames_[v.eye == 0 ? 0 : 1];
-    q.push_back({static_cast<std::int64_t>(h.capture_ns), v.jpeg});
+    q.push_back({static_cast<std::int64_t>(h.capture_ns), v.width, v.height, v.jpeg});
     if (q.size() > 8) q.pop_front();
     eye_frames_received_.fetch_add(1, std::memory_order_relaxed);
   };
@@ -98,6 +98,7 @@ cv::Mat3b StationView::render_2d(const std::array<FingertipForce, kFingerCount>&
 
 cv::Mat3b StationView::eye_image(int eye, std::int64_t want_capture_ns, std::int64_t* offset_ns) {
   std::vector<std::uint8_t> jpeg;
+  int width = 0, height = 0;
   {
     std::lock_guard lock(video_mu_);
     const auto& q = eye_frames_[static_cast<std::size_t>(eye)];
@@ -110,9 +111,16 @@ cv::Mat3b StationView::eye_image(int eye, std::int64_t want_capture_ns, std::int
       if (offset_ns) *offset_ns = q[pick].capture_ns - want_capture_ns;
     }
     jpeg = q[pick].jpeg;
+    width = q[pick].width;
+    height = q[pick].height;
   }
   if (jpeg.empty()) return {};
-  return cv::imdecode(jpeg, cv::IMREAD_COLOR);
+  DecodedEye d = decode_eye_jpeg(jpeg, width, height);
+  if (d.status == EyeJpegStatus::WrongSize &&
+      eye_frames_wrong_size_.fetch_add(1, std::memory_order_relaxed) == 0)
+    spdlog::warn("eye {}: a JPEG that is not the {}x{} its video frame says: dropped (counted)",
+                 eye, width, height);
+  return d.bgr;
 }
 
 void StationView::request_stereo(const std::array<FingertipForce, kFingerCount>& forces,
@@ -139,6 +147,8 @@ bool StationView::pump_window(std::atomic<bool>& stop) {
 }
 
 void StationView::log_window_counts() const {
+  if (const auto wrong = eye_frames_wrong_size_.load(); wrong > 0)
+    spdlog::info("view: {} eye images dropped for not being their video frame's size", wrong);
   if (!window_) return;
   spdlog::info(
       "view window: {} stereo pairs shown, {} replaced by a newer one before the window drew "

@@ -18,6 +18,7 @@
 #include "faults.h"
 #include "telex/base/latest_slot.h"
 #include "telex/base/triple_buffer.h"
+#include "telex/local/eye_jpeg.h"
 #include "telex/local/station.h"
 #include "telex/local/stereo_view.h"
 #include "telex/local/surface_client.h"
@@ -39,6 +40,8 @@ class StationView {
   bool window() const { return window_ != nullptr; }
   // Eye frames received so far (both eyes): the status line's eye rate.
   std::uint64_t eye_frames_received() const { return eye_frames_received_.load(); }
+  // Eye images dropped at decode for not being their VideoFrame's width x height.
+  std::uint64_t eye_frames_wrong_size() const { return eye_frames_wrong_size_.load(); }
 
   // Surface thread: what the view draws (a frame's rest that changed nothing only its depth).
   void show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm);
@@ -81,8 +84,10 @@ class StationView {
 
   std::mutex video_mu_;
   std::atomic<std::uint64_t> eye_frames_received_{0};
+  std::atomic<std::uint64_t> eye_frames_wrong_size_{0};
   struct EyeFrame {
     std::int64_t capture_ns = 0;  // sender clock, as the depth frames'
+    int width = 0, height = 0;    // as the VideoFrame announced them
     std::vector<std::uint8_t> jpeg;
   };
   std::array<std::deque<EyeFrame>, 2> eye_frames_;  // by eye (0 left, 1 right): the last 8
