@@ -18,6 +18,10 @@
 #include "telex/common/depth_image.h"
 #include "telex/proto/messages.h"
 
+namespace telex::bag {
+struct CameraIntrinsics;
+}
+
 namespace telex::remote {
 
 // One depth frame as the source delivered it. capture_ns is on the host's steady clock so that
@@ -169,6 +173,10 @@ struct FakenectRecording {
 // Checks every line and file the way fakenect will read them; throws std::runtime_error naming
 // INDEX.txt's line and what is wrong (fakenect itself exit()s on a missing or short file).
 FakenectRecording check_fakenect_recording(const std::filesystem::path& dir);
+
+// Why a bag's sensor_msgs/CameraInfo cannot be used ("fx (K[0]) = nan is not a finite positive
+// number of pixels"), or empty when fx, fy, cx, cy are finite and positive and the size is too.
+std::string camera_info_error(const bag::CameraIntrinsics& camera);
 
 // Host steady clock in ns: the single time base of the remote node.
 std::int64_t steady_now_ns();
