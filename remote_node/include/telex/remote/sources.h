@@ -131,6 +131,10 @@ std::string stereo_source_help();
 // an unknown scheme's message lists the valid ones. A bag source with colour=T also gives the eye
 // view when no stereo source is set.
 std::unique_ptr<DepthSource> make_depth_source(std::string_view spec,
+  // --registration hardware: a live OpenNI2 device registers depth to its colour camera
+  // (IMAGE_REGISTRATION_DEPTH_TO_COLOR; a device without it fails to start, named). Off: the
+  // depth stays in the sensor's own pixels.
+  bool hardware_registration = false;
                                                const SourceOptions& options = {});
 
 // A stereo (eye view) source by its spec (stereo_source_schemes()); throws as make_depth_source.
