@@ -104,6 +104,89 @@ void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, Registration
 
 namespace {
 
+std::string rig_extrinsics_text(const Rig& rig) {
+  return fmt::format("the rig's extrinsics.right_eye_from_depth (depth_pixels \"{}\"{})",
+                     depth_pixels_name(rig.depth_pixels),
+                     rig.path.empty() ? "" : ", " + rig.path.string());
+}
+
+void require_openni(std::string_view source_spec, const char* why) {
+  std::string kind;
+  try {
+    kind = parse_source_spec(source_spec).kind;
+  } catch (const std::invalid_argument&) {
+    return;  // the source's own check names a bad spec
+  }
+  if (kind != "openni")
+    throw std::invalid_argument(fmt::format(
+        "{}: source '{}' has no sensor registration; only a live openni:URI device (PS1080: "
+        "Kinect v1, Carmine, Xtion) registers depth to its colour camera",
+        why, source_spec));
+}
+
+}  // namespace
+
+DepthRegistration choose_registration(const RegistrationChoice& c, RegistrationConfig& reg,
+                                      SourceOptions& source) {
+  const bool extrinsics = reg.mode != RegisterMode::None;
+  const bool from_rig = extrinsics && !c.register_given && c.rig && c.rig->X_RightEyeDepth;
+  const std::string register_text = fmt::format("--register {}", register_mode_name(reg.mode));
+  DepthRegistration r = extrinsics ? DepthRegistration::Rig : DepthRegistration::None;
+  if (c.asked == "hardware") {
+    r = DepthRegistration::Hardware;
+  } else if (c.asked == "rig") {
+    r = DepthRegistration::Rig;
+  } else if (c.asked == "none") {
+    r = DepthRegistration::None;
+  } else if (!c.asked.empty()) {
+    throw std::invalid_argument(
+        fmt::format("--registration '{}' is not one of hardware, rig, none", c.asked));
+  }
+  source.hardware_registration = false;
+  switch (r) {
+    case DepthRegistration::Hardware:
+      if (c.register_given)
+        throw std::invalid_argument(fmt::format(
+            "--registration hardware and {} would register twice: the sensor brings depth to its "
+            "colour camera, then the extrinsics would move it again; choose one",
+            register_text));
+      if (from_rig && c.rig->depth_pixels == DepthPixels::Ir)
+        throw std::invalid_argument(fmt::format(
+            "--registration hardware and {} would register twice: those extrinsics start from the "
+            "sensor's own pixels, which hardware registration has already left; use "
+            "--registration rig, or calibrate on hardware-registered depth (depth_pixels "
+            "\"color\")",
+            rig_extrinsics_text(*c.rig)));
+      require_openni(c.source_spec, "--registration hardware");
+      reg.mode = RegisterMode::None;
+      source.hardware_registration = true;
+      break;
+    case DepthRegistration::Rig:
+      if (!extrinsics)
+        throw std::invalid_argument(
+            "--registration rig needs extrinsics: --rig FILE with "
+            "extrinsics.right_eye_from_depth, or --register shift|full with --register-baseline");
+      // Extrinsics calibrated on hardware-registered depth start from the colour camera: the
+      // sensor registers first, then the extrinsics bring the depth to the right eye.
+      if (from_rig && c.rig->depth_pixels == DepthPixels::Color) {
+        require_openni(c.source_spec,
+                       "--registration rig with extrinsics calibrated in colour pixels "
+                       "(depth_pixels \"color\")");
+        source.hardware_registration = true;
+      }
+      break;
+    case DepthRegistration::None:
+      if (c.register_given)
+        throw std::invalid_argument(fmt::format(
+            "--registration none and {} contradict each other: drop one", register_text));
+      reg.mode = RegisterMode::None;
+      break;
+  }
+  return r;
+}
+
+namespace {
+
 // The eye centre X,Y,Z in the depth camera's frame (the inverse of parse_registration's).
 std::string eye_centre_text(const RigidTransform& X_EyeDepth) {
   const glm::dvec3 c = -(glm::transpose(X_EyeDepth.rotation) * X_EyeDepth.translation_m);
@@ -193,9 +276,16 @@ void add_pipeline_options(CLI::App& app, RemoteFlags& f) {
 
 // Depth registered into the right-eye camera (the rig may set these; show_rig_defaults).
 void add_registration_options(CLI::App& app, RemoteFlags& f) {
+  app.add_option(
+         "--registration", f.registration,
+         "The run's one registration: hardware (the sensor registers depth to its colour "
+         "camera; openni:URI only), rig (the calibrated extrinsics bring depth to the right "
+         "eye) or none (depth in the sensor's own pixels). Default: rig when the rig or "
+         "--register gives extrinsics, else none")
+      ->check(CLI::IsMember({"hardware", "rig", "none"}));
   app.add_option("--register", f.register_mode,
-                 "Register depth into the right-eye camera before fill: none | shift | full. "
-                 "none (default): OpenNI sources deliver hardware-registered depth already")
+                 "How --registration rig registers depth into the right-eye camera before fill: "
+                 "none | shift | full (a rig with extrinsics: full)")
       ->check(CLI::IsMember({"none", "shift", "full"}));
   app.add_option("--register-baseline", f.register_baseline,
                  "Eye camera centre X,Y,Z in the depth camera's frame, metres (x right, y down, "
@@ -346,13 +436,18 @@ void resolve_registration(const CLI::App& app, RemoteFlags& f) {
   cfg.pipeline.registration =
       parse_registration(f.register_mode, f.register_baseline, f.register_rotation, f.register_eye,
                          cfg.pipeline.registration.nominal_depth_m);
-  if (!f.rig) return;
-  apply_rig(*f.rig,
-            {app.count("--register") > 0, app.count("--register-baseline") > 0,
-             app.count("--register-rotation") > 0, app.count("--register-eye") > 0},
-            cfg.pipeline.registration);
-  cfg.robot_head = f.rig->robot_head;
-  cfg.head_limits = head_limits_from(f.rig->robot_head);
+  if (f.rig) {
+    apply_rig(*f.rig,
+              {app.count("--register") > 0, app.count("--register-baseline") > 0,
+               app.count("--register-rotation") > 0, app.count("--register-eye") > 0},
+              cfg.pipeline.registration);
+    cfg.robot_head = f.rig->robot_head;
+    cfg.head_limits = head_limits_from(f.rig->robot_head);
+  }
+  cfg.registration =
+      choose_registration({f.registration, app.count("--register") > 0 && f.register_mode != "none",
+                           f.rig ? &*f.rig : nullptr, cfg.depth_source},
+                          cfg.pipeline.registration, cfg.source_options);
 }
 
 // --psk, --cert/--key/--ca and --insecure: the keys loaded and checked, and a plain link off

@@ -25,6 +25,8 @@ struct RemoteFlags {
   int client_timeout_ms = 3000;
   std::string register_mode = "none", register_baseline = "0.025,0,0", register_rotation = "0,0,0",
               register_eye;
+  std::string registration;  // --registration hardware|rig|none; empty: rig when there are
+                             // extrinsics (the rig's, or --register shift|full), else none
   bool fill = false, no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
   std::string psk_file, cert_file, key_file, ca_file;
   bool insecure = false;
@@ -63,6 +65,20 @@ struct RegistrationFlagsGiven {
 // extrinsics (extrinsics.right_eye_from_depth), the depth's calibrated intrinsics (depth). With
 // the extrinsics and no --register, the mode becomes full. Flags given win.
 void apply_rig(const Rig& rig, const RegistrationFlagsGiven& given, RegistrationConfig& reg);
+
+// The run's one registration (--registration, `asked`; empty = chosen): hardware, rig or none,
+// from the registration stage `reg` already built from the flags and the rig. Sets the source's
+// hardware registration and leaves `reg` applying extrinsics only for rig. Throws
+// std::invalid_argument naming both sides of a combination that would register twice
+// (hardware with extrinsics calibrated in the sensor's own pixels) or that contradicts itself.
+struct RegistrationChoice {
+  std::string_view asked;        // --registration's text, "" when not given
+  bool register_given = false;   // --register shift|full on the command line
+  const Rig* rig = nullptr;      // --rig, when given
+  std::string_view source_spec;  // --source
+};
+DepthRegistration choose_registration(const RegistrationChoice& choice, RegistrationConfig& reg,
+                                      SourceOptions& source);
 
 // What the rig sets, as the registration flags' defaults in --help (docs/RIG.md: `--help` with
 // `--rig` shows the rig's values), and as one line for the start-up log.

@@ -414,6 +414,16 @@ Rig parse_rig(std::string_view text, const std::string& origin) {
       Node t = x.at("right_eye_from_depth");
       rig.X_RightEyeDepth = read_transform(t, 1.0);
     }
+    if (x.has("depth_pixels")) {
+      Node d = x.at("depth_pixels");
+      const std::string v = d.string();
+      if (v != "ir" && v != "color")
+        d.fail(
+            "must be \"ir\" (the depth sensor's own pixels) or \"color\" (depth the sensor "
+            "registered to its colour camera), got \"" +
+            v + "\"");
+      rig.depth_pixels = v == "ir" ? DepthPixels::Ir : DepthPixels::Color;
+    }
     x.done();
   }
   if (top.has("robot_head")) {
@@ -453,6 +463,8 @@ nlohmann::json transform_json(const RigidTransform& x) {
   return {{"rotation", rotation_json(x.rotation)}, {"translation_m", vec_json(x.translation_m)}};
 }
 
+std::string_view depth_pixels_name(DepthPixels p) { return p == DepthPixels::Ir ? "ir" : "color"; }
+
 nlohmann::json rig_to_json(const Rig& rig) {
   nlohmann::json j;
   j["rig_version"] = 1;
@@ -462,8 +474,10 @@ nlohmann::json rig_to_json(const Rig& rig) {
       j["eyes"][s == Side::Left ? "left" : "right"] = camera_model_json(*rig.eye[index_of(s)]);
   if (rig.X_RightEyeLeftEye)
     j["extrinsics"]["right_eye_from_left_eye"] = transform_json(*rig.X_RightEyeLeftEye);
-  if (rig.X_RightEyeDepth)
+  if (rig.X_RightEyeDepth) {
     j["extrinsics"]["right_eye_from_depth"] = transform_json(*rig.X_RightEyeDepth);
+    j["extrinsics"]["depth_pixels"] = depth_pixels_name(rig.depth_pixels);
+  }
   nlohmann::json joints = nlohmann::json::array();
   for (const RobotHeadJoint& rj : rig.robot_head.joints)
     joints.push_back({{"name", rj.name},

@@ -258,7 +258,21 @@ bool SessionRecorder::write_pending() {
   return any;
 }
 
+std::string_view depth_pixels_of_registration(std::string_view registration) {
+  if (registration == "hardware") return "sensor colour camera";
+  if (registration == "rig") return "right eye";
+  if (registration == "none") return "sensor depth (IR) camera";
+  return "unknown";
+}
+
 void SessionRecorder::write_surface(const RecordedSurface& s) {
+  if (!s.registration.empty() && s.registration != registration_written_) {
+    const nlohmann::json j{
+        {"registration", s.registration},
+        {"depth_pixels", std::string(depth_pixels_of_registration(s.registration))}};
+    writer_->text(kRemoteTopic, s.built_ns + cfg_.monotonic_to_bag_ns, j.dump());
+    registration_written_ = s.registration;
+  }
   // Header stamp: its capture time (the remote's clock, on loopback this host's); bag time: when
   // the station built it, which orders the file.
   writer_->depth_mm(kDepthTopic, kDepthInfoTopic, s.capture_ns + cfg_.monotonic_to_bag_ns,

@@ -417,6 +417,8 @@ struct SurfaceClient::Impl {
             if (ev.on_manifest) ev.on_manifest(h, m);
           } else if constexpr (std::is_same_v<T, proto::EncodedVideo>) {
             if (ev.on_video) ev.on_video(h, m);
+          } else if constexpr (std::is_same_v<T, proto::Stats>) {
+            if (ev.on_stats) ev.on_stats(m);
           }
         },
         env.message);

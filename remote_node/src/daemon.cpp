@@ -85,7 +85,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
       "over-queue {} control-dropped {} | frames-sent {} | head-in {} "
       "clamped {} rate-limited {} accel-limited {} link-lost {} stale-held {} repeat-held {} "
-      "deadman-held {}{} head-errors {} | realtime {}/{} | eyes {}",
+      "deadman-held {}{} head-errors {} | registration {} | realtime {}/{} | eyes {}",
       static_cast<double>(now.frames_in - before.frames_in) / dt,
       static_cast<double>(now.frames_sent - before.frames_sent) / dt,
       now.frames_slot_dropped - before.frames_slot_dropped,
@@ -119,7 +119,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       now.head_holding ? std::string(" holding (") + head_hold_name(now.head_hold) + ")" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
           now.head.hardware_errors + now.head.io_errors,
-      now.realtime_threads, now.path_threads, eye_state_name(now.eyes));
+      depth_registration_name(now.registration), now.realtime_threads, now.path_threads,
+      eye_state_name(now.eyes));
 }
 
 RemoteDaemon::RemoteDaemon(DaemonConfig config)
@@ -159,6 +160,7 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
   stereo_ = make_eye_source(config_.depth_source, config_.stereo_source, config_.source_options);
   if (stereo_) open_eyes();
   config_.server.video_available = stereo_ != nullptr;
+  config_.server.registration = std::string(depth_registration_name(config_.registration));
   config_.server.codec = config_.pipeline.codec;
 }
 
@@ -247,6 +249,7 @@ DaemonStats RemoteDaemon::stats() const {
       }));
   s.source_ended = source_ended_;
   s.eyes = eyes_;
+  s.registration = config_.registration;
   if (server_) {
     const auto& c = server_->counters();
     s.frames_sent = c.frames_sent;

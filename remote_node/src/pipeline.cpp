@@ -49,6 +49,18 @@ std::vector<bool> tiles_in_rois(const proto::TileGrid& grid,
   return mask;
 }
 
+std::string_view depth_registration_name(DepthRegistration registration) {
+  switch (registration) {
+    case DepthRegistration::Hardware:
+      return "hardware";
+    case DepthRegistration::Rig:
+      return "rig";
+    case DepthRegistration::None:
+      break;
+  }
+  return "none";
+}
+
 std::string_view register_mode_name(RegisterMode mode) {
   switch (mode) {
     case RegisterMode::Shift:

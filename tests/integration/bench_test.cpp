@@ -140,10 +140,10 @@ TEST(BenchTool, QuickRunOnRealDeskFramesAndARecordedSessionReportsFillRate) {
           (desk / ("desk_" + std::to_string(i) + "_depth_mm.png")).string(), cv::IMREAD_UNCHANGED);
       ASSERT_EQ(depth.type(), CV_16UC1);
       // The bench's intrinsics and spacing for the desk frames (250 ms apart).
-      ASSERT_TRUE(recorder.add_surface({static_cast<std::uint64_t>(i + 1),
-                                        1'000'000'000 + i * 250'000'000LL,
-                                        1'000'000'000 + i * 250'000'000LL, depth,
-                                        telex::Intrinsics{525.0, 525.0, 320.0, 240.0, 640, 480}}));
+      ASSERT_TRUE(recorder.add_surface(
+          {static_cast<std::uint64_t>(i + 1), 1'000'000'000 + i * 250'000'000LL,
+           1'000'000'000 + i * 250'000'000LL, depth,
+           telex::Intrinsics{525.0, 525.0, 320.0, 240.0, 640, 480}, ""}));
     }
     ASSERT_EQ(recorder.finish().surfaces, 3u);
   }

@@ -200,6 +200,21 @@ TEST(Capture, TheOpenNiDummyDeviceLive) {
   }
 }
 
+// --ir on OpenNI2's Dummy device: its driver offers depth and colour streams only, so the capture
+// stops at start with the device and the missing stream named (exit 1), writing no frame.
+TEST(Capture, IrOnTheOpenNiDummyDeviceNamesTheMissingIrStream) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto dir = scratch_dir("capture_dummy_ir");
+  const auto out = dir / "out";
+  const CaptureRun r = capture(
+      dir, {"--source", "openni:Dummy", "--ir", "--frames", "2", "--out", out.string()}, "run");
+  EXPECT_EQ(r.rc, 1) << r.err;
+  EXPECT_NE(r.err.find("--ir: OpenNI2 device 'Dummy' has no IR stream (SENSOR_IR)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(out / "ir_000000.png"));
+}
+
 TEST(Capture, BadSpecEarlyEndAndUnwritableDirectoryAreNamed) {
   TELEX_REQUIRE_BINARIES("telex");
   const auto dir = scratch_dir("capture_errors");

@@ -79,16 +79,58 @@ Recording write_recording(const fs::path& dir, int frames) {
   return rec;
 }
 
+// A recording of the Kinect's IR video mode in fakenect's layout: depth dumps as above, each
+// followed by an IR dump "P5 640 488 255" (8-bit) or "P5 640 488 1023" (10-bit, host-order u16),
+// padded to the 921600 bytes fakenect 0.5 copies from every video dump. Each IR frame is a ramp
+// that differs per frame, so the captured images can be matched to the dumps.
+struct IrRecording {
+  fs::path dir;
+  std::vector<cv::Mat> ir;  // 640x488, as dumped
+};
+
+IrRecording write_ir_recording(const fs::path& dir, int frames, int bits) {
+  const Recording depth = write_recording(dir, frames);
+  IrRecording rec{dir, {}};
+  std::ofstream index(dir / "INDEX.txt", std::ios::trunc);
+  for (int i = 0; i < frames; ++i) {
+    index << depth.depth[static_cast<std::size_t>(i)].filename().string() << "\n";
+    cv::Mat img(488, 640, bits == 8 ? CV_8UC1 : CV_16UC1);
+    const int top = bits == 8 ? 255 : 1023;
+    for (int r = 0; r < img.rows; ++r)
+      for (int c = 0; c < img.cols; ++c) {
+        const int v = (r * 3 + c * 5 + i * 37) % (top + 1);
+        if (bits == 8)
+          img.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(v);
+        else
+          img.at<std::uint16_t>(r, c) = static_cast<std::uint16_t>(v);
+      }
+    char name[64];
+    std::snprintf(name, sizeof name, "r-%f-%u.pgm", 1294783212.0 + i / 30.0 + 0.001,
+                  1500u + 1000u * static_cast<unsigned>(i));
+    std::ofstream f(dir / name, std::ios::binary);
+    f << (bits == 8 ? "P5 640 488 255\n" : "P5 640 488 1023\n");
+    const auto bytes = static_cast<std::streamsize>(img.total() * img.elemSize());
+    f.write(reinterpret_cast<const char*>(img.data), bytes);
+    f << std::string(static_cast<std::size_t>(640 * 480 * 3 - bytes), '\0');
+    index << name << "\n";
+    rec.ir.push_back(img);
+  }
+  return rec;
+}
+
 struct FakenectRun {
   int rc = -1;
   std::string out, err;
 };
 
 FakenectRun capture_under_fakenect(const fs::path& recording, const fs::path& out, int frames,
-                                   const std::string& name) {
-  Process p({kFakenect, recording.string(), built_binary("telex").string(), "capture", "--source",
-             "freenect", "--frames", std::to_string(frames), "--out", out.string(), "--json"},
-            out.parent_path() / (name + ".out"), out.parent_path() / (name + ".err"));
+                                   const std::string& name, std::vector<std::string> extra = {}) {
+  std::vector<std::string> argv{
+      kFakenect,  recording.string(), built_binary("telex").string(), "capture", "--source",
+      "freenect", "--frames",         std::to_string(frames),         "--out",   out.string(),
+      "--json"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  Process p(argv, out.parent_path() / (name + ".out"), out.parent_path() / (name + ".err"));
   const auto rc = p.wait(60s);
   EXPECT_TRUE(rc.has_value()) << "telex capture under fakenect did not finish";
   return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
@@ -122,6 +164,72 @@ TEST(Freenect, FakenectReplayEqualsTheDumpLoadedAsKinectDisparity) {
     EXPECT_GT(cv::countNonZero(got), 640 * 480 / 2) << "the scene is mostly surface";
     last = match;
   }
+}
+
+// `telex capture --ir` under fakenect: every IR image written is 640x480 (the depth's rows of the
+// 640x488 IR frame), of the bit depth asked, and equals its dump's rows 4..483 in recording order.
+TEST(Freenect, IrFramesAreWrittenAtTheDepthsSizeAndTheirBitDepth) {
+  TELEX_REQUIRE_FAKENECT();
+  for (const int bits : {10, 8}) {
+    SCOPED_TRACE(bits);
+    const auto dir = scratch_dir("freenect_ir_" + std::to_string(bits));
+    const IrRecording rec = write_ir_recording(dir / "rec", 8, bits);
+    const auto out = dir / "out";
+    const FakenectRun r =
+        capture_under_fakenect(rec.dir, out, 4, "run", {"--ir", "--ir-bits", std::to_string(bits)});
+    ASSERT_EQ(r.rc, 0) << r.err << r.out;
+    std::ifstream is(out / "capture.json");
+    const auto j = nlohmann::json::parse(is);
+    EXPECT_EQ(j["ir_frames"], 4);
+    EXPECT_NE(j["ir_projector"].get<std::string>().find("on (libfreenect cannot switch"),
+              std::string::npos)
+        << j["ir_projector"];
+    ASSERT_EQ(j["files"].size(), 4u);
+    int last = -1;
+    for (const auto& f : j["files"]) {
+      ASSERT_TRUE(f.contains("ir")) << f;
+      EXPECT_EQ(f["ir_bits"], bits);
+      const cv::Mat got =
+          cv::imread((out / f["ir"].get<std::string>()).string(), cv::IMREAD_UNCHANGED);
+      ASSERT_EQ(got.type(), bits == 8 ? CV_8UC1 : CV_16UC1) << f["ir"];
+      ASSERT_EQ(got.cols, 640);
+      ASSERT_EQ(got.rows, 480);
+      double top = 0;
+      cv::minMaxLoc(got, nullptr, &top);
+      EXPECT_LE(top, bits == 8 ? 255 : 1023);
+      int match = -1;
+      for (int k = last + 1; k < static_cast<int>(rec.ir.size()) && match < 0; ++k)
+        if (cv::norm(got, rec.ir[static_cast<std::size_t>(k)].rowRange(4, 484), cv::NORM_INF) == 0)
+          match = k;
+      ASSERT_GE(match, 0) << f["ir"] << " equals no later IR dump's rows 4..483";
+      last = match;
+    }
+  }
+}
+
+// An IR capture of a recording without IR video (fakenect-record's RGB), or of the other bit
+// depth, is named before anything is replayed; a source without an IR camera is a usage error.
+TEST(Freenect, AnIrCaptureWithoutIrVideoIsNamed) {
+  TELEX_REQUIRE_FAKENECT();
+  const auto dir = scratch_dir("freenect_ir_none");
+  const Recording rgb = write_recording(dir / "rgb", 3);
+  FakenectRun r = capture_under_fakenect(rgb.dir, dir / "out_rgb", 2, "rgb", {"--ir"});
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("holds no IR video (1 rgb dumps"), std::string::npos) << r.err;
+  const IrRecording eight = write_ir_recording(dir / "eight", 3, 8);
+  r = capture_under_fakenect(eight.dir, dir / "out_eight", 2, "eight", {"--ir"});
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("--ir 10-bit, but the fakenect recording"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("holds IR 8-bit video"), std::string::npos) << r.err;
+
+  Process p({built_binary("telex").string(), "capture", "--source", "synthetic:plane", "--ir",
+             "--out", (dir / "out_synthetic").string()},
+            dir / "synthetic.out", dir / "synthetic.err");
+  const auto rc = p.wait(60s);
+  ASSERT_TRUE(rc.has_value());
+  EXPECT_EQ(*rc, 2);
+  EXPECT_NE(p.stderr_text().find("--ir: source synthetic"), std::string::npos) << p.stderr_text();
+  EXPECT_NE(p.stderr_text().find("has no IR camera"), std::string::npos) << p.stderr_text();
 }
 
 TEST(Freenect, ABrokenRecordingIsNamedNotExitedOn) {

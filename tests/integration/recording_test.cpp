@@ -79,6 +79,16 @@ TEST(Recording, APressSessionHoldsEveryTopicItsLoggedPeakAndReplaysToItsForces) 
   expect_topic("/telex/depth/camera_info", "sensor_msgs/CameraInfo", surfaces);
   expect_topic("/telex/fingertips", "geometry_msgs/PoseArray", ticks);
   expect_topic("/telex/config", "std_msgs/String", 1);
+  // Which registration the remote ran, as its session said it (a synthetic source: none).
+  expect_topic("/telex/remote", "std_msgs/String", 1);
+  {
+    r.select({"/telex/remote"});
+    bag::Message said;
+    ASSERT_TRUE(r.next(said));
+    const auto remote = nlohmann::json::parse(said.text);
+    EXPECT_EQ(remote["registration"], "none") << said.text;
+    EXPECT_EQ(remote["depth_pixels"], "sensor depth (IR) camera") << said.text;
+  }
   for (const char* f : {"thumb", "index", "middle", "ring", "little"}) {
     expect_topic(std::string("/telex/force/") + f, "geometry_msgs/WrenchStamped", ticks);
     expect_topic(std::string("/telex/display/") + f, "geometry_msgs/WrenchStamped", ticks);

@@ -62,7 +62,7 @@ Session record_stroke(const std::string& path, const HapticParams& haptic,
       frame.frame_id = static_cast<std::uint32_t>(++seq);
       frame.capture_ns = t - 20'000'000;
       newest = build_surface(frame, surface, {});
-      EXPECT_TRUE(recorder.add_surface({seq, t, frame.capture_ns, frame.depth_mm.clone(), k}));
+      EXPECT_TRUE(recorder.add_surface({seq, t, frame.capture_ns, frame.depth_mm.clone(), k, ""}));
       ++out.surfaces;
     }
     const double s = i * 1e-3;

@@ -334,7 +334,10 @@ TEST(NatNetParser, ServerInfoAndPing) {
   info.app_version = {3, 0, 1, 0};
   info.natnet_version = {4, 1};
   const auto d = make_server_info(info);
-  ASSERT_EQ(d.size(), 4u + 264u);
+  ASSERT_EQ(d.size(), 4u + 279u) << "3.0+: sSender_Server, as Motive 2.1 sends it";
+  info.natnet_version = {2, 9};
+  EXPECT_EQ(make_server_info(info).size(), 4u + 264u) << "2.x: sSender";
+  info.natnet_version = {4, 1};
   EXPECT_EQ(d[0], 1);  // PINGRESPONSE
   PacketView pkt;
   ASSERT_TRUE(parse_packet(d, pkt).ok());

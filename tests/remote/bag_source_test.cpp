@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 
 #include "process.h"
@@ -255,6 +256,39 @@ TEST(BagSource, ABrokenBagAMissingTopicAndAWrongEncodingNameTheFileTheTopicAndWh
   EXPECT_THROW(make_depth_source("bag:x.bag,rate=0"), std::invalid_argument);
   EXPECT_THROW(make_depth_source("bag:x.bag,rate=2,fast"), std::invalid_argument);
   EXPECT_THROW(make_depth_source("bag:"), std::invalid_argument);
+}
+
+TEST(BagSource, ACameraInfoThatCannotProjectIsNamedBeforeTheFirstFrame) {
+  const double nan = std::nan("");
+  const double inf = std::numeric_limits<double>::infinity();
+  struct Case {
+    const char* name;
+    bag::CameraIntrinsics k;
+    const char* expect;
+  };
+  const std::vector<Case> cases = {
+      {"zero_fx", {0.0, 571.1, 31.5, 25.5, 64, 48}, "fx (K[0]) = 0 is not a finite positive"},
+      {"nan_fy", {570.3, nan, 31.5, 25.5, 64, 48}, "fy (K[4]) = nan is not a finite positive"},
+      {"inf_cx", {570.3, 571.1, inf, 25.5, 64, 48}, "cx (K[2]) = inf is not a finite positive"},
+      {"negative_cy", {570.3, 571.1, 31.5, -2.0, 64, 48}, "cy (K[5]) = -2 is not"},
+  };
+  for (const auto& c : cases) {
+    EXPECT_NE(camera_info_error(c.k).find(c.expect), std::string::npos)
+        << c.name << ": " << camera_info_error(c.k);
+    const auto path = temp_bag(std::string(c.name) + ".bag");
+    {
+      bag::Writer w(path.string());
+      w.depth_mm("/d/depth", "/d/camera_info", kT0, 0, "d", cv::Mat1w(48, 64, std::uint16_t(900)),
+                 c.k);
+    }
+    const std::string e = start_error("bag:" + path.string());
+    EXPECT_NE(e.find("CameraInfo topic /d/camera_info: " + std::string(c.expect).substr(0, 9)),
+              std::string::npos)
+        << c.name << ": " << e;
+  }
+  EXPECT_EQ(camera_info_error(k_of(64, 48)), "");
+  EXPECT_NE(camera_info_error({570.3, 571.1, 31.5, 25.5, 0, 48}).find("not a positive image size"),
+            std::string::npos);
 }
 
 TEST(BagSource, AColourTopicIsTheEyeViewOfBothEyes) {

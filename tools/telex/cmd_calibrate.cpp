@@ -322,6 +322,8 @@ void write_depth_eye_rig(const std::string& out, const calib::DepthEyeCalibratio
                          const Intrinsics& depth, bool depth_from_flag) {
   nlohmann::json patch;
   patch["extrinsics"]["right_eye_from_depth"] = transform_json(c.X_RightEyeDepth);
+  // The board was found in the sensor's IR images: the extrinsics start from its own pixels.
+  patch["extrinsics"]["depth_pixels"] = "ir";
   if (depth_from_flag)
     patch["depth"] = {{"width", depth.width}, {"height", depth.height}, {"fx_px", depth.fx},
                       {"fy_px", depth.fy},    {"cx_px", depth.cx},      {"cy_px", depth.cy}};

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `telex capture`: N depth frames from any depth source as 16-bit millimetre PNGs, with the eye
-// images when the run has an eye view, and a capture.json of what was written (as librealsense's
+// images when the run has an eye view, the sensor's IR images with --ir (what `telex calibrate
+// depth-eye --ir` reads), and a capture.json of what was written (as librealsense's
 // rs-save-to-disk does for its cameras). The sources are the daemon's own (make_depth_source,
 // make_eye_source), so a capture holds exactly what telex-remote would have read.
 #include <fmt/format.h>
@@ -35,6 +36,8 @@ struct CaptureArgs {
   int every = 1;
   double timeout_s = 5.0;
   bool json = false;
+  bool ir = false;
+  int ir_bits = 10;
 };
 
 // The output directory exists and takes a file, or an error names it and why.
@@ -66,18 +69,38 @@ extern "C" void on_stop_signal(int) { g_stop = true; }
 // What one run wrote: the rows of capture.json and the counts its summary gives.
 struct CaptureLog {
   nlohmann::json frames = nlohmann::json::array();
-  int read = 0, kept = 0, eye_frames = 0;
+  int read = 0, kept = 0, eye_frames = 0, ir_frames = 0;
 };
 
+// The IR image read after depth frame `log.kept`: 8-bit PNG, or 16-bit holding its 10 bits.
+void save_ir(const fs::path& out, remote::DepthSource& depth, std::chrono::milliseconds timeout,
+             CaptureLog& log, nlohmann::json& row) {
+  auto ir = depth.read_ir(timeout);
+  if (ir.status == remote::ReadStatus::Timeout)
+    throw std::runtime_error(
+        fmt::format("source {} gave no IR image in {} ms", depth.describe(), timeout.count()));
+  if (ir.status != remote::ReadStatus::Frame)
+    throw std::runtime_error(fmt::format("source {}: IR: {}", depth.describe(),
+                                         ir.error.empty() ? "the recording ended" : ir.error));
+  const std::string file = fmt::format("ir_{:06d}.png", log.kept);
+  write_png(out / file, ir.frame.image);
+  row["ir"] = file;
+  row["ir_bits"] = ir.frame.bits;
+  row["ir_capture_ns"] = ir.frame.capture_ns;
+  ++log.ir_frames;
+}
+
 // Saves one depth frame (and its eye pair when there is one) and adds its row.
-void save_frame(const fs::path& out, const remote::DepthFrame& f, remote::StereoSource* eyes,
-                std::chrono::milliseconds timeout, CaptureLog& log) {
+void save_frame(const fs::path& out, const remote::DepthFrame& f, remote::DepthSource& depth,
+                bool ir, remote::StereoSource* eyes, std::chrono::milliseconds timeout,
+                CaptureLog& log) {
   const std::string file = fmt::format("depth_{:06d}_mm.png", log.kept);
   save_depth_png(out / file, f.image.depth_mm);
   nlohmann::json row{{"file", file},
                      {"frame_id", f.frame_id},
                      {"capture_ns", f.capture_ns},
                      {"scene_time_s", f.scene_time_s}};
+  if (ir) save_ir(out, depth, timeout, log, row);
   if (eyes) {
     auto e = eyes->read(timeout);
     if (e.status == remote::ReadStatus::Error)
@@ -123,7 +146,7 @@ bool capture_frames(const CaptureArgs& a, const fs::path& out, remote::DepthSour
     }
     waiting_since = now;
     if (log.read++ % a.every != 0) continue;
-    save_frame(out, r.frame, eyes, timeout, log);
+    save_frame(out, r.frame, depth, a.ir, eyes, timeout, log);
     if (now - last_progress > std::chrono::seconds(2)) {
       std::cerr << fmt::format("telex capture: {} of {} frames written\n", log.kept, a.frames);
       last_progress = now;
@@ -147,6 +170,7 @@ int run_capture(const CaptureArgs& a) {
   try {
     depth = remote::make_depth_source(a.source);
     eyes = remote::make_eye_source(a.source, a.stereo);
+    if (a.ir) depth->enable_ir({a.ir_bits});
   } catch (const std::invalid_argument& e) {
     std::cerr << "telex capture: " << e.what() << "\n";
     return 2;
@@ -180,6 +204,8 @@ int run_capture(const CaptureArgs& a) {
                                                             : error},
                                {"frames_read", log.read},
                                {"eye_frames", log.eye_frames},
+                               {"ir_frames", log.ir_frames},
+                               {"ir_projector", a.ir ? depth->ir_projector() : ""},
                                {"every", a.every},
                                {"out", out.string()},
                                {"intrinsics",
@@ -200,9 +226,12 @@ int run_capture(const CaptureArgs& a) {
     brief.erase("files");
     std::cout << brief.dump() << "\n";
   } else {
-    std::cout << fmt::format("{} depth frames ({} with eye images) from {} in {}{}\n", log.kept,
-                             log.eye_frames, name, out.string(),
-                             complete ? "" : " (interrupted; capture.json lists them)");
+    std::cout << fmt::format(
+        "{} depth frames ({} with eye images{}) from {} in {}{}\n", log.kept, log.eye_frames,
+        a.ir
+            ? fmt::format(", {} with IR images, projector {}", log.ir_frames, depth->ir_projector())
+            : "",
+        name, out.string(), complete ? "" : " (interrupted; capture.json lists them)");
   }
   // Interrupted: the shell's convention for a run ended by SIGINT.
   return complete ? 0 : 130;
@@ -224,6 +253,13 @@ const RegisterCommand kRegister{
       app.add_option("--timeout", a->timeout_s, "seconds to wait for a frame before giving up")
           ->check(CLI::Range(0.1, 3600.0));
       app.add_flag("--json", a->json, "print a JSON summary instead of the text line");
+      app.add_flag("--ir", a->ir,
+                   "also save the depth sensor's IR image with each frame (ir_NNNNNN.png, for "
+                   "`telex calibrate depth-eye --ir`), the projector off where the device allows; "
+                   "openni:URI and freenect:N only");
+      app.add_option("--ir-bits", a->ir_bits,
+                     "IR depth: 8 (8-bit PNG) or 10 (16-bit PNG holding 0..1023)")
+          ->check(CLI::IsMember({8, 10}));
       return [a] { return run_capture(*a); };
     }};
 

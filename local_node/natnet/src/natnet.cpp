@@ -280,19 +280,6 @@ ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version v, Frame&
   return {};
 }
 
-ParseStatus parse_server_info(std::span<const std::uint8_t> payload, ServerInfo& out) {
-  Reader r(payload);
-  TELEX_NN_NEED(payload.size() >= 264, "server info shorter than 264 bytes");
-  const auto* name = reinterpret_cast<const char*>(payload.data());
-  out.app_name.assign(name, strnlen(name, 256));
-  r.skip(256);
-  for (auto& b : out.app_version) r.get(b);
-  for (auto& b : out.natnet_version_bytes) r.get(b);
-  out.natnet_version = Version{out.natnet_version_bytes[0], out.natnet_version_bytes[1]};
-  TELEX_NN_NEED(supported(out.natnet_version), "server NatNet version outside 2.0 .. 4.x");
-  return {};
-}
-
 #undef TELEX_NN_NEED
 #undef TELEX_NN_FAIL
 
@@ -359,34 +346,25 @@ void write_analog(Writer& w, const std::vector<AnalogDevice>& devs, Version v) {
   w.close_section(v, sec);
 }
 
-std::vector<std::uint8_t> with_header(std::uint16_t id, std::vector<std::uint8_t> payload) {
+}  // namespace
+
+std::vector<std::uint8_t> make_packet(std::uint16_t message_id,
+                                      std::span<const std::uint8_t> payload) {
   if (payload.size() > 0xFFFF) throw std::length_error("NatNet payload exceeds 65535 bytes");
   const auto n = static_cast<std::uint16_t>(payload.size());
   std::vector<std::uint8_t> out;
   out.reserve(4 + payload.size());
   ByteWriter w(out);
-  w.u16(id);
+  w.u16(message_id);
   w.u16(n);
   w.bytes(payload);
   return out;
 }
 
-}  // namespace
-
 std::vector<std::uint8_t> make_ping(std::string_view app_name) {
   std::vector<std::uint8_t> p(app_name.begin(), app_name.end());
   p.push_back(0);
-  return with_header(kPing, std::move(p));
-}
-
-std::vector<std::uint8_t> make_server_info(const ServerInfo& info) {
-  std::vector<std::uint8_t> p(264, 0);
-  std::memcpy(p.data(), info.app_name.data(), std::min<std::size_t>(info.app_name.size(), 255));
-  std::memcpy(p.data() + 256, info.app_version.data(), 4);
-  const std::array<std::uint8_t, 4> nn{static_cast<std::uint8_t>(info.natnet_version.major),
-                                       static_cast<std::uint8_t>(info.natnet_version.minor), 0, 0};
-  std::memcpy(p.data() + 260, nn.data(), 4);
-  return with_header(kPingResponse, std::move(p));
+  return make_packet(kPing, p);
 }
 
 std::vector<std::uint8_t> encode_frame(const Frame& f, Version v) {
@@ -457,7 +435,7 @@ std::vector<std::uint8_t> encode_frame(const Frame& f, Version v) {
   }
   if (v.at_least(2, 6)) w.put(f.params);
   w.put(std::uint32_t{0});
-  return with_header(kFrameOfData, std::move(w.b));
+  return make_packet(kFrameOfData, w.b);
 }
 
 }  // namespace telex::local::natnet

@@ -45,6 +45,13 @@ SurfaceStage::SurfaceStage(const StationConfig& cfg, StationFaults& faults, Stat
 
 void SurfaceStage::bind(ClientEvents& events) {
   events.on_config = [this](const proto::StreamConfig& c) { assembler_.configure(c); };
+  // The remote says which registration its depth went through after each stream configuration.
+  events.on_stats = [this](const proto::Stats& s) {
+    for (const auto& [key, value] : s.counters)
+      for (const char* name : {"none", "hardware", "rig"})
+        if (value != 0 && key == std::string("registration_") + name)
+          remote_registration_.store(name);
+  };
   events.on_tile = [this](const proto::Header& h, const proto::DepthTile& t) { on_tile(h, t); };
   events.on_manifest = [this](const proto::Header& h, const proto::FrameManifest& m) {
     on_manifest(h, m);
@@ -175,8 +182,8 @@ void SurfaceStage::build(AssembledFrame& frame, std::vector<cv::Rect> windows) {
   if (surfaces_built_.load() == 0) first_centre_depth_m_.store(centre_depth_m(frame.depth_mm));
   surfaces_.publish(s);
   if (recorder_)
-    recorder_->add_surface(
-        {surface_seq_, built_ns, frame.capture_ns, frame.depth_mm.clone(), frame.intrinsics});
+    recorder_->add_surface({surface_seq_, built_ns, frame.capture_ns, frame.depth_mm.clone(),
+                            frame.intrinsics, remote_registration_.load()});
   retired_.push_back(s);
   if (retired_.size() > 8) retired_.pop_front();
   surfaces_built_.fetch_add(1);

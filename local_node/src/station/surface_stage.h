@@ -81,6 +81,8 @@ class SurfaceStage {
   RepairPolicy repair_;
   LatestSlot<AssembledFrame> frames_;
   std::mutex watch_mu_;
+  // The remote's registration as its Stats said it (a static name; "" until said).
+  std::atomic<const char*> remote_registration_{""};
   std::vector<cv::Rect> watch_rects_;  // the fingertip windows as read (surface -> network)
 
   // ---- surface thread ----

@@ -66,8 +66,14 @@ void RemoteServer::Impl::announce(const Link& l, const ProcessedFrame& frame) {
   announced_ = sc;
   auto buf = make_buffer(
       proto::encode_stream(header(l.session_id, frame.frame_id, frame.capture_ns, false), sc));
-  asio::post(io_, [this, buf, gen = l.generation] {
-    if (active_ && active_generation_ == gen) send_control(buf);
+  // Which registration put the depth in the pixels just announced (docs/PROTOCOL.md, Stats).
+  auto said = make_buffer(
+      proto::encode_stream(header(l.session_id, frame.frame_id, frame.capture_ns, false),
+                           proto::Stats{{{"registration_" + config_.registration, 1}}}));
+  asio::post(io_, [this, buf, said, gen = l.generation] {
+    if (!active_ || active_generation_ != gen) return;
+    send_control(buf);
+    send_control(said);
   });
 }
 

@@ -105,6 +105,22 @@ double parse_rate(const SourceSpec& spec) {
   return v;
 }
 
+}  // namespace
+
+// Empty when the intrinsics can project: fx, fy, cx, cy finite and positive, a positive size.
+std::string camera_info_error(const bag::CameraIntrinsics& c) {
+  const std::pair<const char*, double> values[] = {
+      {"fx (K[0])", c.fx}, {"fy (K[4])", c.fy}, {"cx (K[2])", c.cx}, {"cy (K[5])", c.cy}};
+  for (const auto& [name, v] : values)
+    if (!std::isfinite(v) || !(v > 0.0))
+      return fmt::format("{} = {} is not a finite positive number of pixels", name, v);
+  if (c.width <= 0 || c.height <= 0)
+    return fmt::format("width x height = {}x{} is not a positive image size", c.width, c.height);
+  return {};
+}
+
+namespace {
+
 // Messages of one image topic (and optionally its CameraInfo) in order, each due at the recorded
 // pace: first one now, the n-th at (stamp_n - stamp_0) / rate later. Looping restarts the pace
 // one recorded period after the last frame.
@@ -223,6 +239,9 @@ class BagDepthSource final : public DepthSource {
     if (!r.next(m))
       throw std::runtime_error(
           fmt::format("bag {}: CameraInfo topic {} holds no message", spec_.arg, info_));
+    if (const std::string bad = camera_info_error(m.camera); !bad.empty())
+      throw std::runtime_error(
+          fmt::format("bag {}: CameraInfo topic {}: {}", spec_.arg, info_, bad));
     intrinsics_ = to_intrinsics(m.camera);
     stream_.open(topic_, info_);
     frames_ = 0;
@@ -238,6 +257,11 @@ class BagDepthSource final : public DepthSource {
       out.status = ReadStatus::Error;
       out.error = fmt::format("bag {} topic {}: unsupported encoding '{}' (16UC1 or 32FC1)",
                               spec_.arg, topic_, m.encoding);
+      return out;
+    }
+    if (const std::string bad = camera_info_error(stream_.camera()); !bad.empty()) {
+      out.status = ReadStatus::Error;
+      out.error = fmt::format("bag {}: CameraInfo topic {}: {}", spec_.arg, info_, bad);
       return out;
     }
     const Intrinsics k = to_intrinsics(stream_.camera());

@@ -2,6 +2,7 @@
 // OpenNI2 depth sources: a live device by URI (including OpenNI2's "Dummy" device) and .oni
 // playback.
 #include <OpenNI.h>
+#include <PS1080.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 #include <thread>
@@ -67,6 +69,31 @@ void choose_depth_mode(openni::VideoStream& stream) {
   }
 }
 
+// The IR stream's mode at the depth's size: GRAY16 (a PS1080's 10-bit IR) or GRAY8. An 8-bit
+// capture takes GRAY8 when offered, else GRAY16 scaled down on read.
+std::string choose_ir_mode(openni::VideoStream& ir, int bits, int width, int height) {
+  const auto& modes = ir.getSensorInfo().getSupportedVideoModes();
+  std::string offered;
+  int best = -1;
+  for (int i = 0; i < modes.getSize(); ++i) {
+    const auto f = modes[i].getPixelFormat();
+    offered += fmt::format(" {}x{}@{} format {}", modes[i].getResolutionX(),
+                           modes[i].getResolutionY(), modes[i].getFps(), static_cast<int>(f));
+    if (modes[i].getResolutionX() != width || modes[i].getResolutionY() != height) continue;
+    if (f == openni::PIXEL_FORMAT_GRAY8 && bits == 8) best = i;
+    if (f == openni::PIXEL_FORMAT_GRAY16 && (best < 0 || bits != 8)) best = i;
+  }
+  if (best < 0)
+    return fmt::format(
+        "its IR stream offers no GRAY16 or GRAY8 mode at the depth's {}x{} (it "
+        "offers{})",
+        width, height, offered.empty() ? " none" : offered);
+  if (ir.setVideoMode(modes[best]) != openni::STATUS_OK)
+    return fmt::format("its IR stream refused {}x{}: {}", width, height,
+                       openni::OpenNI::getExtendedError());
+  return {};
+}
+
 Intrinsics intrinsics_of(openni::VideoStream& stream, int width, int height) {
   const double hfov = stream.getHorizontalFieldOfView();
   const double vfov = stream.getVerticalFieldOfView();
@@ -100,8 +127,13 @@ class EofListener final : public openni::OpenNI::DeviceStateChangedListener {
 class OpenNiDepthSource final : public DepthSource {
  public:
   enum class Mode { Live, Playback };
-  OpenNiDepthSource(Mode mode, std::string uri, bool loop, bool realtime)
-      : mode_(mode), uri_(std::move(uri)), loop_(loop), realtime_(realtime) {}
+  OpenNiDepthSource(Mode mode, std::string uri, bool loop, bool realtime,
+                    bool hardware_registration = false)
+      : mode_(mode),
+        uri_(std::move(uri)),
+        loop_(loop),
+        realtime_(realtime),
+        hardware_registration_(hardware_registration) {}
   ~OpenNiDepthSource() override {
     stop();
     remove_repaired_copy();
@@ -136,7 +168,7 @@ class OpenNiDepthSource final : public DepthSource {
           fmt::format("OpenNI2 device '{}' has no depth stream: {}", uri_, err));
     }
     choose_depth_mode(stream_);
-    if (mode_ == Mode::Live) enable_hardware_registration();
+    if (mode_ == Mode::Live) set_hardware_registration();
     if (mode_ == Mode::Playback) {
       eof_ = std::make_unique<EofListener>(device_.getDeviceInfo().getUri());
       openni::OpenNI::addDeviceStateChangedListener(eof_.get());
@@ -152,13 +184,10 @@ class OpenNiDepthSource final : public DepthSource {
         frames_in_file_ = playback->getNumberOfFrames(stream_);
       }
     }
-    if (stream_.start() != openni::STATUS_OK) {
-      const std::string err = openni::OpenNI::getExtendedError();
-      stream_.destroy();
-      device_.close();
-      throw std::runtime_error(
-          fmt::format("OpenNI2 device '{}' failed to start depth: {}", uri_, err));
-    }
+    if (stream_.start() != openni::STATUS_OK)
+      fail_start(fmt::format("OpenNI2 device '{}' failed to start depth: {}", uri_,
+                             openni::OpenNI::getExtendedError()));
+    if (ir_) start_ir();
     const auto vm = stream_.getVideoMode();
     started_ = true;
     intrinsics_ = intrinsics_of(stream_, vm.getResolutionX(), vm.getResolutionY());
@@ -167,8 +196,10 @@ class OpenNiDepthSource final : public DepthSource {
 
   void stop() override {
     if (!started_) return;
+    if (ir_stream_.isValid()) ir_stream_.stop();
     stream_.stop();
     if (mode_ == Mode::Live) let_driver_thread_exit(fps_);
+    if (ir_stream_.isValid()) ir_stream_.destroy();
     stream_.destroy();
     device_.close();
     if (eof_) openni::OpenNI::removeDeviceStateChangedListener(eof_.get());
@@ -243,6 +274,16 @@ class OpenNiDepthSource final : public DepthSource {
   std::int64_t frame_count() const override {
     return mode_ == Mode::Playback ? frames_in_file_ : -1;
   }
+
+  void enable_ir(const IrOptions& options) override {
+    if (mode_ == Mode::Playback)
+      throw std::invalid_argument(
+          fmt::format("--ir: {} is a recording; the IR images come from a live sensor (openni:URI)",
+                      describe()));
+    ir_ = options;
+  }
+  ReadResult<IrFrame> read_ir(std::chrono::milliseconds timeout) override;
+  std::string ir_projector() const override { return projector_; }
   std::string describe() const override {
     if (mode_ == Mode::Playback)
       return fmt::format("oni:{}{}{}", uri_, loop_ ? ",loop" : "",
@@ -251,19 +292,70 @@ class OpenNiDepthSource final : public DepthSource {
   }
 
  private:
-  // PrimeSense-class sensors (PS1080: Kinect v1, Carmine, Xtion) register depth to their colour
-  // camera in hardware; the pipeline's registration stage is then left at none. Devices without
-  // it (OpenNI2's Dummy) deliver depth as it is.
-  void enable_hardware_registration() {
-    if (!device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
-      spdlog::info("openni: '{}' has no hardware depth-to-colour registration",
-                   uri_.empty() ? "ANY" : uri_);
+  // PrimeSense-class sensors (PS1080: Kinect v1, Carmine, Xtion) can register depth to their
+  // colour camera in hardware. Only --registration hardware asks for it: otherwise the depth stays
+  // in the sensor's own (IR) pixels, where `telex calibrate depth-eye` calibrates the rig's
+  // extrinsics, so they are never applied on top of the sensor's own registration.
+  void set_hardware_registration() {
+    const std::string name = uri_.empty() ? "ANY" : uri_;
+    if (!hardware_registration_) {
+      if (device_.getImageRegistrationMode() != openni::IMAGE_REGISTRATION_OFF &&
+          device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_OFF) != openni::STATUS_OK)
+        fail_start(fmt::format("OpenNI2 device '{}' keeps its hardware registration on: {}", name,
+                               openni::OpenNI::getExtendedError()));
       return;
     }
+    if (!device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR))
+      fail_start(fmt::format(
+          "--registration hardware: OpenNI2 device '{}' offers no depth-to-colour registration "
+          "(IMAGE_REGISTRATION_DEPTH_TO_COLOR); use --registration rig with a calibrated rig, or "
+          "none",
+          name));
     if (device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
         openni::STATUS_OK)
-      spdlog::warn("openni: '{}' refused hardware depth-to-colour registration: {}",
-                   uri_.empty() ? "ANY" : uri_, openni::OpenNI::getExtendedError());
+      fail_start(fmt::format(
+          "--registration hardware: OpenNI2 device '{}' refused depth-to-colour registration: {}",
+          name, openni::OpenNI::getExtendedError()));
+    spdlog::info("openni: '{}' registers depth to its colour camera (--registration hardware)",
+                 name);
+  }
+  // The IR stream beside depth at the depth's size, the projector off where the device allows.
+  void start_ir() {
+    const std::string name = uri_.empty() ? "ANY" : uri_;
+    if (!device_.hasSensor(openni::SENSOR_IR))
+      fail_start(fmt::format(
+          "--ir: OpenNI2 device '{}' has no IR stream (SENSOR_IR); a PrimeSense-class sensor "
+          "(Kinect v1, Carmine, Xtion) has one, OpenNI2's Dummy device does not",
+          name));
+    if (ir_stream_.create(device_, openni::SENSOR_IR) != openni::STATUS_OK)
+      fail_start(fmt::format("--ir: OpenNI2 device '{}' could not open its IR stream: {}", name,
+                             openni::OpenNI::getExtendedError()));
+    const auto vm = stream_.getVideoMode();
+    if (const auto why =
+            choose_ir_mode(ir_stream_, ir_->bits, vm.getResolutionX(), vm.getResolutionY());
+        !why.empty())
+      fail_start(fmt::format("--ir: OpenNI2 device '{}': {}", name, why));
+    projector_ = switch_projector_off();
+    if (ir_stream_.start() != openni::STATUS_OK)
+      fail_start(fmt::format("--ir: OpenNI2 device '{}' failed to start its IR stream: {}", name,
+                             openni::OpenNI::getExtendedError()));
+  }
+  // PS1080's emitter property (PS1080.h, XN_MODULE_PROPERTY_EMITTER_STATE); a device without it
+  // keeps its projector on, said in capture.json.
+  std::string switch_projector_off() {
+    const int off = 0;
+    if (device_.setProperty(XN_MODULE_PROPERTY_EMITTER_STATE, off) == openni::STATUS_OK)
+      return "off";
+    return fmt::format("on (the device has no PS1080 emitter property: {}; cover the projector)",
+                       openni::OpenNI::getExtendedError());
+  }
+
+  // A start that cannot go on: the streams and device closed, then the error named.
+  [[noreturn]] void fail_start(const std::string& why) {
+    if (ir_stream_.isValid()) ir_stream_.destroy();
+    stream_.destroy();
+    device_.close();
+    throw std::runtime_error(why);
   }
 
   // The file driver plays no frame of a recording that lacks a cropping record (see
@@ -299,6 +391,11 @@ class OpenNiDepthSource final : public DepthSource {
   std::string uri_;
   bool loop_ = false;
   bool realtime_ = true;
+  bool hardware_registration_ = false;
+  std::optional<IrOptions> ir_;
+  openni::VideoStream ir_stream_;
+  std::string projector_ = "on (no IR capture)";
+  std::uint64_t ir_frames_read_ = 0;
   bool started_ = false;
   std::unique_ptr<EofListener> eof_;
   openni::Device device_;
@@ -309,6 +406,55 @@ class OpenNiDepthSource final : public DepthSource {
   std::uint64_t frames_read_ = 0;
   std::filesystem::path repaired_;
 };
+
+ReadResult<IrFrame> OpenNiDepthSource::read_ir(std::chrono::milliseconds timeout) {
+  ReadResult<IrFrame> out;
+  if (!started_ || !ir_stream_.isValid()) {
+    out.status = ReadStatus::Error;
+    out.error = fmt::format("{} captures no IR images (enable_ir before start)", describe());
+    return out;
+  }
+  openni::VideoStream* streams[] = {&ir_stream_};
+  int ready = -1;
+  const auto rc =
+      openni::OpenNI::waitForAnyStream(streams, 1, &ready, static_cast<int>(timeout.count()));
+  if (rc == openni::STATUS_TIME_OUT) return out;
+  openni::VideoFrameRef ref;
+  if (rc != openni::STATUS_OK || ir_stream_.readFrame(&ref) != openni::STATUS_OK ||
+      !ref.isValid()) {
+    out.status = ReadStatus::Error;
+    out.error =
+        fmt::format("OpenNI2 IR read on '{}' failed: {}", uri_, openni::OpenNI::getExtendedError());
+    return out;
+  }
+  const auto format = ref.getVideoMode().getPixelFormat();
+  const auto stride = static_cast<std::size_t>(ref.getStrideInBytes());
+  auto* data = const_cast<void*>(ref.getData());
+  IrFrame& f = out.frame;
+  if (format == openni::PIXEL_FORMAT_GRAY8) {
+    cv::Mat1b(ref.getHeight(), ref.getWidth(), static_cast<std::uint8_t*>(data), stride)
+        .copyTo(f.image);
+    f.bits = 8;
+  } else if (format == openni::PIXEL_FORMAT_GRAY16) {
+    const cv::Mat1w view(ref.getHeight(), ref.getWidth(), static_cast<std::uint16_t*>(data),
+                         stride);
+    // A PS1080's IR is 10 bits in 16: an 8-bit capture keeps the top 8 of them.
+    if (ir_->bits == 8)
+      view.convertTo(f.image, CV_8U, 1.0 / 4.0);
+    else
+      view.copyTo(f.image);
+    f.bits = ir_->bits == 8 ? 8 : 10;
+  } else {
+    out.status = ReadStatus::Error;
+    out.error = fmt::format("OpenNI2 '{}' delivers IR in pixel format {} (need GRAY8 or GRAY16)",
+                            uri_, static_cast<int>(format));
+    return out;
+  }
+  f.capture_ns = steady_now_ns();
+  f.frame_id = ++ir_frames_read_;
+  out.status = ReadStatus::Frame;
+  return out;
+}
 
 }  // namespace
 
@@ -325,9 +471,11 @@ std::vector<OpenNiDeviceInfo> list_openni_devices() {
 
 namespace detail {
 
-std::unique_ptr<DepthSource> make_openni_source(const SourceSpec& spec, const SourceOptions&) {
+std::unique_ptr<DepthSource> make_openni_source(const SourceSpec& spec,
+                                                const SourceOptions& options) {
   require_options(spec, {});
-  return std::make_unique<OpenNiDepthSource>(OpenNiDepthSource::Mode::Live, spec.arg, false, true);
+  return std::make_unique<OpenNiDepthSource>(OpenNiDepthSource::Mode::Live, spec.arg, false, true,
+                                             options.hardware_registration);
 }
 
 std::unique_ptr<DepthSource> make_oni_source(const SourceSpec& spec, const SourceOptions&) {

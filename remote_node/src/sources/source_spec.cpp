@@ -13,6 +13,20 @@
 
 namespace telex::remote {
 
+void DepthSource::enable_ir(const IrOptions&) {
+  throw std::invalid_argument(fmt::format(
+      "--ir: source {} has no IR camera; the IR images come from a live sensor: openni:URI "
+      "(PrimeSense/OpenNI2) or freenect:N (Kinect v1, or a fakenect recording)",
+      describe()));
+}
+
+ReadResult<IrFrame> DepthSource::read_ir(std::chrono::milliseconds) {
+  ReadResult<IrFrame> r;
+  r.status = ReadStatus::Error;
+  r.error = fmt::format("source {} captures no IR images", describe());
+  return r;
+}
+
 namespace {
 
 // The registry: one row per scheme, in the order --help lists them (as libcamera registers its

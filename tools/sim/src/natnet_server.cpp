@@ -17,12 +17,26 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "telex/base/byte_cursor.h"
 #include "telex/haptics/hand_kinematics.h"
 
 namespace telex::sim {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
+
+std::string body_name(std::int32_t id) {
+  switch (id) {
+    case kSimHeadId:
+      return "head";
+    case kSimRightHandId:
+      return "right_hand";
+    case kSimRightShoulderId:
+      return "right_shoulder";
+    default:
+      return "body_" + std::to_string(id);
+  }
+}
 
 namespace {
 natnet::RigidBody body(std::int32_t id, double x, double y, double z, double qx, double qy,
@@ -191,14 +205,57 @@ struct NatNetServer::Impl {
                                });
   }
 
+  // Motive's answers, in the layout of the version streamed: server info to a connect, the
+  // rigid bodies' descriptions to a model request, an echo (3.0+; unrecognised before).
   void on_command(std::size_t n) {
     natnet::PacketView pkt;
     if (!natnet::parse_packet(std::span(buf.data(), n), pkt).ok()) return;
-    if (pkt.message_id != natnet::kPing) return;
+    if (pkt.message_id == natnet::kRequestModelDef) {
+      reply(make_model_defs(), stats.model_defs_answered);
+    } else if (pkt.message_id == natnet::kEchoRequest) {
+      std::uint64_t client_stamp = 0;
+      ByteReader r(pkt.payload);
+      if (!r.get(client_stamp)) return;
+      reply(natnet::make_echo_reply(client_stamp, stamp_now(), cfg.version), stats.echoes_answered);
+    } else if (pkt.message_id == natnet::kPing) {
+      on_connect();
+    }
+  }
+
+  // The stamps of the frames and the echo: ticks of kSimClockHz since the start.
+  std::uint64_t stamp_now() const {
+    const double t_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return static_cast<std::uint64_t>(t_s * static_cast<double>(kSimClockHz));
+  }
+
+  std::vector<std::uint8_t> make_model_defs() {
+    natnet::Frame first;
+    motion(0.0, first);
+    natnet::ModelDefs defs;
+    for (const auto& b : first.rigid_bodies)
+      defs.rigid_bodies.push_back({body_name(b.id), b.id, -1, {}});
+    return natnet::make_model_defs(defs, cfg.version);
+  }
+
+  void reply(const std::vector<std::uint8_t>& bytes, std::uint64_t& answered) {
+    boost::system::error_code ec;
+    command.send_to(asio::buffer(bytes), from, 0, ec);
+    std::lock_guard lock(mu);
+    ec ? ++stats.send_errors : ++answered;
+  }
+
+  void on_connect() {
     natnet::ServerInfo info;
     info.app_name = cfg.app_name;
     info.app_version = {1, 0, 0, 0};
     info.natnet_version = cfg.version;
+    info.high_res_clock_hz = kSimClockHz;
+    info.data_port = static_cast<std::uint16_t>(cfg.data_port);
+    info.multicast = cfg.multicast;
+    boost::system::error_code group_ec;
+    const auto group = asio::ip::make_address_v4(cfg.multicast_group, group_ec);
+    if (!group_ec) info.multicast_group = group.to_bytes();
     const auto reply = natnet::make_server_info(info);
     boost::system::error_code ec;
     command.send_to(asio::buffer(reply), from, 0, ec);
@@ -232,7 +289,7 @@ struct NatNetServer::Impl {
     motion(t_s, frame);
     frame.frame_number = ++frame_number;
     frame.timestamp_s = t_s;
-    frame.stamp_transmit = static_cast<std::uint64_t>(t_s * 1e7);
+    frame.stamp_transmit = static_cast<std::uint64_t>(t_s * static_cast<double>(kSimClockHz));
     const auto bytes = natnet::encode_frame(frame, cfg.version);
     boost::system::error_code ec;
     std::lock_guard lock(mu);

@@ -73,6 +73,10 @@ struct GloveRange {
   std::vector<double> min, max;
 };
 
+enum class DepthPixels { Ir, Color };
+// "ir" | "color", as the rig file spells it.
+std::string_view depth_pixels_name(DepthPixels pixels);
+
 struct Rig {
   std::filesystem::path path;  // where it was read from (empty for a built-in rig)
 
@@ -87,6 +91,10 @@ struct Rig {
   std::optional<RigidTransform> X_RightEyeLeftEye;
   // p_right = rotation * p_depth + translation_m.
   std::optional<RigidTransform> X_RightEyeDepth;
+  // The pixels X_RightEyeDepth's depth camera is: the sensor's own IR camera (extrinsics.
+  // depth_pixels "ir", the default: `telex calibrate depth-eye --ir` on IR images), or its colour
+  // camera ("color": calibrated on depth the sensor registered in hardware).
+  DepthPixels depth_pixels = DepthPixels::Ir;
 
   RobotHead robot_head;
 

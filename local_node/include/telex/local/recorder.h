@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 
 #include "telex/base/spsc_ring.h"
@@ -32,6 +33,9 @@ inline constexpr const char* kDepthInfoTopic = "/telex/depth/camera_info";
 inline constexpr const char* kFingertipsTopic = "/telex/fingertips";
 inline constexpr const char* kConfigTopic = "/telex/config";
 inline constexpr const char* kCameraFrame = "telex_camera";
+// The remote's registration, JSON {"registration": "hardware"|"rig"|"none", "depth_pixels": ...},
+// written before the first surface it applies to and again whenever it changes.
+inline constexpr const char* kRemoteTopic = "/telex/remote";
 std::string force_topic(int finger);    // /telex/force/<finger>: WrenchStamped, camera frame
 std::string display_topic(int finger);  // /telex/display/<finger>: what the display was commanded
 const char* finger_name(int finger);    // thumb, index, middle, ring, little
@@ -60,7 +64,12 @@ struct RecordedSurface {
   std::int64_t capture_ns = 0;  // as the Surface holds it (the remote's clock)
   cv::Mat1w depth_mm;           // a private copy
   Intrinsics intrinsics;
+  // The remote's --registration as its session said it ("" = not said: an older remote).
+  std::string registration;
 };
+
+// What pixels a remote registration leaves the depth in, as /telex/remote names them.
+std::string_view depth_pixels_of_registration(std::string_view registration);
 
 struct RecorderConfig {
   std::string path;
@@ -118,6 +127,7 @@ class SessionRecorder {
   SpscRing<HandState> bodies_;
   std::uint64_t force_every_;  // ticks
   std::uint64_t tick_count_ = 0;
+  std::string registration_written_;  // writer thread: the last /telex/remote's
   std::atomic<std::uint64_t> ticks_written_{0}, surfaces_written_{0}, bodies_written_{0};
   mutable std::mutex error_mu_;
   std::string error_;

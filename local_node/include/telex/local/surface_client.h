@@ -84,6 +84,8 @@ struct ClientEvents {
   std::function<void(const proto::Header&, const proto::DepthTile&)> on_tile;
   std::function<void(const proto::Header&, const proto::FrameManifest&)> on_manifest;
   std::function<void(const proto::Header&, const proto::EncodedVideo&)> on_video;
+  // The remote's Stats counters (e.g. registration_rig = 1 after each StreamConfig).
+  std::function<void(const proto::Stats&)> on_stats;
   std::function<void(ClientState, const std::string&)> on_state;  // with a human-readable reason
   // Dropped messages, at most one call a second (counts are in ClientStats).
   std::function<void(const std::string&)> on_warning;

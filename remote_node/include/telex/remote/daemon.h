@@ -31,6 +31,9 @@ struct DaemonConfig {
   std::string stereo_source;               // empty: no video
   SourceOptions source_options;
   PipelineConfig pipeline;
+  // The one registration of the run (--registration): hardware sets
+  // source_options.hardware_registration, rig the pipeline's registration stage.
+  DepthRegistration registration = DepthRegistration::None;
   ServerConfig server;
   int jpeg_quality = 80;  // 1..100, --video-codec mjpeg
   int video_width = 0;    // 0: the stereo source's size
@@ -112,6 +115,7 @@ struct DaemonStats {
   // Threads on the depth path (capture, process, network, head) and how many got SCHED_FIFO.
   int path_threads = 0, realtime_threads = 0;
   EyeState eyes = EyeState::Off;
+  DepthRegistration registration = DepthRegistration::None;  // the run's (--registration)
 };
 
 // "frames in/out", mean ms per stage, bytes/s, tiles skipped and client state between two

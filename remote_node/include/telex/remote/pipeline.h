@@ -33,6 +33,13 @@ enum class RegisterMode { None, Shift, Full };
 // remote_node/flags.h).
 std::string_view register_mode_name(RegisterMode mode);
 
+// Which registration brings the depth to the operator (--registration), one per run: none (depth
+// in the sensor's own pixels), hardware (the sensor registers depth to its own colour camera:
+// PS1080's IMAGE_REGISTRATION_DEPTH_TO_COLOR), rig (the calibrated extrinsics: depth in the right
+// eye, by the registration stage below).
+enum class DepthRegistration { None, Hardware, Rig };
+std::string_view depth_registration_name(DepthRegistration registration);
+
 struct RegistrationConfig {
   RegisterMode mode = RegisterMode::None;
   // Intrinsics of the eye camera; width == 0 means the depth source's own intrinsics (same

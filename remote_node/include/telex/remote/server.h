@@ -34,6 +34,9 @@ struct ServerConfig {
   proto::Codec codec = proto::Codec::Zip;  // preferred; the client's list decides when it lacks it
   bool video_available = false;            // a stereo source is configured
   float fps = 30.0f;
+  // The run's --registration ("none" | "hardware" | "rig"): told to each station after the stream
+  // configuration as a Stats counter "registration_<name>" = 1 (its recording keeps it).
+  std::string registration = "none";
   // --psk or --cert/--key/--ca: the TCP connection runs TLS 1.3 and every datagram is sealed
   // under keys exported from it (docs/PROTOCOL.md section 7); nothing unauthenticated is acted on.
   // Neither: plain TCP and UDP.

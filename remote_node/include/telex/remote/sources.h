@@ -18,6 +18,10 @@
 #include "telex/common/depth_image.h"
 #include "telex/proto/messages.h"
 
+namespace telex::bag {
+struct CameraIntrinsics;
+}
+
 namespace telex::remote {
 
 // One depth frame as the source delivered it. capture_ns is on the host's steady clock so that
@@ -43,6 +47,22 @@ struct StereoFrame {
   // The cameras' own JPEGs when they deliver MJPEG (else empty): --video-codec mjpeg sends them
   // as they came, without decoding and encoding again.
   std::vector<std::uint8_t> left_jpeg, right_jpeg;
+};
+
+// One image of the depth sensor's own IR camera (`telex capture --ir`, the images `telex
+// calibrate depth-eye --ir` finds the board in): 8-bit, or 16-bit holding `bits` significant bits
+// (a Kinect's IR 10-bit mode, a PS1080's GRAY16), at the depth image's size.
+struct IrFrame {
+  cv::Mat image;  // CV_8UC1 or CV_16UC1
+  int bits = 8;
+  std::int64_t capture_ns = 0;
+  std::uint64_t frame_id = 0;
+};
+
+// What `telex capture --ir` asks of the sensor: the IR depth in bits (8 or 10). The projector is
+// switched off where the device allows, so the board's corners are not speckled.
+struct IrOptions {
+  int bits = 10;
 };
 
 // Result of one read: the running capture loop never throws, it acts on the status.
@@ -73,6 +93,15 @@ class DepthSource {
   // from its first read, so the daemon holds it until the first station connects.
   virtual bool plays_once() const { return false; }
   virtual std::string describe() const = 0;
+
+  // The sensor's IR camera beside its depth (`telex capture --ir`); call before start(). Throws
+  // std::invalid_argument when the source has no IR camera (only openni:URI and freenect:N do);
+  // start() throws std::runtime_error naming the device when it has none or refuses the mode.
+  virtual void enable_ir(const IrOptions& options);
+  // The next IR image (after enable_ir and start); as read(), never throws.
+  virtual ReadResult<IrFrame> read_ir(std::chrono::milliseconds timeout);
+  // How the projector was left for the IR images: "off", or "on (why)". Valid after start().
+  virtual std::string ir_projector() const { return "on (no IR capture)"; }
 };
 
 class StereoSource {
@@ -105,6 +134,10 @@ struct SourceOptions {
   bool use_kinect_intrinsics_fallback = true;
   double synthetic_fps = 30.0;
   std::uint64_t seed = 1;
+  // --registration hardware: a live OpenNI2 device registers depth to its colour camera
+  // (IMAGE_REGISTRATION_DEPTH_TO_COLOR; a device without it fails to start, named). Off: the
+  // depth stays in the sensor's own pixels.
+  bool hardware_registration = false;
   int width = 640;  // synthetic and stereo render size
   int height = 480;
   // The robot head's camera orientation at a capture time (R_BaseCamera), when a head is driven:
@@ -164,14 +197,23 @@ std::vector<V4l2DeviceInfo> list_v4l2_devices(const std::string& dev_dir = "/dev
 
 // A libfreenect recording in fakenect's layout (fakenect-record: INDEX.txt naming one file per
 // line, TYPE-SECONDS-TIMESTAMP.EXT; depth dumps "P5 640 480 65535\n" and 640x480 host-order u16).
+// Video dumps (r-) are fakenect-record's RGB ("P6 640 480 255\n", 640x480x3) or the Kinect's IR
+// video mode, which fakenect-record does not write but a recording may hold: "P5 640 488 255\n"
+// (IR 8-bit) or "P5 640 488 1023\n" (IR 10-bit, host-order u16), each padded to the 921600 bytes
+// libfreenect 0.5's fakenect copies from every video dump.
 struct FakenectRecording {
   std::filesystem::path dir;
   std::vector<std::filesystem::path> depth_files;  // in INDEX.txt's order
   int rgb = 0, accelerometer = 0;
+  int ir = 0, ir_bits = 0;  // IR video dumps and their depth in bits (8 or 10; 0: none)
 };
 // Checks every line and file the way fakenect will read them; throws std::runtime_error naming
 // INDEX.txt's line and what is wrong (fakenect itself exit()s on a missing or short file).
 FakenectRecording check_fakenect_recording(const std::filesystem::path& dir);
+
+// Why a bag's sensor_msgs/CameraInfo cannot be used ("fx (K[0]) = nan is not a finite positive
+// number of pixels"), or empty when fx, fy, cx, cy are finite and positive and the size is too.
+std::string camera_info_error(const bag::CameraIntrinsics& camera);
 
 // Host steady clock in ns: the single time base of the remote node.
 std::int64_t steady_now_ns();

@@ -24,6 +24,11 @@ enum MessageId : std::uint16_t {
   kRequestFrameOfData = 6,
   kFrameOfData = 7,
   kMessageString = 8,
+  kDisconnect = 9,
+  kKeepAlive = 10,
+  kEchoRequest = 12,   // 3.0+: u64 client stamp
+  kEchoResponse = 13,  // 3.0+: u64 client stamp echoed, u64 server stamp at receipt
+  kUnrecognizedRequest = 100,
 };
 
 inline constexpr int kCommandPort = 1510;
@@ -98,11 +103,35 @@ struct Frame {
   const RigidBody* find_body(std::int32_t id) const;
 };
 
+// SERVERINFO (message 1). Up to 2.x: app name[256], app version[4], NatNet version[4] (264
+// bytes). From 3.0 (PacketClient 3.0's sSender_Server, as Motive 2.1 sends it: 279 bytes) the
+// connection fields follow.
 struct ServerInfo {
   std::string app_name;
   std::array<std::uint8_t, 4> app_version{};
   Version natnet_version;
   std::array<std::uint8_t, 4> natnet_version_bytes{};
+  bool has_connection_info = false;  // 3.0+: the four fields below were sent
+  std::uint64_t high_res_clock_hz = 0;
+  std::uint16_t data_port = 0;
+  bool multicast = false;
+  std::array<std::uint8_t, 4> multicast_group{};
+};
+inline constexpr std::size_t kServerInfoBytes2 = 264;  // payload, NatNet 2.x
+inline constexpr std::size_t kServerInfoBytes3 = 279;  // payload, NatNet 3.0+
+
+// MODELDEF (message 5), the rigid-body datasets (type 1) in `version`'s layout: name (2.0+), id,
+// parent id, offset xyz; from 3.0 a marker count, its positions and active labels; from 4.0 the
+// markers' names; from 4.1 each dataset's byte count after its type (NatNetClient.py 4.1).
+struct RigidBodyDef {
+  std::string name;
+  std::int32_t id = 0;
+  std::int32_t parent_id = -1;
+  Vec3f offset_m;
+  bool operator==(const RigidBodyDef&) const = default;
+};
+struct ModelDefs {
+  std::vector<RigidBodyDef> rigid_bodies;
 };
 
 // Why a packet was rejected; nullptr reason = accepted. `offset` is where parsing stopped.
@@ -127,9 +156,25 @@ ParseStatus parse_frame(std::span<const std::uint8_t> payload, Version version, 
 // PINGRESPONSE payload: app name[256], app version[4], NatNet version[4] (more bytes ignored).
 ParseStatus parse_server_info(std::span<const std::uint8_t> payload, ServerInfo& out);
 
+// PINGRESPONSE payload: 264 bytes, then from 3.0 the connection fields when they were sent
+// (info.has_connection_info).
+ParseStatus parse_server_info(std::span<const std::uint8_t> payload, Version version,
+                              ServerInfo& out);
+// MODELDEF payload in `version`'s layout; a dataset other than a rigid body is rejected.
+ParseStatus parse_model_defs(std::span<const std::uint8_t> payload, Version version,
+                             ModelDefs& out);
+
 // Builders for the client's connect request and for the simulator's replies and frames.
+std::vector<std::uint8_t> make_packet(std::uint16_t message_id,
+                                      std::span<const std::uint8_t> payload);
 std::vector<std::uint8_t> make_ping(std::string_view app_name);
+// SERVERINFO in the layout of info.natnet_version: 268 bytes for 2.x, 283 from 3.0.
 std::vector<std::uint8_t> make_server_info(const ServerInfo& info);
+std::vector<std::uint8_t> make_model_defs(const ModelDefs& defs, Version version);
+// The reply to an ECHOREQUEST: from 3.0 an ECHORESPONSE (the client's stamp, then the server's);
+// before 3.0 there was no echo, and the reply is UNRECOGNIZED_REQUEST with no payload.
+std::vector<std::uint8_t> make_echo_reply(std::uint64_t client_stamp, std::uint64_t server_stamp,
+                                          Version version);
 // Complete FRAMEOFDATA datagram (header + payload) in `version`'s layout.
 std::vector<std::uint8_t> encode_frame(const Frame& frame, Version version);
 

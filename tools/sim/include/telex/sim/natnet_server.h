@@ -58,9 +58,17 @@ double press_index_tip_ahead_of_hand_m();
 // `loop`). Throws std::runtime_error naming the file and line on bad input.
 NatNetMotion load_natnet_csv(const std::filesystem::path& path, bool loop);
 
+// The simulator's high-resolution clock (its frames' stamps and the server info's frequency).
+inline constexpr std::uint64_t kSimClockHz = 10'000'000;
+
+// The name a model description gives a body of the built-in motions ("body_ID" for others).
+std::string body_name(std::int32_t id);
+
 struct NatNetServerStats {
   std::uint64_t frames_sent = 0;
   std::uint64_t pings_answered = 0;
+  std::uint64_t model_defs_answered = 0;
+  std::uint64_t echoes_answered = 0;
   std::uint64_t clients = 0;
   std::uint64_t send_errors = 0;
 };
