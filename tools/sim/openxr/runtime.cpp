@@ -47,10 +47,13 @@ XrResult enumerate_extensions(const char* layer, std::uint32_t capacity, std::ui
                               XrExtensionProperties* props) {
   if (layer != nullptr) return XR_ERROR_API_LAYER_NOT_PRESENT;
   if (count == nullptr) return XR_ERROR_VALIDATION_FAILURE;
-  *count = std::size(kExtensions);
+  Script script;
+  std::string error;
+  const std::uint32_t n = load_script(script, error) && !script.offer_egl ? 1 : 2;
+  *count = n;
   if (capacity == 0) return XR_SUCCESS;
-  if (capacity < std::size(kExtensions)) return XR_ERROR_SIZE_INSUFFICIENT;
-  for (std::size_t i = 0; i < std::size(kExtensions); ++i) {
+  if (capacity < n) return XR_ERROR_SIZE_INSUFFICIENT;
+  for (std::size_t i = 0; i < n; ++i) {
     std::strncpy(props[i].extensionName, kExtensions[i], XR_MAX_EXTENSION_NAME_SIZE - 1);
     props[i].extensionVersion = 1;
   }
@@ -76,7 +79,8 @@ XrResult create_instance(const XrInstanceCreateInfo* info, XrInstance* out) {
   }
   for (std::uint32_t i = 0; i < info->enabledExtensionCount; ++i) {
     const std::string name = info->enabledExtensionNames[i];
-    if (std::find(std::begin(kExtensions), std::end(kExtensions), name) == std::end(kExtensions))
+    if (std::find(std::begin(kExtensions), std::end(kExtensions), name) == std::end(kExtensions) ||
+        (name == XR_MNDX_EGL_ENABLE_EXTENSION_NAME && !inst->script.offer_egl))
       return XR_ERROR_EXTENSION_NOT_PRESENT;
     inst->extensions.push_back(name);
   }
@@ -300,7 +304,7 @@ void read_key(const nlohmann::json& j, const char* key, T& value) {
 
 }  // namespace
 
-bool Gl::load(PFNEGLGETPROCADDRESSPROC get) {
+bool Gl::load(void* (*get)(const char*)) {
   const auto f = [get](auto& ptr, const char* name) {
     ptr = reinterpret_cast<std::remove_reference_t<decltype(ptr)>>(get(name));
     return ptr != nullptr;
@@ -332,6 +336,7 @@ bool load_script(Script& s, std::string& error) {
     read_key(j, "yaw_amplitude_deg", yaw_deg);
     read_key(j, "yaw_period_s", s.yaw_period_s);
     read_key(j, "ipd_m", s.ipd_m);
+    read_key(j, "offer_egl", s.offer_egl);
     read_key(j, "unfocus_at_frame", s.unfocus_at_frame);
     read_key(j, "refocus_at_frame", s.refocus_at_frame);
     read_key(j, "stop_at_frame", s.stop_at_frame);

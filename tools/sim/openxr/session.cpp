@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-openxr: the session and its state script, reference spaces, GL swapchains in the
 // application's EGL context, and the frame loop paced at the script's period.
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <cstring>
 #include <map>
@@ -44,6 +46,17 @@ void run_script(Instance& inst, Session& s) {
   if (n == sc.loss_pending_at_frame) inst.push_state(s, XR_SESSION_STATE_LOSS_PENDING);
 }
 
+// The GL entry points of the binding's context: EGL's through the binding's getProcAddress, GLX's
+// through libGL's glXGetProcAddressARB (the application's libGL, already loaded).
+PFNEGLGETPROCADDRESSPROC g_egl_get = nullptr;
+void* egl_get(const char* name) { return reinterpret_cast<void*>(g_egl_get(name)); }
+void* glx_get(const char* name) {
+  static void* lib = dlopen("libGL.so.1", RTLD_NOW | RTLD_GLOBAL);
+  using Get = void* (*)(const unsigned char*);
+  static const auto get = lib ? reinterpret_cast<Get>(dlsym(lib, "glXGetProcAddressARB")) : nullptr;
+  return get ? get(reinterpret_cast<const unsigned char*>(name)) : nullptr;
+}
+
 XrResult create_session(XrInstance handle, const XrSessionCreateInfo* info, XrSession* out) {
   std::lock_guard lock(runtime_mutex());
   Instance* inst = live_instance(handle);
@@ -52,20 +65,26 @@ XrResult create_session(XrInstance handle, const XrSessionCreateInfo* info, XrSe
   if (!inst->gl_requirements_got) return XR_ERROR_GRAPHICS_REQUIREMENTS_CALL_MISSING;
   const auto* egl = reinterpret_cast<const XrGraphicsBindingEGLMNDX*>(
       find_in_chain(info->next, XR_TYPE_GRAPHICS_BINDING_EGL_MNDX));
+  const auto* xlib = reinterpret_cast<const XrGraphicsBindingOpenGLXlibKHR*>(
+      find_in_chain(info->next, XR_TYPE_GRAPHICS_BINDING_OPENGL_XLIB_KHR));
   const bool egl_enabled = std::count(inst->extensions.begin(), inst->extensions.end(),
                                       XR_MNDX_EGL_ENABLE_EXTENSION_NAME) > 0;
-  if (egl == nullptr || !egl_enabled || egl->getProcAddress == nullptr ||
-      egl->context == EGL_NO_CONTEXT) {
-    inst->note_error("xrCreateSession without an XrGraphicsBindingEGLMNDX (the only binding)");
+  const bool egl_ok = egl && egl_enabled && egl->getProcAddress && egl->context != EGL_NO_CONTEXT;
+  const bool xlib_ok = xlib && xlib->xDisplay && xlib->glxContext;
+  if (egl_ok == xlib_ok) {
+    inst->note_error(
+        "xrCreateSession needs one XrGraphicsBindingEGLMNDX (with XR_MNDX_egl_enable) "
+        "or XrGraphicsBindingOpenGLXlibKHR");
     return XR_ERROR_GRAPHICS_DEVICE_INVALID;
   }
   auto s = std::make_unique<Session>();
   s->instance = inst;
-  if (!s->gl.load(egl->getProcAddress)) {
-    inst->note_error("the binding's getProcAddress lacks GL 3.3 functions");
+  if (egl_ok) g_egl_get = egl->getProcAddress;
+  if (!s->gl.load(egl_ok ? egl_get : glx_get)) {
+    inst->note_error("the binding's context lacks GL 3.3 functions");
     return XR_ERROR_GRAPHICS_DEVICE_INVALID;
   }
-  inst->record["binding"] = "egl";
+  inst->record["binding"] = egl_ok ? "egl" : "xlib";
   Session* raw = s.release();
   inst->sessions.insert(raw);
   inst->push_state(*raw, XR_SESSION_STATE_IDLE);

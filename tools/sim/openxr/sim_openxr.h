@@ -8,10 +8,12 @@
 #pragma once
 
 #define XR_USE_PLATFORM_EGL
+#define XR_USE_PLATFORM_XLIB
 #define XR_USE_GRAPHICS_API_OPENGL
 // libepoxy for the EGL and GL types and enums only (it is not linked: see Gl).
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
+#include <epoxy/glx.h>
 #include <openxr/openxr.h>
 #include <openxr/openxr_platform.h>
 
@@ -40,6 +42,10 @@ struct Script {
   // Frames ended (counted from 1) at which the state changes: FOCUSED -> VISIBLE at
   // "unfocus_at_frame", back at "refocus_at_frame"; "stop_at_frame": down to STOPPING (the user
   // quit); "loss_pending_at_frame": LOSS_PENDING. 0: never.
+  // "offer_egl": false offers XR_KHR_opengl_enable alone, whose Xlib binding the application
+  // must then use (as with SteamVR): the path Khronos' core validation layer can check, as it
+  // rejects XrGraphicsBindingEGLMNDX (KhronosGroup/OpenXR-SDK-Source#570).
+  bool offer_egl = true;
   std::uint64_t unfocus_at_frame = 0, refocus_at_frame = 0, stop_at_frame = 0,
                 loss_pending_at_frame = 0;
 };
@@ -60,7 +66,7 @@ struct Gl {
   PFNGLFRAMEBUFFERTEXTURE2DPROC FramebufferTexture2D = nullptr;
   PFNGLREADPIXELSPROC ReadPixels = nullptr;
   PFNGLGETINTEGERVPROC GetIntegerv = nullptr;
-  bool load(PFNEGLGETPROCADDRESSPROC get);
+  bool load(void* (*get)(const char*));
 };
 
 struct Instance;
