@@ -150,11 +150,14 @@ StereoView::StereoView(int width, int height, const BodyDims& dims)
       body_(camera_frame_body(dims)) {}
 StereoView::~StereoView() = default;
 
-StereoViewImages StereoView::render(const StereoViewInputs& in) {
-  StereoViewImages out;
+bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& views,
+                         std::vector<Capsule>& capsules) {
   const cv::Size size(in.k.width, in.k.height);
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
-    renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
+    renderer_.reset();  // before the next one, when both share the current context
+    renderer_ = current_context_ ? std::make_unique<StereoRenderer>(
+                                       size.width, size.height, StereoRenderer::UseCurrentContext{})
+                                 : std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
   const auto fit = [&size](const cv::Mat3b& m) {
@@ -169,12 +172,13 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], in.k) : fit(in.eye_bgr[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
-  out.one_eye = eye[0].empty() != eye[1].empty();
+  const bool one_eye = eye[0].empty() != eye[1].empty();
   if (eye[0].empty()) eye[0] = eye[1];
   if (eye[1].empty()) eye[1] = eye[0];
 
-  const std::vector<Capsule> capsules = view_capsules(body_, in);
-  EyeView right, left;
+  capsules = view_capsules(body_, in);
+  EyeView& right = views[index_of(Side::Right)];
+  EyeView& left = views[index_of(Side::Left)];
   right.k = left.k = in.k;
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
   right.background = eye[index_of(Side::Right)];
@@ -185,12 +189,33 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
     left.depth_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
   }
-  out.right = renderer_->render(right, capsules);
-  out.left = renderer_->render(left, capsules);
+  return one_eye;
+}
+
+StereoViewImages StereoView::render(const StereoViewInputs& in) {
+  StereoViewImages out;
+  std::array<EyeView, 2> views;
+  std::vector<Capsule> capsules;
+  out.one_eye = prepare(in, views, capsules);
+  out.right = renderer_->render(views[index_of(Side::Right)], capsules);
+  out.left = renderer_->render(views[index_of(Side::Left)], capsules);
   overlay(out.left, in);
   overlay(out.right, in);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
+}
+
+void StereoView::render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets) {
+  std::array<EyeView, 2> views;
+  std::vector<Capsule> capsules;
+  prepare(in, views, capsules);
+  for (const Side side : kSides) {
+    EyeView& v = views[index_of(side)];
+    v.read_back = false;
+    renderer_->render(v, capsules);
+    const GlTarget& t = targets[index_of(side)];
+    renderer_->blit_to(t.texture, t.width, t.height);
+  }
 }
 
 }  // namespace telex::local
