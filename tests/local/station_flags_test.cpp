@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "flags.h"
+#include "telex/local/view_window.h"
 
 namespace telex::local {
 namespace {
@@ -49,6 +50,14 @@ TEST(StationFlags, ConnectTakesBracketedIpv6AndSwitchesReachTheConfig) {
   EXPECT_FALSE(f.cfg.status_line);
 }
 
+TEST(StationFlags, OpenXrViewTakesTheHeadsetAsTheHead) {
+  EXPECT_EQ(parse({}).cfg.head_source, "natnet");
+  const StationFlags f = parse({"--view", "openxr", "--head-source", "hmd"});
+  EXPECT_EQ(f.cfg.view_spec, "openxr");
+  EXPECT_EQ(f.cfg.head_source, "hmd");
+  EXPECT_EQ(ViewSpec::parse(f.cfg.view_spec).kind, ViewSpec::Kind::OpenXr);
+}
+
 TEST(StationFlags, BadValuesNameTheFlag) {
   const struct {
     std::vector<std::string> args;
@@ -60,6 +69,10 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--elbow-bodies", "3"}, "--elbow-bodies"},
       {{"--rate", "5"}, "--rate"},
       {{"--transport", "sctp"}, "--transport"},
+      {{"--view", "openxr:steamvr"}, "--view"},
+      {{"--head-source", "eyes"}, "--head-source"},
+      // The headset's pose exists only with the headset's view.
+      {{"--head-source", "hmd", "--view", "png:/tmp"}, "--head-source"},
   };
   for (const auto& c : cases) {
     try {
