@@ -223,7 +223,9 @@ void add_output_options(CLI::App& app, StationFlags& f) {
                  "resizable window; Esc or closing it stops the station) | hmd[:MONITOR] (the "
                  "same, full screen on a monitor: a name as xrandr lists it or a 0-based index; "
                  "default the last; an unknown one lists those present). window and hmd need an X "
-                 "display (DISPLAY)")
+                 "display (DISPLAY) | openxr (a headset through its OpenXR runtime: the active "
+                 "one, or the manifest XR_RUNTIME_JSON names; force only while the session is "
+                 "focused; docs/HARDWARE.md)")
       ->check([](const std::string& text) {
         try {
           ViewSpec::parse(text);
@@ -232,6 +234,12 @@ void add_output_options(CLI::App& app, StationFlags& f) {
           return std::string(e.what());
         }
       })
+      ->capture_default_str();
+  app.add_option("--head-source", f.cfg.head_source,
+                 "the operator's head, which turns the robot head and places the hands: natnet "
+                 "(the head marker body) | hmd (the headset's pose with --view openxr, put in the "
+                 "NatNet frame by the rig's operator.hmd_stage_in_natnet)")
+      ->check(CLI::IsMember({"natnet", "hmd"}))
       ->capture_default_str();
   app.add_option("--view-at", f.cfg.view_at_s,
                  "with --view png:DIR, write the view once, this many seconds after the hand "
@@ -326,6 +334,9 @@ void resolve_station_flags(StationFlags& f) {
       throw CLI::ValidationError("--eye-size", e.what());
     }
   }
+  if (f.cfg.head_source == "hmd" && f.cfg.view_spec != "openxr")
+    throw CLI::ValidationError("--head-source",
+                               "hmd takes the head from the headset: it needs --view openxr");
   if (f.elbow_bodies.empty()) return;
   int left = -2, right = -2;
   char comma = 0, extra = 0;

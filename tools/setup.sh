@@ -15,6 +15,7 @@ PACKAGES=(
   libavcodec-dev libavutil-dev libswscale-dev
   libepoxy-dev libegl-dev libegl1 libegl-mesa0 libgl1-mesa-dri
   libglfw3-dev libxrandr2 libx11-dev xvfb
+  libopenxr-dev libopenxr-loader1 openxr-layer-corevalidation
   libhidapi-dev libusb-1.0-0-dev libfreenect-dev libfreenect-bin
   libssl-dev rt-tests
   libgtest-dev libgmock-dev libbenchmark-dev

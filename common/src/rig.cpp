@@ -247,6 +247,10 @@ void read_operator(Node& n, Rig& rig) {
     Node b = n.at("bodies");
     read_bodies(b, rig.bodies);
   }
+  if (n.has("hmd_stage_in_natnet")) {
+    Node h = n.at("hmd_stage_in_natnet");
+    rig.X_NatNetStage = read_transform(h, 20.0);
+  }
   if (n.has("body")) {
     Node b = n.at("body");
     read_body(b, rig.body);
@@ -492,6 +496,7 @@ nlohmann::json rig_to_json(const Rig& rig) {
   nlohmann::json& op = j["operator"];
   op["head_to_camera"] = {{"translation_m", vec_json(rig.p_HeadCamera)},
                           {"rotation", rotation_json(rig.R_CameraHead)}};
+  op["hmd_stage_in_natnet"] = transform_json(rig.X_NatNetStage);
   const MarkerBodies& m = rig.bodies;
   op["bodies"] = {{"head", m.head},
                   {"right_hand", m.right_hand},

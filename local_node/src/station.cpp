@@ -79,6 +79,8 @@ class Station::Run {
   // writer, recorder): each stops on an exception and keeps it; the main thread polls them here
   // and fails the station on the first. True when one has failed.
   bool poll_thread_faults();
+  // The headset's session ended by itself: the station stops as on a signal (`stop_` set).
+  bool xr_ended();
   StationSummary summarize();
 
   const StationConfig& cfg_;
@@ -194,6 +196,12 @@ bool Station::Run::poll_thread_faults() {
   return std::find(fault_reported_.begin(), fault_reported_.end(), true) != fault_reported_.end();
 }
 
+bool Station::Run::xr_ended() {
+  if (!view_.xr_ended()) return false;
+  if (!stop_.exchange(true)) spdlog::info("the headset's session ended: stopping");
+  return true;
+}
+
 // Waits for the first surface (scripted hands aim at it). False when the station was stopped
 // first; throws when none arrives in time.
 bool Station::Run::wait_first_surface() {
@@ -205,6 +213,7 @@ bool Station::Run::wait_first_surface() {
   while (surface_.surfaces_built() == 0 && !stop_.load()) {
     if (poll_thread_faults()) break;
     if (view_.window() && view_.pump_window(stop_)) break;
+    if (xr_ended()) break;
     if (monotonic_ns() > deadline) {
       const auto& cs = client_->stats();
       const std::string remote = cfg_.client.host + ":" + std::to_string(cfg_.client.port);
@@ -231,6 +240,8 @@ void Station::Run::start_haptics() {
     tracker_cfg.surface_depth_m = surface_.first_centre_depth_m();
   if (faults_.hooked())
     tracker_cfg.natnet_receive_hook = [this] { faults_.check(StationLoop::Tracking); };
+  if (cfg_.head_source == "hmd") tracker_cfg.head_from_hmd = view_.hmd_head_source();
+  if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
   haptic_.set_tracker(make_tracker(cfg_.hand_spec, tracker_cfg));
   spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}", tracker_cfg.surface_depth_m,
                haptic_.tracker()->name(), display_->name());
@@ -269,6 +280,13 @@ void Station::Run::main_loop() {
         view_.request_stereo(stats_.last().forces, last_status_);
       }
       if (view_.pump_window(stop_)) break;
+    }
+    if (view_.openxr()) {
+      if (monotonic_ns() >= next_view) {  // the headset draws the newest at its own rate
+        next_view = monotonic_ns() + kOnScreenViewPeriodNs;
+        view_.request_stereo(stats_.last().forces, last_status_);
+      }
+      if (xr_ended()) break;
     }
     drain();
     drain_bodies();
@@ -392,6 +410,17 @@ StationSummary Station::Run::summarize() {
   view_.summarize(s);
   for (std::size_t n = 0; n < s.udp_messages_by_fragments.size(); ++n)
     s.udp_messages_by_fragments[n] = cs.udp_messages_by_fragments[n].load();
+  if (view_.openxr()) {
+    const StationView::XrStats x = view_.xr_stats();
+    s.openxr = true;
+    s.openxr_runtime = x.runtime;
+    s.openxr_end_reason = x.end_reason;
+    s.openxr_eye_width = x.eye_width;
+    s.openxr_eye_height = x.eye_height;
+    s.openxr_frames_submitted = x.frames_submitted;
+    s.openxr_ticks_gated = haptic_.ticks_gated();
+    s.openxr_gate_closed_ns = x.gate_closed_ns;
+  }
   return s;
 }
 

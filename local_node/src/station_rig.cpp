@@ -6,6 +6,7 @@ namespace telex::local {
 
 void apply_rig(const Rig& rig, StationConfig& cfg) {
   TrackerConfig& t = cfg.tracker;
+  cfg.X_NatNetStage = rig.X_NatNetStage;
   t.head_body_id = rig.bodies.head;
   t.right_hand_body_id = rig.bodies.right_hand;
   t.left_hand_body_id = rig.bodies.left_hand;

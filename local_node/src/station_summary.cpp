@@ -127,6 +127,14 @@ nlohmann::json StationSummary::to_json() const {
                    {"dropped_surfaces", record_dropped_surfaces},
                    {"dropped_bodies", record_dropped_bodies},
                    {"error", record_error}};
+  if (openxr)
+    j["openxr"] = {{"runtime", openxr_runtime},
+                   {"eye_width", openxr_eye_width},
+                   {"eye_height", openxr_eye_height},
+                   {"frames_submitted", openxr_frames_submitted},
+                   {"end_reason", openxr_end_reason},
+                   {"haptic_ticks_gated", openxr_ticks_gated},
+                   {"gate_closed_ns", openxr_gate_closed_ns}};
   return j;
 }
 

@@ -81,6 +81,8 @@ glm::mat4 projection_from_intrinsics(const Intrinsics& k, double n, double f) {
 
 struct StereoRenderer::Impl {
   int width = 0, height = 0;
+  bool own_context = true;
+  GLuint blit_fbo = 0;  // blit_to's draw framebuffer
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
   EGLSurface surface = EGL_NO_SURFACE;
@@ -171,7 +173,46 @@ StereoRenderer::StereoRenderer(int width, int height) : impl_(std::make_unique<I
   impl_->init_gl();
 }
 
+StereoRenderer::StereoRenderer(int width, int height, UseCurrentContext)
+    : impl_(std::make_unique<Impl>()) {
+  if (width <= 0 || height <= 0 || width > 8192 || height > 8192)
+    throw std::invalid_argument("stereo view: eye size " + std::to_string(width) + "x" +
+                                std::to_string(height) + " is not in 1..8192");
+  impl_->width = width;
+  impl_->height = height;
+  impl_->own_context = false;
+  if (epoxy_gl_version() < 33)
+    throw std::runtime_error("stereo view: OpenGL " + std::to_string(epoxy_gl_version()) +
+                             " is below 3.3 core");
+  impl_->init_gl();
+}
+
+void StereoRenderer::blit_to(unsigned texture, int width, int height) {
+  Impl& g = *impl_;
+  if (!g.blit_fbo) glGenFramebuffers(1, &g.blit_fbo);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, g.fbo);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, g.blit_fbo);
+  glFramebufferTexture2D(GL_DRAW_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture, 0);
+  // The values are sRGB-encoded already: copied as they are, whatever the target's format.
+  glDisable(GL_FRAMEBUFFER_SRGB);
+  glBlitFramebuffer(0, 0, g.width, g.height, 0, height, width, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+  glFramebufferTexture2D(GL_DRAW_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
 StereoRenderer::~StereoRenderer() {
+  if (!impl_->own_context) {  // the context stays: only this renderer's objects go
+    Impl& g = *impl_;
+    const GLuint textures[] = {g.color_tex, g.depth_tex};
+    glDeleteTextures(2, textures);
+    const GLuint fbos[] = {g.fbo, g.blit_fbo};
+    glDeleteFramebuffers(2, fbos);
+    const GLuint buffers[] = {g.boxes.vbo, g.boxes.instances};
+    glDeleteBuffers(2, buffers);
+    glDeleteVertexArrays(1, &g.boxes.vao);
+    glDeleteProgram(g.capsule);
+    return;
+  }
   if (impl_->display == EGL_NO_DISPLAY) return;
   // Only this renderer's own context is released: another one made since stays current.
   if (eglGetCurrentContext() == impl_->context)
@@ -239,6 +280,7 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
   g.body->draw_body(projection, eye.p_RightEye, capsules,
                     exposure_from_image(has_color ? eye.background : cv::Mat3b()));
 
+  if (!eye.read_back) return {};
   g.readback.create(size);
   glReadPixels(0, 0, g.width, g.height, GL_BGRA, GL_UNSIGNED_BYTE, g.readback.data);
   cv::Mat3b out;

@@ -210,20 +210,22 @@ cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Int
   return out;
 }
 
-StereoViewImages StereoView::render(const StereoViewInputs& in) {
-  StereoViewImages out;
+bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& views,
+                         std::vector<Capsule>& capsules) {
   const cv::Size depth_size(in.k.width, in.k.height);
   cv::Size size = in.eye_size;
   if (size.empty()) {
     const cv::Mat3b& video = in.eye_bgr[1].empty() ? in.eye_bgr[0] : in.eye_bgr[1];
     size = video.empty() ? depth_size : video.size();
   }
-  const Intrinsics k_eye = size == depth_size ? in.k : eye_intrinsics(in.k, size);
+  k_eye_ = size == depth_size ? in.k : eye_intrinsics(in.k, size);
+  const Intrinsics& k_eye = k_eye_;
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
     for (auto& w : warp_) w.reset();  // their objects live in the old renderer's context
-    // The old renderer goes first: its end releases the thread's current context.
-    renderer_.reset();
-    renderer_ = std::make_unique<StereoRenderer>(size.width, size.height);
+    renderer_.reset();  // before the next one: its end releases the thread's current context
+    renderer_ = current_context_ ? std::make_unique<StereoRenderer>(
+                                       size.width, size.height, StereoRenderer::UseCurrentContext{})
+                                 : std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
   // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
@@ -236,12 +238,14 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_eye) : fit(in.eye_bgr[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
-  out.one_eye = eye[0].empty() != eye[1].empty();
+  const bool one_eye = eye[0].empty() != eye[1].empty();
+  warped_ = false;
   if (eye[0].empty()) eye[0] = eye[1];
   if (eye[1].empty()) eye[1] = eye[0];
 
-  const std::vector<Capsule> capsules = view_capsules(body_, in);
-  EyeView right, left;
+  capsules = view_capsules(body_, in);
+  EyeView& right = views[index_of(Side::Right)];
+  EyeView& left = views[index_of(Side::Left)];
   right.k = left.k = k_eye;
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
   right.fingertips = left.fingertips = view_fingertips(in.hand);
@@ -257,30 +261,53 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
     left.depth_mm = resample_pinhole(left_mm, in.k, k_eye, cv::INTER_NEAREST);
     if (in.R_BaseCapture && in.R_BaseDisplay && !eye[0].empty()) {
       warp_eyes(in, {&left, &right});
-      out.warped = true;
+      warped_ = true;
     }
   }
-  if (!out.warped) {  // the next warp's holes must not take a picture from another pose
+  if (!warped_) {  // the next warp's holes must not take a picture from another pose
     for (auto& w : warp_)
       if (w) w->reset_previous();
     R_BasePreviousDisplay_.reset();
   }
-  out.right = renderer_->render(right, capsules);
-  out.left = renderer_->render(left, capsules);
+  return one_eye;
+}
+
+StereoViewImages StereoView::render(const StereoViewInputs& in) {
+  StereoViewImages out;
+  std::array<EyeView, 2> views;
+  std::vector<Capsule> capsules;
+  out.one_eye = prepare(in, views, capsules);
+  out.warped = warped_;
+  out.right = renderer_->render(views[index_of(Side::Right)], capsules);
+  out.left = renderer_->render(views[index_of(Side::Left)], capsules);
   // The normal map the view shows: full-frame, computed here when the haptic path built only
   // fingertip windows.
-  const bool depth_fits = !in.depth_mm.empty() && in.depth_mm.size() == depth_size;
+  const bool depth_fits =
+      !in.depth_mm.empty() && in.depth_mm.size() == cv::Size(in.k.width, in.k.height);
   const cv::Mat3f normals =
       depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
   if (in.fig7) {
     cv::Mat3b interaction = out.right.clone();
     overlay(interaction, in, {});
-    out.fig7 = fig7_layout(interaction, k_eye, normals, in.k, in.forces, in.arrow_m_per_N);
+    out.fig7 = fig7_layout(interaction, k_eye_, normals, in.k, in.forces, in.arrow_m_per_N);
   }
   overlay(out.left, in, normals);
   overlay(out.right, in, normals);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
+}
+
+void StereoView::render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets) {
+  std::array<EyeView, 2> views;
+  std::vector<Capsule> capsules;
+  prepare(in, views, capsules);
+  for (const Side side : kSides) {
+    EyeView& v = views[index_of(side)];
+    v.read_back = false;
+    renderer_->render(v, capsules);
+    const GlTarget& t = targets[index_of(side)];
+    renderer_->blit_to(t.texture, t.width, t.height);
+  }
 }
 
 }  // namespace telex::local

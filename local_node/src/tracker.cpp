@@ -33,7 +33,7 @@ class NatNetTracker final : public HandTracker {
     hand_id_ = by_side(cfg.left_hand_body_id, cfg.right_hand_body_id);
     shoulder_id_ = by_side(cfg.left_shoulder_body_id, cfg.right_shoulder_body_id);
     elbow_id_ = by_side(cfg.left_elbow_body_id, cfg.right_elbow_body_id);
-    if (hand_id_[index_of(haptic_)] < 0 || cfg.head_body_id < 0)
+    if (hand_id_[index_of(haptic_)] < 0 || (cfg.head_body_id < 0 && !cfg.head_from_hmd))
       throw std::invalid_argument("natnet tracker: head and hand rigid body ids must be set");
     ccfg.body_ids = {cfg.head_body_id};
     for (const auto& ids : {hand_id_, shoulder_id_, elbow_id_})
@@ -63,7 +63,8 @@ class NatNetTracker final : public HandTracker {
         const auto* b = id >= 0 ? incoming_.find(id) : nullptr;
         return b != nullptr && b->rejected;
       };
-      if (rejected(cfg_.head_body_id) || rejected(hand_id_[index_of(haptic_)])) {
+      const bool head_rejected = !cfg_.head_from_hmd && rejected(cfg_.head_body_id);
+      if (head_rejected || rejected(hand_id_[index_of(haptic_)])) {
         ++stats_.frames_rejected;
       } else {
         sample_ = incoming_;
@@ -82,7 +83,12 @@ class NatNetTracker final : public HandTracker {
       fresh = true;
     }
     if (!fresh || !have_sample_) return false;
-    const auto* head = sample_.find(cfg_.head_body_id);
+    const NatNetSample::Body* head = sample_.find(cfg_.head_body_id);
+    NatNetSample::Body hmd;
+    if (cfg_.head_from_hmd) {  // the headset's pose stands for the head body's
+      hmd.valid = hmd.present = cfg_.head_from_hmd(hmd.pose);
+      head = &hmd;
+    }
     const bool head_valid = head && head->valid;
     const auto body = [&](std::int32_t id) -> const NatNetSample::Body* {
       const auto* b = id >= 0 ? sample_.find(id) : nullptr;

@@ -78,6 +78,10 @@ ViewSpec ViewSpec::parse(const std::string& text) {
     v.kind = Kind::Hmd;
     return v;
   }
+  if (text == "openxr") {
+    v.kind = Kind::OpenXr;
+    return v;
+  }
   if (text.rfind("hmd:", 0) == 0) {
     if (text.size() == 4)
       throw std::invalid_argument(
@@ -94,7 +98,7 @@ ViewSpec ViewSpec::parse(const std::string& text) {
     return v;
   }
   throw std::invalid_argument("--view '" + text +
-                              "': expected none, png:DIR, window, hmd or hmd:MONITOR");
+                              "': expected none, png:DIR, window, hmd, hmd:MONITOR or openxr");
 }
 
 std::string describe_monitors(std::span<const MonitorInfo> monitors) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "flags.h"
+#include "telex/local/view_window.h"
 
 namespace telex::local {
 namespace {
@@ -59,6 +60,14 @@ TEST(StationFlags, EyeSizeReachesTheConfigAndDefaultsToTheVideos) {
   EXPECT_EQ(parse({"--view-layout", "fig7"}).cfg.view_layout, "fig7");
 }
 
+TEST(StationFlags, OpenXrViewTakesTheHeadsetAsTheHead) {
+  EXPECT_EQ(parse({}).cfg.head_source, "natnet");
+  const StationFlags f = parse({"--view", "openxr", "--head-source", "hmd"});
+  EXPECT_EQ(f.cfg.view_spec, "openxr");
+  EXPECT_EQ(f.cfg.head_source, "hmd");
+  EXPECT_EQ(ViewSpec::parse(f.cfg.view_spec).kind, ViewSpec::Kind::OpenXr);
+}
+
 TEST(StationFlags, BadValuesNameTheFlag) {
   const struct {
     std::vector<std::string> args;
@@ -75,6 +84,10 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--eye-size", "1280x720x3"}, "--eye-size"},
       {{"--eye-size", "8x8"}, "--eye-size"},
       {{"--view-layout", "quad"}, "--view-layout"},
+      {{"--view", "openxr:steamvr"}, "--view"},
+      {{"--head-source", "eyes"}, "--head-source"},
+      // The headset's pose exists only with the headset's view.
+      {{"--head-source", "hmd", "--view", "png:/tmp"}, "--head-source"},
   };
   for (const auto& c : cases) {
     try {

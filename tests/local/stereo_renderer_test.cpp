@@ -4,6 +4,7 @@
 // a missing EGL name themselves.
 #include "telex/local/stereo_renderer.h"
 
+#include <epoxy/gl.h>
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -90,6 +91,32 @@ TEST(StereoRenderer, AFingertipAtDepthZHasTheDisparityFBOverZ) {
     EXPECT_NEAR(cr.x, project(right, tip).x, 0.5) << z;
     EXPECT_NEAR(cr.y, project(right, tip).y, 0.5) << z;
   }
+}
+
+// --view openxr's path: the eye stays on the GPU (no read-back) and is blitted into a texture of
+// another size (a swapchain image) with GL's bottom-up rows: the image's top is the texture's last
+// row.
+TEST(StereoRenderer, BlitToPutsTheEyeIntoATextureScaledAndBottomUp) {
+  StereoRenderer r(640, 480);  // its context is current on this thread
+  EyeView e = eye(false, {});
+  e.background.rowRange(0, 240).setTo(cv::Vec3b(0, 0, 255));    // top: red
+  e.background.rowRange(240, 480).setTo(cv::Vec3b(255, 0, 0));  // bottom: blue
+  e.read_back = false;
+  EXPECT_TRUE(r.render(e, {}).empty());
+  GLuint tex = 0;
+  glGenTextures(1, &tex);
+  glBindTexture(GL_TEXTURE_2D, tex);
+  glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, 320, 360);
+  r.blit_to(tex, 320, 360);
+  cv::Mat4b got(360, 320);
+  glBindTexture(GL_TEXTURE_2D, tex);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_UNSIGNED_BYTE, got.data);
+  glDeleteTextures(1, &tex);
+  EXPECT_EQ(glGetError(), static_cast<GLenum>(GL_NO_ERROR));
+  // RGBA: row 0 is the bottom of the picture (blue), the last row its top (red).
+  EXPECT_EQ(got(5, 160), cv::Vec4b(0, 0, 255, 255));
+  EXPECT_EQ(got(354, 160), cv::Vec4b(255, 0, 0, 255));
 }
 
 TEST(StereoRenderer, BadSizesAreRefusedWithTheSizes) {

@@ -66,7 +66,9 @@ void HapticLoop::ticks(std::stop_token stop) {
   TickSample sample{};
   std::int64_t prev = 0;
   const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
+  std::uint64_t gate_before = 0;
   while (!stop.stop_requested()) {
+    if (gate_) gate_before = gate_->epoch();
     const std::int64_t now = timer.wait_next();
     faults_.check(StationLoop::Haptic);
     if (prev == 0) t0_ns_.store(now, std::memory_order_release);
@@ -86,6 +88,10 @@ void HapticLoop::ticks(std::stop_token stop) {
       const auto& f = out[static_cast<std::size_t>(i)];
       shown[static_cast<std::size_t>(i)] = {channel_[static_cast<std::size_t>(i)], f.normal_force_N,
                                             f.shear_along_axis_N, f.contact};
+    }
+    if (gate_ && !OutputGate::open_between(gate_before, gate_->epoch())) {
+      for (auto& f : shown) f = {f.finger, 0.0, 0.0, false};
+      ticks_gated_.fetch_add(1, std::memory_order_relaxed);
     }
     display_.write(now, shown);
     sample.t_ns = now;

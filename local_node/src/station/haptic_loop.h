@@ -12,6 +12,7 @@
 
 #include "faults.h"
 #include "messages.h"
+#include "output_gate.h"
 #include "telex/base/spsc_ring.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/haptics/haptic_model.h"
@@ -34,6 +35,11 @@ class HapticLoop {
   // Before the thread starts: the fingertips' source.
   void set_tracker(std::unique_ptr<HandTracker> tracker) { tracker_ = std::move(tracker); }
   HandTracker* tracker() const { return tracker_.get(); }
+  // Before the thread starts: a gate the display's forces pass only while open (--view openxr:
+  // the headset's focus); none: always open.
+  void set_output_gate(const OutputGate* gate) { gate_ = gate; }
+  // Ticks whose forces the gate zeroed.
+  std::uint64_t ticks_gated() const { return ticks_gated_.load(std::memory_order_relaxed); }
 
   // The haptic thread's body: no lock, allocation or log call per tick. On every exit the display
   // is commanded zero force.
@@ -70,6 +76,8 @@ class HapticLoop {
   const std::array<int, kFingerCount> channel_;
 
   std::unique_ptr<HandTracker> tracker_;
+  const OutputGate* gate_ = nullptr;
+  std::atomic<std::uint64_t> ticks_gated_{0};
   HapticModel model_;
   SpscRing<TickSample> samples_;
   SpscRing<HandState> bodies_;

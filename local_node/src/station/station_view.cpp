@@ -15,6 +15,7 @@
 
 #include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
+#include "../xr/openxr_output.h"
 #include "telex/local/operator_view.h"
 
 namespace telex::local {
@@ -36,7 +37,10 @@ StationView::StationView(const StationConfig& cfg, StationFaults& faults)
     : cfg_(cfg),
       faults_(faults),
       spec_(ViewSpec::parse(cfg.view_spec)),
-      window_(spec_.on_screen() ? std::make_unique<ViewWindow>(spec_) : nullptr) {
+      window_(spec_.on_screen() ? std::make_unique<ViewWindow>(spec_) : nullptr),
+      gate_(!openxr()) {
+  // No runtime, or XR_RUNTIME_JSON naming nothing, stops the start before anything connects.
+  if (openxr()) spdlog::info("openxr view: runtime {}", openxr_runtime_manifest());
   if (!spec_.stereo()) return;
   VideoReceiver::Hooks hooks;
   hooks.send_pli = [this](const proto::PictureLoss& pli) {
@@ -174,6 +178,10 @@ void StationView::log_window_counts() const {
 // EGL context is made while the station connects; a machine without EGL stops the station here,
 // named. A window gets the pair through sbs_for_window_. ----
 void StationView::run_stereo(std::stop_token stop) {
+  if (openxr()) {
+    run_openxr(stop);
+    return;
+  }
   // At video rate on a machine without a GPU (llvmpipe) the view would take a core from the
   // surface thread and the remote: it runs at nice 5, and so do llvmpipe's rasterizer threads,
   // which its context starts and which inherit the niceness. The haptic thread is unaffected
@@ -202,6 +210,20 @@ void StationView::run_stereo(std::stop_token stop) {
 }
 
 bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
+  if (!stereo_inputs(in)) return false;
+  const StereoViewImages v = view.render(in);
+  if (v.one_eye && !warned_one_eye_) {
+    spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
+    warned_one_eye_ = true;
+  }
+  if (spec_.on_screen())
+    sbs_for_window_.put(in.fig7 ? v.fig7 : v.sbs);
+  else
+    write_stereo_files(v);
+  return true;
+}
+
+bool StationView::stereo_inputs(StereoViewInputs& in) {
   std::shared_ptr<const Surface> vs;
   {
     std::lock_guard lock(surface_mu_);
@@ -238,15 +260,6 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
                         : "no head body is tracked");
     warned_no_warp_ = true;
   }
-  const StereoViewImages v = view.render(in);
-  if (v.one_eye && !warned_one_eye_) {
-    spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
-    warned_one_eye_ = true;
-  }
-  if (spec_.on_screen())
-    sbs_for_window_.put(in.fig7 ? v.fig7 : v.sbs);
-  else
-    write_stereo_files(v);
   return true;
 }
 

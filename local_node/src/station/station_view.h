@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
-// The operator view (--view png:DIR | window | hmd): the eyes' video as received, the newest
-// surface and depth, the 2D view, the stereo pair drawn on its own thread, and the window on the
-// main thread.
+// The operator view (--view png:DIR | window | hmd | openxr): the eyes' video as received, the
+// newest surface and depth, the 2D view, the stereo pair drawn on its own thread, and the window
+// on the main thread. With openxr the view thread runs the headset's frame loop instead
+// (station_view_xr.cpp), gates the haptic output on its focus and tracks its pose.
 #pragma once
 
 #include <array>
@@ -9,6 +10,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <stop_token>
@@ -16,6 +18,7 @@
 #include <vector>
 
 #include "faults.h"
+#include "output_gate.h"
 #include "telex/base/latest_slot.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/local/station.h"
@@ -46,6 +49,24 @@ class StationView {
   }
   // The eyes in the run's summary: pairs shown, PLIs sent, shown-frame age.
   void summarize(StationSummary& s) const;
+  bool openxr() const { return spec_.kind == ViewSpec::Kind::OpenXr; }
+  // --view openxr: closed until the headset's session is FOCUSED, and whenever it is not.
+  const OutputGate& output_gate() const { return gate_; }
+  // --head-source hmd: the headset's newest pose in the NatNet frame (through the rig's
+  // operator.hmd_stage_in_natnet), read by the tracker on the haptic thread; false until the
+  // session located the headset.
+  std::function<bool(Pose&)> hmd_head_source();
+  // The headset's session ended by itself (the user quit, the runtime went): the station stops.
+  bool xr_ended() const { return xr_ended_.load(); }
+  struct XrStats {
+    std::string runtime, end_reason;
+    std::uint64_t frames_submitted = 0;
+    int eye_width = 0, eye_height = 0;
+    // When the gate closed (after closing) and opened again (before opening; 0: still closed at
+    // the end), CLOCK_MONOTONIC ns: a haptic tick whose time falls inside output no force.
+    std::vector<std::pair<std::int64_t, std::int64_t>> gate_closed_ns;
+  };
+  XrStats xr_stats() const;
 
   // Surface thread: what the view draws (a frame's rest that changed nothing only its depth).
   void show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm);
@@ -79,6 +100,11 @@ class StationView {
   // The stereo pair for one request, or false when there is no surface to draw yet.
   bool render_stereo(StereoView& view, StereoViewInputs& in);
   void write_stereo_files(const StereoViewImages& v) const;
+  // The inputs of one pair (surface, depth, eyes' video, status); false before the first surface.
+  bool stereo_inputs(StereoViewInputs& in);
+  // --view openxr: the view thread's body (station_view_xr.cpp).
+  void run_openxr(std::stop_token stop);
+  void set_gate(bool open);
 
   const StationConfig& cfg_;
   StationFaults& faults_;
@@ -113,6 +139,13 @@ class StationView {
   } stereo_request_;             // guarded by stereo_mu_
   bool warned_one_eye_ = false;  // view thread
   bool warned_no_warp_ = false;  // view thread
+
+  // --view openxr.
+  OutputGate gate_;
+  std::atomic<bool> xr_ended_{false};
+  TripleBuffer<Pose> hmd_head_;  // NatNet frame
+  mutable std::mutex xr_mu_;
+  XrStats xr_stats_;  // guarded by xr_mu_
 };
 
 }  // namespace telex::local

@@ -103,6 +103,11 @@ struct Rig {
   glm::dvec3 p_HeadCamera{0.032, 0.0, -0.08};
   glm::dmat3 R_CameraHead{1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0};
   MarkerBodies bodies;
+  // --head-source hmd: the headset's tracking space (OpenXR's STAGE, or LOCAL) in the NatNet
+  // frame: p_NatNet = rotation * p_Stage + translation_m (operator.hmd_stage_in_natnet; identity
+  // when the two were set up to coincide). The headset's view frame (x right, y up, z backward)
+  // then stands for the head marker body's.
+  RigidTransform X_NatNetStage;
   BodyDims body;
   std::array<std::optional<GloveRange>, 2> glove;  // by Side
   // Haptic display channel each finger drives (thumb first), per hand.

@@ -65,7 +65,12 @@ struct StationConfig {
   // ROS 1 bag of the session (docs/RECORDING.md); empty = off. Forces at record_rate_hz.
   std::filesystem::path record_bag;
   double record_rate_hz = 100.0;
-  std::string view_spec = "none";  // none | png:DIR | window
+  std::string view_spec = "none";  // none | png:DIR | window | hmd[:MONITOR] | openxr
+  // --head-source: the operator's head from the NatNet head body ("natnet") or, with --view
+  // openxr, the headset's pose ("hmd") placed in the NatNet frame by X_NatNetStage (the rig's
+  // operator.hmd_stage_in_natnet).
+  std::string head_source = "natnet";
+  RigidTransform X_NatNetStage;
   // --view-at: png views are written once, this many seconds after the first haptic tick (a hand
   // script's time zero), instead of once a second and at the end (< 0: off).
   double view_at_s = -1.0;

@@ -89,6 +89,14 @@ struct StationSummary {
   std::uint64_t head_commands_invalid = 0;
   // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
   TrackerStats tracker;
+  // --view openxr (JSON "openxr", absent otherwise): the runtime, the eyes' swapchain size, the
+  // frames submitted, why the session ended, the haptic ticks whose force the headset's focus
+  // gate zeroed, and the gate's closed windows (CLOCK_MONOTONIC ns; 0 = closed at the end).
+  bool openxr = false;
+  std::string openxr_runtime, openxr_end_reason;
+  int openxr_eye_width = 0, openxr_eye_height = 0;
+  std::uint64_t openxr_frames_submitted = 0, openxr_ticks_gated = 0;
+  std::vector<std::pair<std::int64_t, std::int64_t>> openxr_gate_closed_ns;
 
   // The stream's mean rate over the haptic loop's span (0 before the loop ran).
   double stream_mbit_per_s() const;

@@ -42,6 +42,9 @@ struct EyeView {
   // Fingertips in the right eye's frame: each darkens the remote surface near it (a soft contact
   // shadow, 5 cm reach).
   std::vector<glm::dvec3> fingertips;
+  // false: the picture stays in the renderer's framebuffer (for blit_to) and render() returns an
+  // empty image.
+  bool read_back = true;
 };
 
 class StereoRenderer {
@@ -49,6 +52,10 @@ class StereoRenderer {
   // Creates the headless EGL context and the GL objects for `width` x `height` eyes. Throws
   // std::runtime_error naming what is missing (no EGL display, no OpenGL 3.3 core context).
   StereoRenderer(int width, int height);
+  // Draws in the OpenGL context current on the calling thread (an OpenXR session's, which the
+  // caller owns) instead of making one; the destructor deletes only the renderer's objects.
+  struct UseCurrentContext {};
+  StereoRenderer(int width, int height, UseCurrentContext);
   ~StereoRenderer();
   StereoRenderer(const StereoRenderer&) = delete;
   StereoRenderer& operator=(const StereoRenderer&) = delete;
@@ -57,6 +64,10 @@ class StereoRenderer {
   // follows the background's brightness. BGR, top row first. The
   // calling thread must be the one that constructed the renderer (the context is current there).
   cv::Mat3b render(const EyeView& eye, std::span<const Capsule> capsules);
+
+  // The last eye drawn, copied on the GPU into `texture` (a GL_TEXTURE_2D of this context, e.g.
+  // an OpenXR swapchain image), scaled to width x height and flipped to GL's bottom-up rows.
+  void blit_to(unsigned texture, int width, int height);
 
   std::string gl_renderer() const;  // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
   static constexpr double kNear_m = 0.05, kFar_m = 20.0;

@@ -85,6 +85,17 @@ class StereoView {
   StereoView(int width, int height, const BodyDims& dims = {});
   ~StereoView();
   StereoViewImages render(const StereoViewInputs& in);
+  // Renderers are made in the OpenGL context current on this thread from now on (an OpenXR
+  // session's), not in one of their own.
+  void use_current_context() { current_context_ = true; }
+  // The pair drawn straight into two GL textures of that context (the headset's swapchain
+  // images, by Side), each scaled to its size: no read-back, and no overlay (the text and inset
+  // belong to the monitor's picture, not in front of the operator's eyes).
+  struct GlTarget {
+    unsigned texture = 0;
+    int width = 0, height = 0;
+  };
+  void render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets);
   // The eyes' calibration (the rig's eyes.*; absent = drawn as they come) and the left eye's
   // rotation into the right's (p_right = R p_left).
   void set_eye_cameras(const std::array<std::optional<CameraModel>, 2>& eyes,
@@ -93,12 +104,20 @@ class StereoView {
  private:
   // Each eye's video and depth at the display pose, by Side, when the inputs carry both poses.
   void warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes);
+  // Both eyes' views (left, right) and the capsules, with the renderer made for in.k's size;
+  // returns whether only one eye's video came.
+  bool prepare(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
+               std::vector<Capsule>& capsules);
 
   std::array<std::optional<EyeRectifier>, 2> rectifier_;
+  bool current_context_ = false;
   std::unique_ptr<StereoRenderer> renderer_;
   // On the renderer's context, made at the first warped frame; they go before the renderer does.
   std::array<std::unique_ptr<DepthWarp>, 2> warp_;
   std::optional<glm::dmat3> R_BasePreviousDisplay_;
+  // What the last prepare() chose: the eyes' pinhole camera, and whether it warped.
+  Intrinsics k_eye_;
+  bool warped_ = false;
   cv::Size renderer_size_;
   Body body_;
 };

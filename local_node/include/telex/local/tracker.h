@@ -130,6 +130,9 @@ struct TrackerConfig {
   std::string natnet_multicast_group = "239.255.42.99";
   std::string natnet_local_address = "0.0.0.0";  // interface to join the group on
   int realtime_priority = 0;  // the NatNet receive thread's SCHED_FIFO priority (0: none)
+  // --head-source hmd: the operator's head is the headset's pose (in the NatNet frame) that this
+  // returns (false: not tracked now), not the head marker body's. Empty: the head body (natnet).
+  std::function<bool(Pose& X_NatNetHead)> head_from_hmd;
   // Test seam (NatNetClientConfig::receive_hook), never set by telex-local.
   std::function<void()> natnet_receive_hook;
 

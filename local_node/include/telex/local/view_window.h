@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// The operator's view on a screen: the --view grammar (none | png:DIR | window | hmd[:MONITOR])
+// The operator's view on a screen: the --view grammar (none | png:DIR | window | hmd[:MONITOR] |
+// openxr)
 // and a GLFW window on the station's main thread that shows the side-by-side stereo image,
 // letterboxed, in a desktop window or full screen on the head-mounted display's monitor.
 #pragma once
@@ -16,13 +17,14 @@ namespace telex::local {
 
 // What --view asks for. One parser for telex-local's flag check and the station.
 struct ViewSpec {
-  enum class Kind { None, Png, Window, Hmd };
+  // OpenXr: a headset through its OpenXR runtime (src/xr/openxr_output.h), no window.
+  enum class Kind { None, Png, Window, Hmd, OpenXr };
   Kind kind = Kind::None;
   std::filesystem::path dir;  // Png: left.png, right.png, sbs.png and view.png go here
   std::string monitor;        // Hmd: a GLFW monitor name or a 0-based index; empty: the last one
 
-  // "none" (or ""), "png:DIR", "window", "hmd", "hmd:MONITOR". Throws std::invalid_argument
-  // naming the text and the forms accepted.
+  // "none" (or ""), "png:DIR", "window", "hmd", "hmd:MONITOR", "openxr". Throws
+  // std::invalid_argument naming the text and the forms accepted.
   static ViewSpec parse(const std::string& text);
   bool on_screen() const { return kind == Kind::Window || kind == Kind::Hmd; }
   bool stereo() const { return kind != Kind::None; }  // the stereo view thread runs

@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: MIT
+// --view openxr on the view thread: the headset's session and frame loop, the stereo pair drawn
+// into its swapchain images, the haptic output gated on its focus, its pose for --head-source hmd.
+#include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <glm/gtc/quaternion.hpp>
+
+#include "../xr/openxr_output.h"
+#include "station_view.h"
+#include "telex/base/periodic.h"
+
+namespace telex::local {
+namespace {
+
+// Frames the session gets to reach STOPPING after the station asked it to exit.
+constexpr int kExitSteps = 300;
+
+}  // namespace
+
+void StationView::set_gate(bool open) {
+  std::lock_guard lock(xr_mu_);
+  auto& windows = xr_stats_.gate_closed_ns;
+  if (open) {
+    if (!windows.empty() && windows.back().second == 0) windows.back().second = monotonic_ns();
+    gate_.open();
+  } else {
+    gate_.close();
+    if (windows.empty() || windows.back().second != 0) windows.emplace_back(monotonic_ns(), 0);
+  }
+}
+
+std::function<bool(Pose&)> StationView::hmd_head_source() {
+  return [this, have = false, last = Pose{}](Pose& out) mutable {
+    if (hmd_head_.take(last)) have = true;
+    out = last;
+    return have;
+  };
+}
+
+StationView::XrStats StationView::xr_stats() const {
+  std::lock_guard lock(xr_mu_);
+  return xr_stats_;
+}
+
+void StationView::run_openxr(std::stop_token stop) {
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);  // as run_stereo, and for its reason
+  // Destroyed in reverse: the view's GL objects and the session's swapchains while their
+  // context is still there.
+  struct Parts {
+    std::unique_ptr<EglContext> egl;
+    std::unique_ptr<GlxContext> glx;
+    std::unique_ptr<OpenXrOutput> xr;
+    std::unique_ptr<StereoView> view;
+  } p;
+  set_gate(false);  // the gate starts closed: record it as a window from the start
+  try {
+    p.xr = std::make_unique<OpenXrOutput>();
+    if (p.xr->binding() == OpenXrOutput::Binding::Egl) {
+      p.egl = std::make_unique<EglContext>();
+      p.xr->start(p.egl->handles());
+    } else {
+      p.glx = std::make_unique<GlxContext>();
+      p.xr->start(p.glx->handles());
+    }
+    {
+      std::lock_guard lock(xr_mu_);
+      xr_stats_.runtime = p.xr->runtime_name();
+      xr_stats_.eye_width = p.xr->eye_size()[0];
+      xr_stats_.eye_height = p.xr->eye_size()[1];
+    }
+    p.xr->on_phase(
+        [this](OpenXrOutput::Phase phase) { set_gate(phase == OpenXrOutput::Phase::Focused); });
+    p.view = std::make_unique<StereoView>(cfg_.body);
+    p.view->use_current_context();
+    p.view->set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
+    const auto draw = [this, &p](const std::array<XrEyeTarget, 2>& t,
+                                 std::array<XrEyeFov, 2>& fov) {
+      StereoViewInputs in;
+      {
+        std::lock_guard lock(stereo_mu_);  // the newest request, drawn at the headset's rate
+        in.hand = stereo_request_.hand;
+        in.forces = stereo_request_.forces;
+        in.status = stereo_request_.status;
+      }
+      if (!stereo_inputs(in)) return false;
+      p.view->render_into(in, {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},
+                               StereoView::GlTarget{t[1].texture, t[1].width, t[1].height}});
+      const XrEyeFov f =
+          fov_from_pinhole(in.k.fx, in.k.fy, in.k.cx, in.k.cy, in.k.width, in.k.height);
+      fov = {f, f};  // a rectified pair: both eyes drawn with the right eye's intrinsics
+      return true;
+    };
+    const RigidTransform& X_NatNetStage = cfg_.X_NatNetStage;
+    const glm::dquat q_NatNetStage = glm::quat_cast(X_NatNetStage.rotation);
+    int exit_steps = 0;
+    while (p.xr->step(draw) != OpenXrOutput::Phase::Ended) {
+      if (const XrHeadPose h = p.xr->head(); h.valid)
+        hmd_head_.publish(
+            Pose{X_NatNetStage.rotation * h.p_StageHead_m + X_NatNetStage.translation_m,
+                 glm::normalize(q_NatNetStage * h.q_StageHead)});
+      if (stop.stop_requested()) {
+        p.xr->request_exit();
+        if (++exit_steps > kExitSteps) break;  // the runtime never stopped: destroyed anyway
+      }
+    }
+    std::lock_guard lock(xr_mu_);
+    xr_stats_.frames_submitted = p.xr->frames_submitted();
+    xr_stats_.end_reason = p.xr->end_reason().empty() ? "the station stopped" : p.xr->end_reason();
+  } catch (...) {
+    set_gate(false);
+    faults_.fail("view (openxr)", std::current_exception());
+    return;
+  }
+  set_gate(false);
+  const XrStats s = xr_stats();
+  spdlog::info("openxr view: {} frames submitted; the session ended: {}", s.frames_submitted,
+               s.end_reason);
+  if (!stop.stop_requested()) xr_ended_.store(true);
+}
+
+}  // namespace telex::local

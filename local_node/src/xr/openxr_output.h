@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: MIT
+// --view openxr: the stereo pair to a headset through the OpenXR loader (Debian's libopenxr-dev;
+// the runtime is the active one, or the manifest XR_RUNTIME_JSON names). One swapchain per eye
+// at the runtime's recommended size, frames paced by xrWaitFrame and submitted with its predicted
+// display time, each eye's pose from xrLocateViews, the session's state followed.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gl_contexts.h"
+
+namespace telex::local {
+
+// One eye's swapchain image, a GL texture of the session's context (rows bottom-up, as GL's).
+struct XrEyeTarget {
+  unsigned texture = 0;
+  int width = 0, height = 0;
+};
+
+// The tangents of an eye image's edges' angles (OpenXR's XrFovf: left and down negative), which
+// the runtime needs to show a picture drawn with the eye camera's intrinsics at its true size.
+struct XrEyeFov {
+  double angle_left_rad = 0, angle_right_rad = 0, angle_up_rad = 0, angle_down_rad = 0;
+};
+
+// The headset (XR's VIEW space) in the STAGE space (or LOCAL where there is no stage): OpenXR's
+// axes, x right, y up, z backwards, metres.
+struct XrHeadPose {
+  bool valid = false;
+  std::int64_t display_time_ns = 0;  // XrTime (CLOCK_MONOTONIC on Linux runtimes)
+  glm::dquat q_StageHead{1.0, 0.0, 0.0, 0.0};
+  glm::dvec3 p_StageHead_m{0.0};
+};
+
+class OpenXrOutput {
+ public:
+  enum class Binding { Egl, Xlib };
+  // What the session is doing, as the station needs it.
+  enum class Phase { Starting, Running, Focused, Ended };
+
+  // Loads the runtime, creates the instance (XR_KHR_opengl_enable, and XR_MNDX_egl_enable when
+  // offered) and finds the headset. Throws std::runtime_error naming the runtime manifest (or
+  // its absence) and what failed.
+  OpenXrOutput();
+  ~OpenXrOutput();
+  OpenXrOutput(const OpenXrOutput&) = delete;
+  OpenXrOutput& operator=(const OpenXrOutput&) = delete;
+
+  Binding binding() const { return binding_; }
+  const std::string& runtime_name() const { return runtime_name_; }
+  // The session bound to the context current on this thread, its spaces and swapchains.
+  void start(const EglHandles& egl);
+  void start(const GlxHandles& glx);
+
+  // One pass: the runtime's events, then, while the session runs, one frame. `draw` fills both
+  // eyes' targets and says with what field of view it drew; returning false submits no layer.
+  // Never throws: a failing call ends the session (end_reason says which).
+  using Draw = std::function<bool(const std::array<XrEyeTarget, 2>&, std::array<XrEyeFov, 2>&)>;
+  Phase step(const Draw& draw);
+  // Asks the runtime to end the session (the station stops); step() until Phase::Ended.
+  void request_exit();
+  // Called from step() at each change of phase, as soon as the event is taken (the station gates
+  // the haptic output on it).
+  void on_phase(std::function<void(Phase)> f) { on_phase_ = std::move(f); }
+  const std::string& end_reason() const { return end_reason_; }
+  XrHeadPose head() const { return head_; }
+  std::uint64_t frames_submitted() const { return frames_submitted_; }
+  std::array<int, 2> eye_size() const { return {recommended_w_, recommended_h_}; }
+
+ private:
+  struct Xr;
+  void create_session(const void* binding);
+  void handle_events();
+  void frame(const Draw& draw);
+  void end(const std::string& why);
+  void set_phase(Phase p);
+
+  std::unique_ptr<Xr> xr_;
+  Binding binding_ = Binding::Egl;
+  std::string runtime_name_;
+  std::string end_reason_;
+  Phase phase_ = Phase::Starting;
+  int recommended_w_ = 0, recommended_h_ = 0;
+  XrHeadPose head_;
+  std::uint64_t frames_submitted_ = 0;
+  bool exit_requested_ = false;
+  std::function<void(Phase)> on_phase_;
+};
+
+// Which runtime the loader will load, for messages: "XR_RUNTIME_JSON=PATH", else the active
+// runtime's manifest where the loader looks for it (the XDG config directories). Throws
+// std::runtime_error, saying what to do, when XR_RUNTIME_JSON names no file or none is installed.
+std::string openxr_runtime_manifest();
+
+// The tangent-space field of view of a pinhole camera's image (fx, fy, cx, cy in pixels,
+// OpenCV's convention: y down), as OpenXR's angles.
+XrEyeFov fov_from_pinhole(double fx, double fy, double cx, double cy, int width, int height);
+
+}  // namespace telex::local

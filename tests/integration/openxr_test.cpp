@@ -1,0 +1,329 @@
+// SPDX-License-Identifier: MIT
+// --view openxr end to end: telex-remote sends synthetic stereo video with the depth, telex-local
+// shows it through the OpenXR loader on the project's own runtime (tools/sim/openxr, through
+// XR_RUNTIME_JSON) with Khronos' core validation layer enabled, and the runtime's record says what
+// it received: both eyes every frame at the recommended size, at the display times it predicted,
+// the state changes followed, and the haptic output zero while the session is not focused.
+// The validation layer rejects XrGraphicsBindingEGLMNDX (KhronosGroup/OpenXR-SDK-Source#570): the
+// runs it checks use the Xlib binding on the test's own Xvfb (the runtime then offers no
+// XR_MNDX_egl_enable, as SteamVR), and the headless EGL binding has its own run without it.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <map>
+
+#include "daemons.h"
+#include "process.h"
+#include "test_support.h"
+#include "xvfb.h"
+
+namespace telex::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr const char* kValidationLayer = "XR_APILAYER_LUNARG_core_validation";
+const char* const kValidationManifest =
+    "/usr/share/openxr/1/api_layers/explicit.d/XrApiLayer_core_validation.x86_64-linux-gnu.json";
+
+#define TELEX_REQUIRE_VALIDATION_LAYER()                                            \
+  TELEX_SKIP_UNLESS(std::filesystem::exists(kValidationManifest),                   \
+                    "the OpenXR core validation layer is not installed (Debian: "   \
+                    "openxr-layer-corevalidation, which tools/setup.sh installs)"); \
+  TELEX_SKIP_UNLESS(!xvfb_binary().empty(),                                         \
+                    "Xvfb is not installed (Debian: xvfb, which tools/setup.sh installs)")
+
+// Sets environment variables for the daemons a test starts (they inherit them), restored after.
+class Env {
+ public:
+  void set(const std::string& name, const std::string& value) {
+    const char* old = std::getenv(name.c_str());
+    saved_.emplace(name, old ? std::optional<std::string>(old) : std::nullopt);
+    setenv(name.c_str(), value.c_str(), 1);
+  }
+  ~Env() {
+    for (const auto& [name, value] : saved_) {
+      if (value)
+        setenv(name.c_str(), value->c_str(), 1);
+      else
+        unsetenv(name.c_str());
+    }
+  }
+
+ private:
+  std::map<std::string, std::optional<std::string>> saved_;
+};
+
+// The project's runtime with `script` (tools/sim/openxr/sim_openxr.h's keys); the runtime's
+// record goes to dir/xr_record.json. With `x`: the Xlib binding on that X server, checked by the
+// validation layer writing text to dir/validation.txt.
+void use_sim_runtime(Env& env, const std::filesystem::path& dir, nlohmann::json script,
+                     const Xvfb* x) {
+  script["record"] = (dir / "xr_record.json").string();
+  script["offer_egl"] = x == nullptr;
+  std::ofstream(dir / "xr_script.json") << script.dump();
+  env.set("XR_RUNTIME_JSON",
+          (std::filesystem::path(TELEX_BINARY_DIR) / "tools" / "telex_sim_openxr.json").string());
+  env.set("TELEX_SIM_OPENXR_CONFIG", (dir / "xr_script.json").string());
+  if (x == nullptr) return;
+  env.set("DISPLAY", x->display());
+  env.set("XR_ENABLE_API_LAYERS", kValidationLayer);
+  env.set("XR_CORE_VALIDATION_EXPORT_TYPE", "text");
+  env.set("XR_CORE_VALIDATION_FILE_NAME", (dir / "validation.txt").string());
+}
+
+nlohmann::json read_json(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  if (!in) return {};
+  return nlohmann::json::parse(in, nullptr, false);
+}
+
+// What the validation layer reported as an error (its text export says "Error" on each).
+std::string validation_errors(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::string line, errors;
+  while (std::getline(in, line))
+    if (line.find("rror") != std::string::npos || line.find("VUID") != std::string::npos)
+      errors += line + "\n";
+  return errors;
+}
+
+// The state names the runtime saw the application poll, in order.
+std::vector<std::string> states_polled(const nlohmann::json& record) {
+  std::vector<std::string> out;
+  for (const auto& s : record["states"]) out.push_back(s["state"].get<std::string>());
+  return out;
+}
+
+// Rows of the sim display's CSV: time, then pressure, shear, contact for each of five fingers.
+struct DisplayRow {
+  std::int64_t t_ns = 0;
+  double peak_N = 0.0;
+  bool zero = true;
+};
+
+std::vector<DisplayRow> read_display(const std::filesystem::path& csv) {
+  std::vector<DisplayRow> rows;
+  for (const auto& f : read_csv_file(csv).rows) {
+    if (f.size() != 16) continue;
+    DisplayRow r;
+    r.t_ns = std::stoll(f[0]);
+    for (int finger = 0; finger < 5; ++finger) {
+      const double p = std::stod(f[1 + 3 * finger]), s = std::stod(f[2 + 3 * finger]);
+      r.peak_N = std::max(r.peak_N, p);
+      r.zero = r.zero && p == 0.0 && s == 0.0 && f[3 + 3 * finger] == "0";
+    }
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::vector<std::string> station_args(const RemoteProcess& remote, const std::filesystem::path& dir,
+                                      std::vector<std::string> extra) {
+  std::vector<std::string> args = local_args(remote.port, dir, std::move(extra));
+  *std::find(args.begin(), args.end(), "sim") = "sim:" + (dir / "display.csv").string();
+  return args;
+}
+
+TEST(OpenXrView, SessionRunsBothEyesAtPredictedTimesWithoutValidationErrors) {
+  TELEX_REQUIRE_VALIDATION_LAYER();
+  const auto dir = scratch_dir("openxr_session");
+  Xvfb x(dir);
+  Env env;
+  use_sim_runtime(env, dir, {{"width", 640}, {"height", 720}, {"period_ms", 16.0}}, &x);
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir,
+                   {"--hand", "script:press", "--repeat", "--duration", "8", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  EXPECT_EQ(validation_errors(dir / "validation.txt"), "");
+  // The layer announces itself on stderr when it loads (it writes its file only on a message).
+  EXPECT_NE(local.stderr_text().find("Core Validation output type: text"), std::string::npos)
+      << "the validation layer did not run";
+  const nlohmann::json rec = read_json(dir / "xr_record.json");
+  ASSERT_TRUE(rec.is_object()) << "no runtime record; " << local.stderr_text();
+  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  EXPECT_EQ(rec["binding"], "xlib");
+  // Frames ended, each at a display time xrWaitFrame predicted.
+  const auto ended = rec["frames_ended"].get<std::uint64_t>();
+  EXPECT_GT(ended, 10u) << local.stderr_text();
+  EXPECT_EQ(rec["frames_with_predicted_time"].get<std::uint64_t>(), ended);
+  // Both eyes in every frame with a layer, at the recommended size, drawn (not black).
+  std::size_t with_eyes = 0, drawn = 0;
+  for (const auto& f : rec["frames"]) {
+    EXPECT_TRUE(f["predicted"].get<bool>());
+    if (f["eyes"].empty()) continue;
+    ++with_eyes;
+    ASSERT_EQ(f["eyes"].size(), 2u);
+    bool lit = true;
+    for (const auto& e : f["eyes"]) {
+      EXPECT_EQ(e["width"], 640);
+      EXPECT_EQ(e["height"], 720);
+      EXPECT_EQ(e["swapchain"], nlohmann::json({640, 720}));
+      lit = lit && e["centre_rgba"][0].get<int>() + e["centre_rgba"][1].get<int>() > 60;
+    }
+    drawn += lit;
+  }
+  EXPECT_GT(with_eyes, 10u);
+  EXPECT_GT(drawn, with_eyes / 2) << "the eyes' images are black at their centres";
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.contains("openxr")) << j.dump();
+  EXPECT_EQ(j["openxr"]["frames_submitted"].get<std::size_t>(), with_eyes);
+  EXPECT_EQ(j["openxr"]["runtime"], "telex-sim-openxr");
+  EXPECT_EQ(j["openxr"]["eye_width"], 640);
+  // The station's end: it asked to exit, ended the session at STOPPING and destroyed it.
+  const std::vector<std::string> want{"IDLE",    "READY",   "SYNCHRONIZED", "VISIBLE",
+                                      "FOCUSED", "VISIBLE", "SYNCHRONIZED", "STOPPING"};
+  const auto got = states_polled(rec);
+  ASSERT_GE(got.size(), want.size()) << rec["states"].dump();
+  EXPECT_EQ(std::vector<std::string>(got.begin(), got.begin() + want.size()), want);
+  // xrEndSession at STOPPING queued IDLE and EXITING; the station destroyed the session then.
+  EXPECT_EQ(rec["session_destroyed_in_state"], "EXITING");
+}
+
+TEST(OpenXrView, HapticOutputIsZeroWhileTheSessionIsNotFocused) {
+  TELEX_REQUIRE_VALIDATION_LAYER();
+  const auto dir = scratch_dir("openxr_focus");
+  Xvfb x(dir);
+  Env env;
+  use_sim_runtime(env, dir,
+                  {{"width", 320},
+                   {"height", 360},
+                   {"period_ms", 20.0},
+                   {"unfocus_at_frame", 30},
+                   {"refocus_at_frame", 70}},
+                  &x);
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir,
+                   {"--hand", "script:press", "--repeat", "--duration", "12", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  EXPECT_EQ(validation_errors(dir / "validation.txt"), "");
+  const nlohmann::json rec = read_json(dir / "xr_record.json");
+  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
+  const auto states = states_polled(rec);
+  // FOCUSED, then the scripted loss (VISIBLE) and return (FOCUSED) before the station's exit.
+  const auto first_focus = std::find(states.begin(), states.end(), "FOCUSED");
+  ASSERT_NE(first_focus, states.end()) << rec["states"].dump();
+  ASSERT_GE(states.end() - first_focus, 3) << rec["states"].dump();
+  EXPECT_EQ(*(first_focus + 1), "VISIBLE");
+  EXPECT_EQ(*(first_focus + 2), "FOCUSED");
+  const std::int64_t unfocus_polled_ns =
+      rec["states"][static_cast<std::size_t>(first_focus - states.begin()) + 1]["polled_ns"];
+
+  const auto j = summary_of(local);
+  ASSERT_TRUE(j.contains("openxr")) << j.dump();
+  const auto windows = j["openxr"]["gate_closed_ns"];
+  // Closed from the start until FOCUSED, during the loss, and at the end.
+  ASSERT_EQ(windows.size(), 3u) << windows.dump();
+  const std::int64_t lost_from = windows[1][0], lost_to = windows[1][1];
+  EXPECT_GE(lost_from, unfocus_polled_ns) << "the gate closed before the runtime said so";
+  EXPECT_GT(lost_to, lost_from);
+  EXPECT_GT(j["openxr"]["haptic_ticks_gated"].get<std::uint64_t>(), 0u);
+  const std::vector<DisplayRow> rows = read_display(dir / "display.csv");
+  ASSERT_GT(rows.size(), 1000u);
+  std::size_t inside = 0;
+  double peak_focused_N = 0.0;
+  for (const DisplayRow& r : rows) {
+    bool closed = false;
+    for (const auto& w : windows) {
+      const std::int64_t from = w[0], to = w[1];
+      closed = closed || (r.t_ns > from && (to == 0 || r.t_ns < to));
+    }
+    if (closed) {
+      ++inside;
+      EXPECT_TRUE(r.zero) << "force at " << r.t_ns << " while the session was not focused";
+      if (!r.zero) break;
+    } else {
+      peak_focused_N = std::max(peak_focused_N, r.peak_N);
+    }
+  }
+  EXPECT_GT(inside, 100u);
+  EXPECT_GT(peak_focused_N, 0.5) << "no press while focused: a missing gate would not show";
+  EXPECT_TRUE(rows.back().zero);
+}
+
+TEST(OpenXrView, UserStopAndLossPendingEndTheStationCleanly) {
+  TELEX_REQUIRE_VALIDATION_LAYER();
+  for (const std::string key : {"stop_at_frame", "loss_pending_at_frame"}) {
+    SCOPED_TRACE(key);
+    const auto dir = scratch_dir("openxr_" + key);
+    Xvfb x(dir);
+    Env env;
+    use_sim_runtime(env, dir, {{"width", 320}, {"height", 360}, {key, 80}}, &x);
+    RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+    // No --duration: only the headset ends this run.
+    Process local(
+        station_args(remote, dir, {"--hand", "script:press", "--repeat", "--view", "openxr"}),
+        dir / "local.out", dir / "local.err");
+    ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+    EXPECT_NE(local.stderr_text().find("the headset's session ended: stopping"), std::string::npos)
+        << local.stderr_text();
+    EXPECT_EQ(validation_errors(dir / "validation.txt"), "");
+    const nlohmann::json rec = read_json(dir / "xr_record.json");
+    ASSERT_TRUE(rec.is_object()) << local.stderr_text();
+    EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+    EXPECT_GE(rec["frames_ended"].get<int>(), 80);
+    const auto states = states_polled(rec);
+    ASSERT_FALSE(states.empty());
+    EXPECT_EQ(states.back(), key == "stop_at_frame" ? "STOPPING" : "LOSS_PENDING")
+        << rec["states"].dump();
+    EXPECT_EQ(rec["session_destroyed_in_state"],
+              key == "stop_at_frame" ? "EXITING" : "LOSS_PENDING");
+    const auto j = summary_of(local);
+    EXPECT_NE(j["openxr"]["end_reason"].get<std::string>().find(
+                  key == "stop_at_frame" ? "user stopped" : "loss pending"),
+              std::string::npos)
+        << j.dump();
+    const auto rows = read_display(dir / "display.csv");
+    ASSERT_FALSE(rows.empty());
+    EXPECT_TRUE(rows.back().zero) << "the display's last command is not zero force";
+  }
+}
+
+// The headless path (Monado's, and the station's default where offered): XR_MNDX_egl_enable, no X
+// display, no validation layer (it rejects the binding, see above).
+TEST(OpenXrView, EglBindingRunsHeadlessWithBothEyesAtPredictedTimes) {
+  const auto dir = scratch_dir("openxr_egl");
+  Env env;
+  use_sim_runtime(env, dir, {{"width", 320}, {"height", 360}}, nullptr);
+  env.set("DISPLAY", "");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir,
+                   {"--hand", "script:press", "--repeat", "--duration", "6", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  const nlohmann::json rec = read_json(dir / "xr_record.json");
+  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
+  EXPECT_EQ(rec["binding"], "egl");
+  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  const auto ended = rec["frames_ended"].get<std::uint64_t>();
+  EXPECT_GT(ended, 10u);
+  EXPECT_EQ(rec["frames_with_predicted_time"].get<std::uint64_t>(), ended);
+  EXPECT_GT(rec["frames_with_projection"].get<std::uint64_t>(), 5u);
+  EXPECT_EQ(summary_of(local)["openxr"]["frames_submitted"],
+            rec["frames_with_projection"].get<std::uint64_t>());
+}
+
+TEST(OpenXrView, MissingRuntimeIsAClearErrorNamingIt) {
+  const auto dir = scratch_dir("openxr_missing");
+  Env env;
+  env.set("XR_RUNTIME_JSON", (dir / "no_such_runtime.json").string());
+  Process local({built_binary("telex-local").string(), "--connect", "127.0.0.1:9", "--view",
+                 "openxr", "--duration", "5"},
+                dir / "local.out", dir / "local.err");
+  const int code = local.wait(30s).value_or(-1);
+  EXPECT_EQ(code, 1) << local.stderr_text();
+  const std::string err = local.stderr_text();
+  EXPECT_NE(
+      err.find("XR_RUNTIME_JSON=" + (dir / "no_such_runtime.json").string() + " does not exist"),
+      std::string::npos)
+      << err;
+}
+
+}  // namespace
+}  // namespace telex::test
