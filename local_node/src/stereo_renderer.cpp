@@ -207,10 +207,7 @@ StereoRenderer::~StereoRenderer() {
     glDeleteTextures(2, textures);
     const GLuint fbos[] = {g.fbo, g.blit_fbo};
     glDeleteFramebuffers(2, fbos);
-    const GLuint buffers[] = {g.boxes.vbo, g.boxes.instances};
-    glDeleteBuffers(2, buffers);
-    glDeleteVertexArrays(1, &g.boxes.vao);
-    glDeleteProgram(g.capsule);
+    g.body.reset();  // the body pass's programs and buffers
     return;
   }
   if (impl_->display == EGL_NO_DISPLAY) return;
@@ -235,7 +232,7 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
                                 std::to_string(g.width) + "x" + std::to_string(g.height));
   const cv::Size size(g.width, g.height);
   // With two renderers on a thread, the one drawing needs its own context current.
-  if (eglGetCurrentContext() != g.context &&
+  if (g.own_context && eglGetCurrentContext() != g.context &&
       !eglMakeCurrent(g.display, g.surface, g.surface, g.context))
     throw std::runtime_error(egl_error("cannot make the OpenGL context current"));
   const bool has_color = !eye.background.empty();

@@ -23,7 +23,8 @@ EyeRate::EyeRate(std::int64_t max_video_bps, std::int64_t min_video_bps)
     : max_video_bps_(max_video_bps),
       min_video_bps_(std::min(min_video_bps, max_video_bps)),
       controller_(link_config(max_video_bps, min_video_bps_)),
-      video_bps_(max_video_bps) {}
+      video_bps_(max_video_bps),
+      ceiling_bps_(static_cast<double>(max_video_bps)) {}
 
 video::ReceiverReport EyeRate::to_controller(const proto::ReceiverReport& r,
                                              std::int64_t received_ns) {
@@ -50,13 +51,27 @@ std::int64_t EyeRate::on_report(const proto::ReceiverReport& report, std::int64_
   if (report.interval_us == 0) return video_bps_;
   const std::int64_t link_bps = controller_.update(to_controller(report, received_ns), received_ns);
   const double interval_s = static_cast<double>(report.interval_us) * 1e-6;
-  const double depth_now =
-      static_cast<double>(report.bytes_received -
-                          std::min(report.video_bytes, report.bytes_received)) *
-      8.0 / interval_s;
+  const double expected =
+      static_cast<double>(report.datagrams_received) + static_cast<double>(report.fragments_lost);
+  const double loss = expected > 0.0 ? report.fragments_lost / expected : 0.0;
+  const std::uint64_t video_bytes = std::min(report.video_bytes, report.bytes_received);
+  // What the depth sent, not only what arrived: its loss is the eyes' to make good.
+  const double depth_now = static_cast<double>(report.bytes_received - video_bytes) * 8.0 /
+                           interval_s / std::max(0.5, 1.0 - loss);
   // Smoothed over about a second of reports: depth comes in frames and key frames.
   depth_bps_ = depth_bps_ == 0.0 ? depth_now : 0.7 * depth_bps_ + 0.3 * depth_now;
-  const double left = static_cast<double>(link_bps) - depth_bps_;
+  // The eyes' own ceiling, additive increase and multiplicative decrease: a link whose queue
+  // overflows shows loss before any delay trend (its delay sits at the queue's end), and a loss
+  // the controller holds at (2-10 %) is loss the depth suffers too. The eyes back off first.
+  const double video_delivered = static_cast<double>(video_bytes) * 8.0 / interval_s;
+  if (loss > controller_.config().loss_low)
+    ceiling_bps_ = std::min(
+        ceiling_bps_, kBackOff * std::max(video_delivered, static_cast<double>(min_video_bps_)));
+  else
+    ceiling_bps_ =
+        std::min(static_cast<double>(max_video_bps_),
+                 ceiling_bps_ + kIncreasePerS * static_cast<double>(max_video_bps_) * interval_s);
+  const double left = std::min(static_cast<double>(link_bps) - depth_bps_, ceiling_bps_);
   video_bps_ = std::clamp<std::int64_t>(std::llround(left), min_video_bps_, max_video_bps_);
   return video_bps_;
 }

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The eyes' bit rate from the station's receiver reports: the link's budget from a GCC-style
 // controller (telex::video::RateController) over everything the station received, less what the
-// depth took, capped by --video-bitrate. Depth keeps priority: the eyes get what is left.
+// depth took, capped by --video-bitrate and by the eyes' own AIMD ceiling, which backs off on any
+// loss above the controller's low threshold (2 %). Depth keeps priority: the eyes get what is left.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +33,10 @@ class EyeRate {
   std::int64_t max_video_bps_, min_video_bps_;
   video::RateController controller_;
   std::int64_t video_bps_;
+  double ceiling_bps_;  // the eyes' own AIMD bound
   double depth_bps_ = 0.0;
+  static constexpr double kBackOff = 0.85;       // of what the eyes delivered, on loss
+  static constexpr double kIncreasePerS = 0.05;  // of --video-bitrate, per second without loss
 };
 
 }  // namespace telex::remote
