@@ -13,9 +13,9 @@
 #include <opencv2/imgproc.hpp>
 #include <span>
 
+#include "../xr/openxr_output.h"
 #include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
-#include "../xr/openxr_output.h"
 #include "telex/local/operator_view.h"
 
 namespace telex::local {
