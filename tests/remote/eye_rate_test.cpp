@@ -91,6 +91,15 @@ TEST(EyeRate, StepsDownUnderAThrottledLinkAndBackUpAfter) {
   EXPECT_LE(*std::max_element(free2.begin(), free2.end()), 4e6);
 }
 
+// Depth alone at 16 Mbit/s on an ample link (the synthetic scenes' full frames): the first report
+// already leaves the eyes their --video-bitrate, not the floor.
+TEST(EyeRate, HeavyDepthOnAnAmpleLinkLeavesTheEyesTheirRateFromTheFirstReport) {
+  EyeRate rate(4'000'000);
+  Link link;
+  const auto r = run_interval(link, 16e6, 4e6);
+  EXPECT_EQ(rate.on_report(r, 1'250'000'000), 4'000'000);
+}
+
 TEST(EyeRate, TheStationsDelayLineBecomesTwoSamplesWithItsSlope) {
   proto::ReceiverReport r;
   r.interval_us = 200'000;

@@ -13,7 +13,10 @@ video::RateControllerConfig link_config(std::int64_t max_video_bps, std::int64_t
   // a high ceiling does not run away on an idle link.
   c.min_bitrate_bps = min_video_bps;
   c.max_bitrate_bps = std::max<std::int64_t>(200'000'000, 4 * max_video_bps);
-  c.start_bitrate_bps = std::max<std::int64_t>(2 * max_video_bps, min_video_bps);
+  // Start at the ceiling: the first report caps the target at 1.5 x what was delivered, so the
+  // eyes start with what the depth leaves instead of climbing from a guess (depth alone can be
+  // 16 Mbit/s: a low start left the eyes at their floor for seconds).
+  c.start_bitrate_bps = c.max_bitrate_bps;
   return c;
 }
 
