@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "gl_program.h"
+
 namespace telex::local {
 namespace {
 
@@ -306,39 +308,6 @@ void main() {
 constexpr double kShadowReach_m = 0.05;
 constexpr double kShadowRadius_m = 0.012;
 
-GLuint compile(GLenum type, const char* source) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &source, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(s, sizeof log, nullptr, log);
-    glDeleteShader(s);
-    throw std::runtime_error(std::string("stereo view: body shader does not compile: ") + log);
-  }
-  return s;
-}
-
-GLuint link(const char* vs, const char* fs) {
-  const GLuint p = glCreateProgram();
-  const GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
-  glAttachShader(p, v);
-  glAttachShader(p, f);
-  glLinkProgram(p);
-  glDeleteShader(v);
-  glDeleteShader(f);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetProgramInfoLog(p, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("stereo view: body shaders do not link: ") + log);
-  }
-  return p;
-}
-
 // One capsule as the box shader takes it.
 struct Instance {
   std::array<float, 3> a, b;
@@ -417,8 +386,8 @@ struct BodyPass::Gl {
 
 BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   Gl& g = *gl_;
-  g.body = link(kBodyVs, kBodyFs);
-  g.shadow = link(kShadowVs, kShadowFs);
+  g.body = link_program(kBodyVs, kBodyFs, "stereo view: body");
+  g.shadow = link_program(kShadowVs, kShadowFs, "stereo view: body");
   glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Capsules"), 0);
   glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Neighbours"), 1);
   const float c[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},

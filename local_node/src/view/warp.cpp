@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "../gl_program.h"
 #include "telex/local/stereo_renderer.h"
 
 namespace telex::local {
@@ -130,39 +131,6 @@ void main() {
 }
 )";
 
-GLuint compile(GLenum type, const char* source) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &source, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(s, sizeof log, nullptr, log);
-    glDeleteShader(s);
-    throw std::runtime_error(std::string("warp: shader does not compile: ") + log);
-  }
-  return s;
-}
-
-GLuint link(const char* vs, const char* fs) {
-  const GLuint p = glCreateProgram();
-  const GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
-  glAttachShader(p, v);
-  glAttachShader(p, f);
-  glLinkProgram(p);
-  glDeleteShader(v);
-  glDeleteShader(f);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetProgramInfoLog(p, sizeof log, nullptr, log);
-    throw std::runtime_error(std::string("warp: shaders do not link: ") + log);
-  }
-  return p;
-}
-
 std::string egl_error(const char* what) {
   char hex[16];
   std::snprintf(hex, sizeof hex, "0x%04x", eglGetError());
@@ -268,8 +236,8 @@ struct DepthWarp::Impl {
   }
 
   void make_objects() {
-    mesh = link(kMeshVs, kMeshFs);
-    fill = link(kFillVs, kFillFs);
+    mesh = link_program(kMeshVs, kMeshFs, "warp");
+    fill = link_program(kFillVs, kFillFs, "warp");
     glGenVertexArrays(1, &vao);
     glGenBuffers(1, &elements);
     color_in = texture(GL_RGBA8, width, height, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
