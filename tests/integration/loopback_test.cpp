@@ -253,6 +253,11 @@ TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
   EXPECT_GT(j["depth_mbit_s"].get<double>(), 0.0) << j.dump();
   EXPECT_TRUE(j.contains("shown_frame_age_ms_p99")) << j.dump();
   EXPECT_TRUE(j.contains("video_plis_sent")) << j.dump();
+  // Glass to glass: the synthetic eyes' frame counter read back from the rendered right eye is the
+  // id of the pair drawn, every time, and its age is positive.
+  EXPECT_GT(j["glass_to_glass_samples"].get<int>(), 0) << j.dump();
+  EXPECT_EQ(j["glass_to_glass_mismatched"].get<int>(), 0) << j.dump();
+  EXPECT_GT(j["glass_to_glass_ms_median"].get<double>(), 0.0) << j.dump();
   const cv::Mat left = cv::imread((dir / "view" / "left.png").string(), cv::IMREAD_COLOR);
   const cv::Mat right = cv::imread((dir / "view" / "right.png").string(), cv::IMREAD_COLOR);
   const cv::Mat sbs = cv::imread((dir / "view" / "sbs.png").string(), cv::IMREAD_COLOR);

@@ -17,6 +17,7 @@
 #include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
 #include "telex/local/operator_view.h"
+#include "telex/video/frame_counter.h"
 
 namespace telex::local {
 namespace {
@@ -86,6 +87,25 @@ void StationView::summarize(StationSummary& s) const {
   std::vector<double> age = shown_age_ms_;
   s.shown_frame_age_ms_median = percentile(age, 0.5);
   s.shown_frame_age_ms_p99 = percentile(age, 0.99);
+  s.glass_to_glass_samples = glass_ms_.size();
+  s.glass_to_glass_ms_median = percentile(glass_ms_, 0.5);
+  s.glass_to_glass_ms_p99 = percentile(glass_ms_, 0.99);
+  s.glass_to_glass_mismatched = glass_mismatched_;
+}
+
+void StationView::measure_glass(const cv::Mat3b& rendered_right) {
+  if (!drawn_ || rendered_right.empty()) return;
+  const auto counter = video::read_frame_counter(rendered_right);
+  if (!counter) return;  // a source that stamps none, or a warp that moved it
+  auto* c = client_.load();
+  const std::int64_t now_remote_ns = monotonic_ns() + (c ? c->stats().clock_offset_ns.load() : 0);
+  std::lock_guard lock(shown_mu_);
+  if (*counter != static_cast<std::uint32_t>(drawn_->frame_id)) {
+    ++glass_mismatched_;
+  } else if (glass_ms_.size() < kMaxAgeSamples) {
+    glass_ms_.push_back(static_cast<double>(now_remote_ns - drawn_->capture_ns) / 1e6);
+  }
+  drawn_.reset();
 }
 
 void StationView::show_surface(std::shared_ptr<const Surface> surface, const cv::Mat1w& depth_mm) {
@@ -220,6 +240,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     sbs_for_window_.put(in.fig7 ? v.fig7 : v.sbs);
   else
     write_stereo_files(v);
+  measure_glass(v.right);
   return true;
 }
 
@@ -238,7 +259,9 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
   // The pair (one instant for both eyes) captured nearest to the depth drawn over it.
+  drawn_.reset();
   if (const auto pair = show_pair(vs->capture_ns)) {
+    drawn_ = pair;
     in.eye_bgr = {pair->left_bgr, pair->right_bgr};
     const double gap_ms = static_cast<double>(std::abs(pair->capture_ns - vs->capture_ns)) / 1e6;
     char pairing[48];

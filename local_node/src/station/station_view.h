@@ -118,6 +118,11 @@ class StationView {
   std::uint32_t last_shown_frame_id_ = 0;  // guarded by shown_mu_, as the two below
   std::uint64_t pairs_shown_ = 0;
   std::vector<double> shown_age_ms_;  // at most kMaxAgeSamples
+  // Glass to glass: capture to the rendered eye handed to the display, for the pairs whose frame
+  // counter (telex/video/frame_counter.h) reads back from the rendered right eye as their id.
+  std::vector<double> glass_ms_;          // at most kMaxAgeSamples, guarded by shown_mu_
+  std::uint64_t glass_mismatched_ = 0;    // a counter read back that is not the pair's id
+  std::shared_ptr<const EyePair> drawn_;  // view thread: the pair stereo_inputs gave the view
   static constexpr std::size_t kMaxAgeSamples = 1 << 20;
 
   std::mutex surface_mu_;
@@ -138,6 +143,8 @@ class StationView {
     bool pending = false;
   } stereo_request_;             // guarded by stereo_mu_
   bool warned_one_eye_ = false;  // view thread
+  // After the rendered eyes went to the display: the glass-to-glass sample of drawn_.
+  void measure_glass(const cv::Mat3b& rendered_right);
   bool warned_no_warp_ = false;  // view thread
 
   // --view openxr.

@@ -65,6 +65,10 @@ struct StationSummary {
   std::uint64_t video_pairs_received = 0, video_pairs_decoded = 0, video_pairs_damaged = 0;
   std::uint64_t video_decode_errors = 0, video_pairs_shown = 0, video_plis_sent = 0;
   double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
+  // Glass to glass: capture to the rendered eye handed to the display (PNG, window), for pairs
+  // whose frame counter read back from that image is their id (synthetic eyes stamp it).
+  std::uint64_t glass_to_glass_samples = 0, glass_to_glass_mismatched = 0;
+  double glass_to_glass_ms_median = 0, glass_to_glass_ms_p99 = 0;
   int video_eye_width_px = 0, video_eye_height_px = 0;  // of the newest pair decoded
   // Repair (FrameAssembler's counters) and tile ages in frame periods at each closed frame: the
   // tiles under the fingertip windows, and all tiles.
