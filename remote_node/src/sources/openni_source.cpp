@@ -184,9 +184,12 @@ class OpenNiDepthSource final : public DepthSource {
         frames_in_file_ = playback->getNumberOfFrames(stream_);
       }
     }
+    // A device without IR is refused before its depth starts (nothing then runs to be stopped).
+    if (ir_ && !device_.hasSensor(openni::SENSOR_IR)) fail_start(no_ir_stream());
     if (stream_.start() != openni::STATUS_OK)
       fail_start(fmt::format("OpenNI2 device '{}' failed to start depth: {}", uri_,
                              openni::OpenNI::getExtendedError()));
+    depth_running_ = true;
     if (ir_) start_ir();
     const auto vm = stream_.getVideoMode();
     started_ = true;
@@ -198,6 +201,7 @@ class OpenNiDepthSource final : public DepthSource {
     if (!started_) return;
     if (ir_stream_.isValid()) ir_stream_.stop();
     stream_.stop();
+    depth_running_ = false;
     if (mode_ == Mode::Live) let_driver_thread_exit(fps_);
     if (ir_stream_.isValid()) ir_stream_.destroy();
     stream_.destroy();
@@ -322,11 +326,7 @@ class OpenNiDepthSource final : public DepthSource {
   // The IR stream beside depth at the depth's size, the projector off where the device allows.
   void start_ir() {
     const std::string name = uri_.empty() ? "ANY" : uri_;
-    if (!device_.hasSensor(openni::SENSOR_IR))
-      fail_start(fmt::format(
-          "--ir: OpenNI2 device '{}' has no IR stream (SENSOR_IR); a PrimeSense-class sensor "
-          "(Kinect v1, Carmine, Xtion) has one, OpenNI2's Dummy device does not",
-          name));
+    if (!device_.hasSensor(openni::SENSOR_IR)) fail_start(no_ir_stream());
     if (ir_stream_.create(device_, openni::SENSOR_IR) != openni::STATUS_OK)
       fail_start(fmt::format("--ir: OpenNI2 device '{}' could not open its IR stream: {}", name,
                              openni::OpenNI::getExtendedError()));
@@ -350,8 +350,20 @@ class OpenNiDepthSource final : public DepthSource {
                        openni::OpenNI::getExtendedError());
   }
 
-  // A start that cannot go on: the streams and device closed, then the error named.
+  std::string no_ir_stream() const {
+    return fmt::format(
+        "--ir: OpenNI2 device '{}' has no IR stream (SENSOR_IR); a PrimeSense-class sensor "
+        "(Kinect v1, Carmine, Xtion) has one, OpenNI2's Dummy device does not",
+        uri_.empty() ? "ANY" : uri_);
+  }
+
+  // A start that cannot go on: the streams stopped (and, live, the driver's frame threads let out
+  // as stop() does), closed, then the error named.
   [[noreturn]] void fail_start(const std::string& why) {
+    if (ir_stream_.isValid()) ir_stream_.stop();
+    if (depth_running_) stream_.stop();
+    if (depth_running_ && mode_ == Mode::Live) let_driver_thread_exit(30.0);
+    depth_running_ = false;
     if (ir_stream_.isValid()) ir_stream_.destroy();
     stream_.destroy();
     device_.close();
@@ -394,6 +406,7 @@ class OpenNiDepthSource final : public DepthSource {
   bool hardware_registration_ = false;
   std::optional<IrOptions> ir_;
   openni::VideoStream ir_stream_;
+  bool depth_running_ = false;  // stream_ started, not yet stopped
   std::string projector_ = "on (no IR capture)";
   std::uint64_t ir_frames_read_ = 0;
   bool started_ = false;
