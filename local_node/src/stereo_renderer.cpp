@@ -20,16 +20,12 @@
 #include <vector>
 
 #include "body_pass.h"
+#include "egl_headless.h"
 
 namespace telex::local {
 namespace {
 
-std::string egl_error(const char* what) {
-  char hex[16];
-  std::snprintf(hex, sizeof hex, "0x%04x", eglGetError());
-  return std::string("stereo view: ") + what + " (EGL error " + hex +
-         "); the headless view needs Mesa's EGL (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri)";
-}
+std::string egl_error(const char* what) { return local::egl_error("stereo view", what); }
 
 }  // namespace
 
@@ -93,30 +89,10 @@ struct StereoRenderer::Impl {
   cv::Mat4b color_upload, readback;
 
   void init_egl() {
-    if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
-      display =
-          eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-    if (display == EGL_NO_DISPLAY) display = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-    EGLint major = 0, minor = 0;
-    if (display == EGL_NO_DISPLAY || !eglInitialize(display, &major, &minor))
-      throw std::runtime_error(egl_error("no EGL display"));
-    if (!eglBindAPI(EGL_OPENGL_API)) throw std::runtime_error(egl_error("EGL has no OpenGL API"));
-    const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE,
-                                     EGL_OPENGL_BIT, EGL_NONE};
-    EGLConfig config = nullptr;
-    EGLint configs = 0;
-    if (!eglChooseConfig(display, config_attribs, &config, 1, &configs) || configs < 1)
-      throw std::runtime_error(egl_error("no EGL config for OpenGL with a pbuffer"));
-    const EGLint context_attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
-                                      3,
-                                      EGL_CONTEXT_MINOR_VERSION,
-                                      3,
-                                      EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                                      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                      EGL_NONE};
-    context = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attribs);
-    if (context == EGL_NO_CONTEXT)
-      throw std::runtime_error(egl_error("no OpenGL 3.3 core context"));
+    const HeadlessEgl egl = create_headless_egl("stereo view");
+    display = egl.display;
+    context = egl.context;
+    const EGLConfig config = egl.config;
     // Rendering goes to our own framebuffer; a 1x1 pbuffer only gives the context a surface
     // where surfaceless contexts are not supported.
     if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {

@@ -6,6 +6,7 @@
 // none. Kept in its own binary so the hook touches no other test.
 #include <gtest/gtest.h>
 #include <pthread.h>
+#include <sched.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -182,7 +183,20 @@ TEST(TickAllocation, TheHookCountsAnAllocationOnTheWatchedThread) {
 TEST(Realtime, HapticCpuOutsideTheMachineIsRefusedByPin) {
   EXPECT_NE(pin_thread(pthread_self(), 100000).find("refused"), std::string::npos);
   EXPECT_FALSE(cpu_usable(-1));
-  EXPECT_TRUE(cpu_usable(0) || usable_cpu_count() >= 1);
+  // cpu_usable agrees with the process's affinity count, and pinning to a usable CPU works.
+  int usable = 0, first = -1;
+  for (int cpu = 0; cpu < CPU_SETSIZE; ++cpu)
+    if (cpu_usable(cpu)) {
+      ++usable;
+      if (first < 0) first = cpu;
+    }
+  EXPECT_EQ(usable, usable_cpu_count());
+  ASSERT_GE(first, 0);
+  std::thread t([&] {
+    EXPECT_EQ(pin_thread(pthread_self(), first), "on CPU " + std::to_string(first));
+    EXPECT_EQ(sched_getcpu(), first);
+  });
+  t.join();
 }
 
 TEST(Realtime, LockMemoryReportsWhatItDid) {

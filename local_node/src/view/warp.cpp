@@ -10,12 +10,12 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <glm/gtc/type_ptr.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "../egl_headless.h"
 #include "../gl_program.h"
 #include "telex/local/stereo_renderer.h"
 
@@ -131,12 +131,7 @@ void main() {
 }
 )";
 
-std::string egl_error(const char* what) {
-  char hex[16];
-  std::snprintf(hex, sizeof hex, "0x%04x", eglGetError());
-  return std::string("warp: ") + what + " (EGL error " + hex +
-         "); the headless warp needs Mesa's EGL (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri)";
-}
+std::string egl_error(const char* what) { return local::egl_error("warp", what); }
 
 glm::mat3 to_float(const glm::dmat3& m) { return glm::mat3(m); }
 
@@ -194,29 +189,9 @@ struct DepthWarp::Impl {
   bool has_previous = false;
 
   void make_context() {
-    if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
-      display =
-          eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-    if (display == EGL_NO_DISPLAY) display = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-    EGLint major = 0, minor = 0;
-    if (display == EGL_NO_DISPLAY || !eglInitialize(display, &major, &minor))
-      throw std::runtime_error(egl_error("no EGL display"));
-    if (!eglBindAPI(EGL_OPENGL_API)) throw std::runtime_error(egl_error("EGL has no OpenGL API"));
-    const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE,
-                                     EGL_OPENGL_BIT, EGL_NONE};
-    EGLConfig config = nullptr;
-    EGLint configs = 0;
-    if (!eglChooseConfig(display, config_attribs, &config, 1, &configs) || configs < 1)
-      throw std::runtime_error(egl_error("no EGL config for OpenGL"));
-    const EGLint context_attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
-                                      3,
-                                      EGL_CONTEXT_MINOR_VERSION,
-                                      3,
-                                      EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                                      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                      EGL_NONE};
-    context = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attribs);
-    if (context == EGL_NO_CONTEXT) throw std::runtime_error(egl_error("no OpenGL 3.3 context"));
+    const HeadlessEgl egl = create_headless_egl("warp");
+    display = egl.display;
+    context = egl.context;
     owns_context = true;
     // Everything is drawn into the warp's own framebuffers: no surface is needed.
     if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context))
