@@ -100,6 +100,7 @@ void put_payload(Writer& w, const FrameManifest& m) {
 void put_payload(Writer& w, const EncodedVideo& m) { detail::put_video(w, m); }
 void put_payload(Writer& w, const PictureLoss& m) { detail::put_picture_loss(w, m); }
 void put_payload(Writer& w, const ReceiverReport& m) { detail::put_receiver_report(w, m); }
+void put_payload(Writer& w, const VideoNack& m) { detail::put_video_nack(w, m); }
 void put_payload(Writer& w, const RoiRequest& m) {
   require(m.rects.size() <= kMaxRoiRects, "RoiRequest has more than 16 rectangles");
   w.u8(static_cast<std::uint8_t>(m.rects.size()));
@@ -441,6 +442,8 @@ PayloadResult get_payload(MsgType type, Reader& r, const DecodeLimits& lim) {
       return get_eyes<PictureLoss>(r, detail::get_picture_loss);
     case MsgType::ReceiverReport:
       return get_eyes<ReceiverReport>(r, detail::get_receiver_report);
+    case MsgType::VideoNack:
+      return get_eyes<VideoNack>(r, detail::get_video_nack);
   }
   return Bad{ErrorReason::UnknownType, "message type"};
 }
@@ -456,9 +459,9 @@ Result failure(ErrorReason reason, const char* detail) {
 
 std::string_view msg_type_name(MsgType type) {
   static constexpr std::string_view kNames[kMsgTypeCount] = {
-      "Hello",        "Accept",    "Reject",        "Heartbeat",    "Bye",
-      "StreamConfig", "DepthTile", "FrameManifest", "EncodedVideo", "RoiRequest",
-      "Stats",        "TileNack",  "HeadCommand",   "PictureLoss",  "ReceiverReport"};
+      "Hello",       "Accept",        "Reject",         "Heartbeat",  "Bye",   "StreamConfig",
+      "DepthTile",   "FrameManifest", "EncodedVideo",   "RoiRequest", "Stats", "TileNack",
+      "HeadCommand", "PictureLoss",   "ReceiverReport", "VideoNack"};
   const auto i = static_cast<std::size_t>(type);
   return i < kMsgTypeCount ? kNames[i] : std::string_view("unknown");
 }

@@ -61,6 +61,12 @@ void put_receiver_report(Writer& w, const ReceiverReport& m) {
   w.f32(m.delay_gradient_us_per_s);
 }
 
+void put_video_nack(Writer& w, const VideoNack& m) {
+  require(m.count >= 1 && m.count <= kMaxVideoNackPairs, "VideoNack count not in 1..16");
+  w.u32(m.first_seq);
+  w.u16(m.count);
+}
+
 std::optional<PayloadError> get_video(Reader& r, EncodedVideo& m) {
   const auto bytes = r.bytes(r.remaining());
   const video::ParsedFrame parsed = video::parse_frame(bytes);
@@ -108,6 +114,14 @@ std::optional<PayloadError> get_receiver_report(Reader& r, ReceiverReport& m) {
   m.delay_gradient_us_per_s = r.f32();
   if (!r.ok()) return PayloadError{ErrorReason::Truncated, "ReceiverReport fields"};
   if (const char* why = report_problem(m)) return bad(why);
+  return std::nullopt;
+}
+
+std::optional<PayloadError> get_video_nack(Reader& r, VideoNack& m) {
+  m.first_seq = r.u32();
+  m.count = r.u16();
+  if (!r.ok()) return PayloadError{ErrorReason::Truncated, "VideoNack fields"};
+  if (m.count == 0 || m.count > kMaxVideoNackPairs) return bad("VideoNack count not in 1..16");
   return std::nullopt;
 }
 

@@ -132,6 +132,7 @@ std::vector<telex::proto::Message> messages() {
   }
   m.push_back(PictureLoss{2, PictureLossReason::MissingReference});
   m.push_back(ReceiverReport{250'000, 180'000, 120'000, 140, 3, 40, 21'500, 23'000, -35.5f});
+  m.push_back(VideoNack{41, 2});
   return m;
 }
 

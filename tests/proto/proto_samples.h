@@ -47,6 +47,7 @@ inline std::vector<Message> sample_messages() {
   m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}, 77, 4500, DeadmanState::Pressed});
   m.push_back(PictureLoss{17, PictureLossReason::DecodeError});
   m.push_back(ReceiverReport{250'000, 180'000, 120'000, 140, 3, 40, 21'500, 23'000, -35.5f});
+  m.push_back(VideoNack{41, 2});
   return m;
 }
 

@@ -62,8 +62,11 @@ TEST(VideoMessages, PictureLossAndReceiverReportLayouts) {
   EXPECT_EQ(std::bit_cast<float>(std::uint32_t{p[40]} | std::uint32_t{p[41]} << 8 |
                                  std::uint32_t{p[42]} << 16 | std::uint32_t{p[43]} << 24),
             0.5f);
+  EXPECT_EQ(payload_of(VideoNack{0x0A0B0C0D, 3}),
+            (std::vector<std::uint8_t>{0x0D, 0x0C, 0x0B, 0x0A, 3, 0}));
   for (const Message& m : {Message{PictureLoss{7, PictureLossReason::MissingReference}},
-                           Message{rr}, Message{ReceiverReport{1, 0, 0, 0, 0, 0, 0, 0, 0.0f}}}) {
+                           Message{rr}, Message{ReceiverReport{1, 0, 0, 0, 0, 0, 0, 0, 0.0f}},
+                           Message{VideoNack{0xFFFFFFFF, 16}}}) {
     const auto r = decode(encode(test::sample_header(), m));
     ASSERT_TRUE(r.ok()) << r.detail;
     EXPECT_EQ(r.envelope->message, m);
@@ -106,6 +109,11 @@ std::vector<Malformed> malformed_inputs() {
       {"video: huge payload", MsgType::EncodedVideo, huge, ErrorReason::DecompressionBomb});
   out.push_back({"pli: short", MsgType::PictureLoss, {1, 0, 0}, ErrorReason::Truncated});
   out.push_back({"pli: reason", MsgType::PictureLoss, {1, 0, 0, 0, 2}, ErrorReason::BadPayload});
+  out.push_back({"video nack: short", MsgType::VideoNack, {1, 0, 0, 0, 1}, ErrorReason::Truncated});
+  out.push_back(
+      {"video nack: count 0", MsgType::VideoNack, {1, 0, 0, 0, 0, 0}, ErrorReason::BadPayload});
+  out.push_back(
+      {"video nack: count 17", MsgType::VideoNack, {1, 0, 0, 0, 17, 0}, ErrorReason::BadPayload});
   const auto report = [](ReceiverReport r) { return payload_of(r); };
   const ReceiverReport good{250'000, 100, 50, 3, 0, 2, 1000, 1100, 3.0f};
   auto rr = report(good);
@@ -171,6 +179,8 @@ TEST(VideoMessages, EncodeRefusesWhatDecodeWouldReject) {
   EXPECT_THROW(encode({}, PictureLoss{1, static_cast<PictureLossReason>(5)}),
                std::invalid_argument);
   EXPECT_THROW(encode({}, ReceiverReport{0, 0, 0, 0, 0, 0, 0, 0, 0.0f}), std::invalid_argument);
+  EXPECT_THROW(encode({}, VideoNack{1, 0}), std::invalid_argument);
+  EXPECT_THROW(encode({}, VideoNack{1, kMaxVideoNackPairs + 1}), std::invalid_argument);
   EXPECT_THROW(encode({}, ReceiverReport{1, 1, 2, 0, 0, 0, 0, 0, 0.0f}), std::invalid_argument);
   EXPECT_THROW(
       encode({}, ReceiverReport{1, 0, 0, 0, 0, 1, 0, 0, std::numeric_limits<float>::infinity()}),

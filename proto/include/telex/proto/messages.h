@@ -21,8 +21,9 @@ namespace telex::proto {
 // "TLX1" in wire byte order (bytes 'T','L','X','1'), read as a little-endian u32.
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
 // 5: message 8 carries an encoded stereo pair (EncodedVideo) instead of one eye's JPEG; messages
-// 13 and 14 (PictureLoss, ReceiverReport) are new.
-inline constexpr std::uint8_t kProtocolVersion = 5;
+// 13 and 14 (PictureLoss, ReceiverReport) are new. 6: message 15 (VideoNack) asks for lost pairs
+// again.
+inline constexpr std::uint8_t kProtocolVersion = 6;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
@@ -44,8 +45,9 @@ enum class MsgType : std::uint8_t {
   HeadCommand = 12,
   PictureLoss = 13,
   ReceiverReport = 14,
+  VideoNack = 15,
 };
-inline constexpr int kMsgTypeCount = 15;
+inline constexpr int kMsgTypeCount = 16;
 std::string_view msg_type_name(MsgType type);
 
 // Header flag bits.
@@ -246,6 +248,18 @@ struct ReceiverReport {
   bool operator==(const ReceiverReport&) const = default;
 };
 
+// Most pairs one VideoNack asks for (a longer gap is a lost cause: a PLI is cheaper).
+inline constexpr std::uint16_t kMaxVideoNackPairs = 16;
+
+// A NACK of whole encoded pairs (station -> remote, PROTOCOL.md 2.7): the pairs with encode_seq
+// first_seq .. first_seq + count - 1 never completed at the station; the remote sends each again
+// (kFlagRepair) if it still holds it, within its repair budget.
+struct VideoNack {
+  std::uint32_t first_seq = 0;
+  std::uint16_t count = 1;  // 1..kMaxVideoNackPairs
+  bool operator==(const VideoNack&) const = default;
+};
+
 struct RoiRect {
   std::uint16_t x = 0, y = 0, w = 0, h = 0;
   std::uint8_t priority = 0;  // higher = sooner
@@ -294,7 +308,7 @@ struct HeadCommand {
 // Alternative index == MsgType wire value.
 using Message = std::variant<Hello, Accept, Reject, Heartbeat, Bye, StreamConfig, DepthTile,
                              FrameManifest, EncodedVideo, RoiRequest, Stats, TileNack, HeadCommand,
-                             PictureLoss, ReceiverReport>;
+                             PictureLoss, ReceiverReport, VideoNack>;
 
 MsgType type_of(const Message& message);
 
