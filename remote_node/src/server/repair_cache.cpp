@@ -53,6 +53,18 @@ NackAnswer RepairCache::answer(const proto::TileNack& nack) const {
   return out;
 }
 
+void VideoRepairCache::add(Pair pair) {
+  if (max_pairs_ == 0 || !pair.frame) return;
+  pairs_.push_back(std::move(pair));
+  while (pairs_.size() > max_pairs_) pairs_.pop_front();
+}
+
+std::optional<VideoRepairCache::Pair> VideoRepairCache::find(std::uint32_t encode_seq) const {
+  for (auto it = pairs_.rbegin(); it != pairs_.rend(); ++it)
+    if (it->encode_seq == encode_seq) return *it;
+  return std::nullopt;
+}
+
 RepairLimiter::Verdict RepairLimiter::admit(std::uint16_t tile, std::uint32_t frame_id,
                                             std::size_t bytes, std::int64_t now_ns) {
   if (!started_) {

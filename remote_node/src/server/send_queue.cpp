@@ -38,6 +38,13 @@ std::size_t SendQueue::push(Lane lane, OutFrame frame) {
     counters_.depth_frames_dropped += dropped;
     return dropped;
   }
+  if (!frame.trimmable) {
+    // A resent pair goes before the pairs not started: the station holds them until it arrives.
+    auto at = std::find_if(video_.begin(), video_.end(),
+                           [](const OutFrame& f) { return f.next == 0 && f.trimmable; });
+    video_.insert(at, std::move(frame));
+    return 0;
+  }
   video_.push_back(std::move(frame));
   const std::size_t dropped = trim(video_, limits_.max_video_frames, false);
   counters_.video_frames_dropped += dropped;

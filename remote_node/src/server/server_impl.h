@@ -116,6 +116,7 @@ class RemoteServer::Impl {
                       bool plain = false);
   void request_key_frame();
   void on_nack(const proto::TileNack& nack);
+  void on_video_nack(const proto::VideoNack& nack);
   void send_control(Buffer buf);
   std::size_t queued_repair_bytes(const Session& s) const;
   void kick_tcp(const std::shared_ptr<Session>& s);
@@ -170,7 +171,8 @@ class RemoteServer::Impl {
 
   // shared
   std::mutex cache_mu_;
-  RepairCache cache_;  // guarded by cache_mu_; filled by publish(), read by on_nack()
+  RepairCache cache_;             // guarded by cache_mu_; filled by publish(), read by on_nack()
+  VideoRepairCache video_cache_;  // guarded by cache_mu_; publish_video() -> on_video_nack()
   mutable std::mutex mu_;
   FrameRequest request_;
   bool frame_parts_ = false;  // guarded by mu_

@@ -96,6 +96,8 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
             }
         } else if constexpr (std::is_same_v<T, proto::TileNack>) {
           on_nack(m);
+        } else if constexpr (std::is_same_v<T, proto::VideoNack>) {
+          on_video_nack(m);
         } else if constexpr (std::is_same_v<T, proto::HeadCommand>) {
           ++counters_.head_commands_in;
           if (config_.on_head_command) config_.on_head_command(m, steady_now_ns());
@@ -181,6 +183,7 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
   {
     std::lock_guard cache_lock(cache_mu_);
     cache_.clear();  // tiles sent to an earlier session were encoded against its frames
+    video_cache_.clear();
   }
   request_ = FrameRequest{};
   request_.force_key_frame = true;  // a new receiver holds nothing
@@ -243,6 +246,55 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   f.counts_as_frame = false;
   f.trimmable = false;
   enqueue_frame(Lane::Depth, std::move(f));
+}
+
+// A VideoNack (PROTOCOL.md 2.7): each pair it lists that the cache still holds goes out again
+// once, in the video lane ahead of the pairs not yet started, under the same bounds as tiles.
+void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
+  ++counters_.video_nacks_in;
+  const auto l = link();
+  if (!l || !l->repair || !active_) {
+    ++counters_.malformed_in;  // only a client that announced kCapRepair may ask
+    return;
+  }
+  std::size_t queued = queued_repair_bytes(*active_);
+  const std::int64_t now = steady_now_ns();
+  for (std::uint32_t i = 0; i < nack.count; ++i) {
+    const std::uint32_t seq = nack.first_seq + i;
+    std::optional<VideoRepairCache::Pair> p;
+    {
+      std::lock_guard lock(cache_mu_);
+      p = video_cache_.find(seq);
+    }
+    if (!p) {
+      ++counters_.video_repair_unavailable;
+      continue;
+    }
+    const std::size_t bytes = p->frame->size();
+    if (queued + bytes > kMaxQueuedRepairBytes) {
+      ++counters_.repair_over_queue;
+      continue;
+    }
+    // Pairs share the limiter with tiles: their dedup slots follow the tiles' index range.
+    const auto slot = static_cast<std::uint16_t>(proto::kMaxManifestTiles + seq % 64);
+    switch (active_->repair.admit(slot, seq, bytes, now)) {
+      case RepairLimiter::Verdict::Duplicate:
+        ++counters_.repair_duplicates;
+        continue;
+      case RepairLimiter::Verdict::OverBudget:
+        ++counters_.repair_over_budget;
+        continue;
+      case RepairLimiter::Verdict::Send:
+        break;
+    }
+    queued += bytes;
+    ++counters_.video_pairs_resent;
+    std::vector<std::pair<proto::Header, proto::Message>> msgs;
+    msgs.emplace_back(
+        header(l->session_id, p->frame_id, p->capture_ns, p->is_intra, proto::kFlagRepair),
+        proto::EncodedVideo{*p->frame});
+    post_frame(*l, p->frame_id, std::move(msgs), false, false, false);
+  }
 }
 
 // Resends (untrimmable frames) still waiting in `s`'s queue, in bytes.

@@ -5,6 +5,7 @@
 // flight) and the UDP socket's receive side, which opens what arrives and acts on none of it.
 #include "server_impl.h"
 #include "telex/proto/fragment.h"
+#include "telex/video/frame_header.h"
 
 namespace telex::remote {
 std::optional<RemoteServer::Impl::Link> RemoteServer::Impl::link() const {
@@ -124,6 +125,14 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
                                        bool is_intra, std::vector<std::uint8_t> encoded_pair) {
   const auto l = link();
   if (!l || !video_wanted_ || encoded_pair.empty()) return;
+  if (l->repair) {
+    const video::ParsedFrame parsed = video::parse_frame(encoded_pair);
+    if (parsed.status == video::HeaderStatus::Ok) {
+      std::lock_guard lock(cache_mu_);
+      video_cache_.add({parsed.header.encode_seq, frame_id, capture_ns, is_intra,
+                        std::make_shared<const std::vector<std::uint8_t>>(encoded_pair)});
+    }
+  }
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
   msgs.emplace_back(header(l->session_id, frame_id, capture_ns, is_intra),
                     proto::EncodedVideo{std::move(encoded_pair)});

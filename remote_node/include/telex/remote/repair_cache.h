@@ -55,6 +55,29 @@ class RepairCache {
   std::deque<Frame> frames_;  // oldest first
 };
 
+// The encoded pairs the remote sent last, kept so that a VideoNack is answered by sending a pair
+// again (PROTOCOL.md 2.7). Bounded by pairs; not thread-safe: the server guards it.
+class VideoRepairCache {
+ public:
+  struct Pair {
+    std::uint32_t encode_seq = 0;
+    std::uint32_t frame_id = 0;
+    std::int64_t capture_ns = 0;
+    bool is_intra = false;
+    std::shared_ptr<const std::vector<std::uint8_t>> frame;  // header + payload, as sent
+  };
+  explicit VideoRepairCache(std::size_t max_pairs = 16) : max_pairs_(max_pairs) {}
+  void add(Pair pair);
+  // The cached pair with this encode_seq, or nullopt.
+  std::optional<Pair> find(std::uint32_t encode_seq) const;
+  void clear() { pairs_.clear(); }
+  std::size_t pairs() const { return pairs_.size(); }
+
+ private:
+  std::size_t max_pairs_;
+  std::deque<Pair> pairs_;  // oldest first
+};
+
 // Bounds what TileNacks can make the remote send (issue 27): a NACK of ~150 bytes could otherwise
 // queue a key frame of resends. A tile already resent from the same cached frame within
 // `dedup_ns` is not sent again (the station asks again only after its retry interval, at least

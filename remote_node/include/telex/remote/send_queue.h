@@ -59,7 +59,8 @@ class SendQueue {
 
   // Queues a frame in its lane and drops the oldest trimmable frames of that lane not yet started
   // beyond its bound; returns how many it dropped (for depth: the station misses tiles, so the
-  // caller asks for a key frame).
+  // caller asks for a key frame). An untrimmable video frame (a resent pair) goes ahead of the
+  // video frames not yet started.
   std::size_t push(Lane lane, OutFrame frame);
 
   // The next datagram (or TCP message) to send, or null when nothing waits: a started video

@@ -106,6 +106,12 @@ struct ServerCounters {
   std::atomic<std::uint64_t> repair_duplicates{0};
   std::atomic<std::uint64_t> repair_over_budget{0};
   std::atomic<std::uint64_t> repair_over_queue{0};
+  // The eyes' repair (PROTOCOL.md 2.7): VideoNacks in, pairs sent again (kFlagRepair), pairs asked
+  // for that the cache no longer held (the station's PLI recovers those). The limits above bound
+  // them too (one byte budget for all resends).
+  std::atomic<std::uint64_t> video_nacks_in{0};
+  std::atomic<std::uint64_t> video_pairs_resent{0};
+  std::atomic<std::uint64_t> video_repair_unavailable{0};
   // Control messages not queued because the station does not read them: heartbeat answers beyond
   // kMaxHeartbeatBacklog, anything beyond kMaxControlQueue.
   std::atomic<std::uint64_t> control_dropped{0};
