@@ -565,6 +565,12 @@ void SurfaceClient::send_picture_loss(const proto::PictureLoss& pli) {
   });
 }
 
+void SurfaceClient::send_video_nack(const proto::VideoNack& nack) {
+  asio::post(impl_->io, [this, nack] {
+    if (impl_->session_id != 0 && impl_->link_open()) impl_->send(nack);
+  });
+}
+
 void SurfaceClient::request_key_frame() {
   asio::post(impl_->io, [this] {
     if (impl_->session_id != 0 && impl_->link_open())

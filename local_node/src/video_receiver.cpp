@@ -1,15 +1,18 @@
 // SPDX-License-Identifier: MIT
-// VideoReceiver: the decode thread, PLIs rate-limited to one per round trip, the last few pairs.
+// VideoReceiver: the decode thread, gaps NACKed and held (VideoReorder), PLIs rate-limited to one
+// per round trip, the last few pairs.
 #include "telex/local/video_receiver.h"
 
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 
 #include "telex/base/periodic.h"
 #include "telex/video/eye_decoder.h"
+#include "telex/video/frame_header.h"
 
 namespace telex::local {
 
@@ -18,8 +21,20 @@ struct VideoReceiver::Decoder {
   video::DecodedPair out;
 };
 
-VideoReceiver::VideoReceiver(Hooks hooks)
-    : hooks_(std::move(hooks)), decoder_(std::make_unique<Decoder>()) {
+namespace {
+
+// Without a way to ask again, waiting for a missing pair only delays the ones behind it.
+VideoReorderConfig reorder_config(const VideoReceiver::Hooks& hooks, VideoReorderConfig cfg) {
+  if (!hooks.send_nack) cfg.hold_min_ns = cfg.hold_max_ns = 0;
+  return cfg;
+}
+
+}  // namespace
+
+VideoReceiver::VideoReceiver(Hooks hooks, VideoReorderConfig reorder)
+    : hooks_(std::move(hooks)),
+      reorder_(reorder_config(hooks_, reorder)),
+      decoder_(std::make_unique<Decoder>()) {
   thread_ = std::thread([this] { run(); });
   name_thread(thread_.native_handle(), "telex-eyes");
 }
@@ -60,17 +75,54 @@ std::shared_ptr<const EyePair> VideoReceiver::pair(std::int64_t want_capture_ns)
 void VideoReceiver::run() {
   // Decoding is the view's work: below the depth path, as the stereo view (nice 5).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
+  std::deque<std::vector<std::uint8_t>> arrived;
   for (;;) {
-    std::vector<std::uint8_t> bytes;
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      const std::int64_t rtt = hooks_.rtt_ns ? hooks_.rtt_ns() : 0;
+      const std::int64_t wake_ns = reorder_.next_wake_ns(rtt);
+      const auto ready = [this] { return stopping_ || !queue_.empty(); };
+      if (wake_ns == 0) {
+        cv_.wait(lock, ready);
+      } else {
+        const std::int64_t wait_ns = std::max<std::int64_t>(wake_ns - hooks_.now_ns(), 0);
+        cv_.wait_for(lock, std::chrono::nanoseconds(wait_ns), ready);
+      }
       if (stopping_) return;
-      bytes = std::move(queue_.front());
-      queue_.pop_front();
+      arrived.swap(queue_);
     }
-    decode_one(bytes);
+    take_and_decode(arrived);
+    arrived.clear();
   }
+}
+
+void VideoReceiver::take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived) {
+  const std::int64_t now = hooks_.now_ns();
+  const std::int64_t rtt = hooks_.rtt_ns ? hooks_.rtt_ns() : 0;
+  std::vector<std::vector<std::uint8_t>> ready;
+  std::vector<proto::VideoNack> nacks;
+  // One pair at a time, as they came: what is in order is released before the next is taken.
+  for (auto& bytes : arrived) {
+    const video::ParsedFrame parsed = video::parse_frame(bytes);
+    if (parsed.status != video::HeaderStatus::Ok) {
+      ready.push_back(std::move(bytes));  // the decoder counts it as an error
+      continue;
+    }
+    reorder_.push(parsed.header.encode_seq, std::move(bytes), now);
+    reorder_.poll(now, rtt, ready, nacks);
+  }
+  reorder_.poll(now, rtt, ready, nacks);  // deadlines and retries, with or without new pairs
+  const VideoReorderCounters& rc = reorder_.counters();
+  counters_.repaired.store(rc.repaired, std::memory_order_relaxed);
+  counters_.given_up.store(rc.given_up, std::memory_order_relaxed);
+  counters_.held.store(rc.held, std::memory_order_relaxed);
+  counters_.late.store(rc.late, std::memory_order_relaxed);
+  counters_.expected.store(rc.in_order + rc.held + rc.given_up, std::memory_order_relaxed);
+  for (const auto& n : nacks) {
+    counters_.nacks_sent.fetch_add(1, std::memory_order_relaxed);
+    if (hooks_.send_nack) hooks_.send_nack(n);
+  }
+  for (const auto& bytes : ready) decode_one(bytes);
 }
 
 void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {

@@ -28,12 +28,13 @@ bool eventually(Pred p) {
 struct Fixture {
   std::mutex mu;
   std::vector<proto::PictureLoss> plis;
+  std::vector<proto::VideoNack> nacks;
   std::atomic<std::int64_t> now_ns{1'000'000'000};
   std::unique_ptr<video::EyeEncoder> encoder;
   std::unique_ptr<VideoReceiver> receiver;
   std::uint32_t frame_id = 0;
 
-  Fixture() {
+  explicit Fixture(bool with_nacks = false) {
     video::EncoderConfig c;
     c.eye_width_px = 96;
     c.eye_height_px = 64;
@@ -44,6 +45,11 @@ struct Fixture {
       std::lock_guard lock(mu);
       plis.push_back(p);
     };
+    if (with_nacks)
+      h.send_nack = [this](const proto::VideoNack& n) {
+        std::lock_guard lock(mu);
+        nacks.push_back(n);
+      };
     h.rtt_ns = [] { return std::int64_t{20'000'000}; };
     h.now_ns = [this] { return now_ns.load(); };
     receiver = std::make_unique<VideoReceiver>(std::move(h));
@@ -57,6 +63,10 @@ struct Fixture {
     EXPECT_EQ(encoder->encode(left, right, frame_id, frame_id * 33'000'000ll, out),
               video::EncodeStatus::Ok);
     return out;
+  }
+  std::size_t nack_count() {
+    std::lock_guard lock(mu);
+    return nacks.size();
   }
   std::size_t pli_count() {
     std::lock_guard lock(mu);
@@ -106,6 +116,39 @@ TEST(VideoReceiver, ALostPairSendsOnePliPerRoundTripAndTheIntraPairRecovers) {
   EXPECT_EQ(f.receiver->counters().intra.load(), 2u);  // the first pair and the answer
   EXPECT_EQ(f.receiver->pair()->frame_id, 9u);
   EXPECT_EQ(f.pli_count(), 2u);
+}
+
+TEST(VideoReceiver, ALostPairIsAskedForAndTheResendKeepsThePictureWhole) {
+  Fixture f(true);
+  for (int i = 0; i < 3; ++i) f.receiver->push(f.next_pair());
+  const auto lost = f.next_pair();  // encode_seq 3, lost on the way
+  f.receiver->push(f.next_pair());
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.nack_count() == 1; }));
+  EXPECT_EQ(f.nacks[0], (proto::VideoNack{3, 1}));
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 3; }));
+  EXPECT_EQ(f.receiver->counters().held.load(), 2u);  // the pairs behind the gap wait
+  f.receiver->push(lost);                             // the remote's resend
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 6; }));
+  EXPECT_EQ(f.receiver->pair()->frame_id, 6u);
+  EXPECT_EQ(f.receiver->counters().damaged.load(), 0u);
+  EXPECT_EQ(f.receiver->counters().repaired.load(), 1u);
+  EXPECT_EQ(f.receiver->counters().expected.load(), 6u);
+  EXPECT_EQ(f.pli_count(), 0u);
+}
+
+TEST(VideoReceiver, AResendThatNeverComesIsGivenUpAndAsksForAnIntraPair) {
+  Fixture f(true);
+  for (int i = 0; i < 2; ++i) f.receiver->push(f.next_pair());
+  (void)f.next_pair();
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.nack_count() >= 1; }));
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 2; }));
+  f.now_ns += 200'000'000;  // past the gap's deadline
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.pli_count() == 1; }));
+  EXPECT_EQ(f.receiver->counters().given_up.load(), 1u);
+  EXPECT_EQ(f.plis[0].last_good_seq, 1u);
 }
 
 }  // namespace

@@ -47,6 +47,10 @@ StationView::StationView(const StationConfig& cfg, StationFaults& faults)
   hooks.send_pli = [this](const proto::PictureLoss& pli) {
     if (auto* c = client_.load()) c->send_picture_loss(pli);
   };
+  if (cfg.client.repair)
+    hooks.send_nack = [this](const proto::VideoNack& nack) {
+      if (auto* c = client_.load()) c->send_video_nack(nack);
+    };
   hooks.rtt_ns = [this] {
     auto* c = client_.load();
     return c ? c->stats().rtt_ns.load() : std::int64_t{0};
@@ -80,6 +84,10 @@ void StationView::summarize(StationSummary& s) const {
   s.video_pairs_damaged = c.damaged.load();
   s.video_decode_errors = c.decode_errors.load();
   s.video_plis_sent = c.plis_sent.load();
+  s.video_nacks_sent = c.nacks_sent.load();
+  s.video_pairs_repaired = c.repaired.load();
+  s.video_pairs_given_up = c.given_up.load();
+  s.video_pairs_expected = c.expected.load();
   s.video_eye_width_px = c.eye_width_px.load();
   s.video_eye_height_px = c.eye_height_px.load();
   std::lock_guard lock(shown_mu_);

@@ -64,6 +64,11 @@ struct StationSummary {
   // (display time minus capture time, the remote's clock).
   std::uint64_t video_pairs_received = 0, video_pairs_decoded = 0, video_pairs_damaged = 0;
   std::uint64_t video_decode_errors = 0, video_pairs_shown = 0, video_plis_sent = 0;
+  // Repair (VideoReorder): NACKs sent, missing pairs that came in time, missing pairs given up at
+  // their deadline, and the pairs the encoder's sequence accounts for (arrived or given up): the
+  // share of those decoded whole is the share of the remote's pairs a person could see.
+  std::uint64_t video_nacks_sent = 0, video_pairs_repaired = 0, video_pairs_given_up = 0;
+  std::uint64_t video_pairs_expected = 0;
   double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
   // Glass to glass: capture to the rendered eye handed to the display (PNG, window), for pairs
   // whose frame counter read back from that image is their id (synthetic eyes stamp it).

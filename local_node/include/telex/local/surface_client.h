@@ -111,6 +111,8 @@ class SurfaceClient {
   // Thread-safe: a Picture Loss Indication for the eyes (PROTOCOL.md 2.7); dropped when no
   // session is up.
   void send_picture_loss(const proto::PictureLoss& pli);
+  // Thread-safe: asks for lost pairs again (PROTOCOL.md 2.7); dropped when no session is up.
+  void send_video_nack(const proto::VideoNack& nack);
 
   const ClientStats& stats() const { return stats_; }
   // What the network thread got (try_realtime's description); empty before start().

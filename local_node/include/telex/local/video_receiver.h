@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The eyes on the station: encoded pairs from the network thread are decoded in order on their
-// own thread (never the haptic or network thread); a lost reference sends a Picture Loss
-// Indication, at most one per round trip (and 100 ms); the view takes the newest whole pair.
+// own thread (never the haptic or network thread). A missing pair holds the ones behind it and is
+// asked for again (VideoNack, VideoReorder) until its deadline; a lost reference then sends a
+// Picture Loss Indication, at most one per round trip (and 100 ms); the view takes the newest
+// whole pair.
 #pragma once
 
 #include <atomic>
@@ -15,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "telex/local/video_reorder.h"
 #include "telex/proto/messages.h"
 
 namespace telex::local {
@@ -35,6 +38,14 @@ struct VideoReceiverCounters {
   std::atomic<std::uint64_t> intra{0};          // intra pairs decoded
   std::atomic<std::uint64_t> plis_sent{0};      //
   std::atomic<std::uint64_t> plis_held{0};      // PLIs not sent: one went out less than an RTT ago
+  // Repair (VideoReorder): NACKs sent, missing pairs that came in time, missing pairs given up,
+  // pairs that waited behind a gap, copies that came too late or twice.
+  std::atomic<std::uint64_t> nacks_sent{0};
+  std::atomic<std::uint64_t> repaired{0};
+  std::atomic<std::uint64_t> given_up{0};
+  std::atomic<std::uint64_t> held{0};
+  std::atomic<std::uint64_t> late{0};
+  std::atomic<std::uint64_t> expected{0};  // pairs the sequence accounts for: arrived or given up
   std::atomic<int> eye_width_px{0}, eye_height_px{0};  // of the newest pair decoded whole
 };
 
@@ -42,10 +53,12 @@ class VideoReceiver {
  public:
   struct Hooks {
     std::function<void(const proto::PictureLoss&)> send_pli;  // any thread
-    std::function<std::int64_t()> rtt_ns;                     // the link's round trip (0: unknown)
-    std::function<std::int64_t()> now_ns;                     // monotonic
+    // Unset: nothing is asked again and a gap is given up at once (the remote keeps no pairs).
+    std::function<void(const proto::VideoNack&)> send_nack;  // any thread
+    std::function<std::int64_t()> rtt_ns;                    // the link's round trip (0: unknown)
+    std::function<std::int64_t()> now_ns;                    // monotonic
   };
-  explicit VideoReceiver(Hooks hooks);
+  explicit VideoReceiver(Hooks hooks, VideoReorderConfig reorder = {});
   ~VideoReceiver();
   VideoReceiver(const VideoReceiver&) = delete;
   VideoReceiver& operator=(const VideoReceiver&) = delete;
@@ -62,6 +75,9 @@ class VideoReceiver {
 
  private:
   void run();
+  // Decode thread: moves newly pushed pairs into the reorder buffer, sends its NACKs, decodes
+  // what it releases.
+  void take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived);
   void decode_one(const std::vector<std::uint8_t>& bytes);
   void ask_for_intra(proto::PictureLossReason reason);
 
@@ -77,6 +93,7 @@ class VideoReceiver {
   static constexpr std::size_t kMaxQueued = 8;
   std::int64_t last_pli_ns_ = 0;     // decode thread
   std::uint32_t last_good_seq_ = 0;  // decode thread
+  VideoReorder reorder_;             // decode thread
   struct Decoder;
   std::unique_ptr<Decoder> decoder_;  // decode thread
   std::thread thread_;
