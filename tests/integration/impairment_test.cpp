@@ -306,6 +306,32 @@ TEST(Impairment, RateLimitPassesAStreamBelowItUntouched) {
   EXPECT_EQ(imp.counters().rate_queued, 0u);
 }
 
+// The limit holds only in its window [from, until), counted from the first datagram: before and
+// after it, a stream at twice the rate passes untouched; inside it, the stream queues and drops.
+TEST(Impairment, RateLimitWindowStartsAndEnds) {
+  ImpairmentConfig c;
+  c.rate_limit_mbit = 1.0;
+  c.rate_limit_from_s = 1.0;
+  c.rate_limit_until_s = 2.0;
+  Impairment imp(c);
+  std::uint64_t queued_or_dropped[3] = {0, 0, 0};
+  for (int i = 0; i < 3000; ++i) {  // 250 bytes each ms: 2 Mbit/s
+    const auto before = imp.counters().rate_queued + imp.counters().rate_dropped;
+    const auto out = imp.process(datagram(static_cast<std::uint32_t>(i), 250), 5 * kMs + i * kMs);
+    queued_or_dropped[i / 1000] +=
+        imp.counters().rate_queued + imp.counters().rate_dropped - before;
+    if (i >= 2000) {  // after the window: on time again once the queue has drained
+      ASSERT_EQ(out.size(), 1u);
+    }
+  }
+  EXPECT_EQ(queued_or_dropped[0], 0u);
+  EXPECT_GT(queued_or_dropped[1], 400u);
+  EXPECT_EQ(queued_or_dropped[2], 0u);
+  ImpairmentConfig bad = c;
+  bad.rate_limit_until_s = 0.5;  // before from
+  EXPECT_THROW(validate(bad), std::invalid_argument);
+}
+
 // The bucket lets a burst of its depth through at once; what is beyond waits in the queue, and
 // what is beyond the queue is dropped.
 TEST(Impairment, RateLimitBurstThenQueueThenDrop) {

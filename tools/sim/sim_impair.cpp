@@ -263,6 +263,14 @@ int main(int argc, char** argv) {
                  "waits are drops")
       ->check(CLI::Range(0.0, 60000.0))
       ->capture_default_str();
+  app.add_option("--rate-limit-from-s", cfg.rate_limit_from_s,
+                 "the rate limit holds from this many seconds after the first datagram")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str();
+  app.add_option("--rate-limit-until-s", cfg.rate_limit_until_s,
+                 "... until this many (0 = to the end); must be above --rate-limit-from-s")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str();
   app.add_option("--duration", duration_s, "exit after this many seconds (0 = until a signal)")
       ->check(CLI::Range(0.0, 1e7))
       ->capture_default_str();
@@ -275,6 +283,8 @@ int main(int argc, char** argv) {
   try {
     listen_ep = parse_udp_endpoint(listen_text, "--listen", true);
     forward_ep = parse_udp_endpoint(forward_text, "--forward", false);
+    if (cfg.rate_limit_until_s != 0.0 && cfg.rate_limit_until_s <= cfg.rate_limit_from_s)
+      throw CLI::ValidationError("--rate-limit-until-s", "must be 0 or above --rate-limit-from-s");
   } catch (const CLI::ValidationError& e) {
     std::cerr << "telex-sim-impair: " << e.what() << "\n";
     return telex::cli::kUsageExit;

@@ -38,6 +38,14 @@ void validate(const ImpairmentConfig& c) {
   if (!(c.rate_limit_mbit >= 0.0 && c.rate_limit_mbit <= 100'000.0))
     throw std::invalid_argument("impairment: rate_limit_mbit must be in [0, 100000], got " +
                                 std::to_string(c.rate_limit_mbit));
+  if (!(c.rate_limit_from_s >= 0.0 && c.rate_limit_from_s <= 1e7))
+    throw std::invalid_argument("impairment: rate_limit_from_s must be in [0, 1e7], got " +
+                                std::to_string(c.rate_limit_from_s));
+  if (!(c.rate_limit_until_s == 0.0 ||
+        (c.rate_limit_until_s > c.rate_limit_from_s && c.rate_limit_until_s <= 1e7)))
+    throw std::invalid_argument(
+        "impairment: rate_limit_until_s must be 0 or in (rate_limit_from_s, 1e7], got " +
+        std::to_string(c.rate_limit_until_s));
   if (!(c.rate_burst_bytes >= 1.0 && c.rate_burst_bytes <= 1e9))
     throw std::invalid_argument("impairment: rate_burst_bytes must be in [1, 1e9], got " +
                                 std::to_string(c.rate_burst_bytes));
@@ -82,8 +90,16 @@ std::int64_t Impairment::shape(std::size_t bytes, std::int64_t now_ns) {
   return now_ns + static_cast<std::int64_t>(std::ceil(debt_after / rate_bytes_per_ns));
 }
 
+bool Impairment::rate_limited(std::int64_t now_ns) const {
+  if (config_.rate_limit_mbit <= 0.0) return false;
+  const double t_s = static_cast<double>(now_ns - first_ns_) * 1e-9;
+  return t_s >= config_.rate_limit_from_s &&
+         (config_.rate_limit_until_s == 0.0 || t_s < config_.rate_limit_until_s);
+}
+
 std::vector<Delivery> Impairment::process(std::span<const std::uint8_t> datagram,
                                           std::int64_t now_ns) {
+  if (first_ns_ < 0) first_ns_ = now_ns;
   ++counters_.received;
   counters_.bytes_in += datagram.size();
   // Draw every variate for every datagram, so one setting does not shift the others' streams.
@@ -97,7 +113,7 @@ std::vector<Delivery> Impairment::process(std::span<const std::uint8_t> datagram
   std::vector<Delivery> out;
   // The bottleneck comes first: a datagram takes its slot, then the wire may lose it.
   std::int64_t leave_ns = now_ns;
-  if (config_.rate_limit_mbit > 0.0) {
+  if (rate_limited(now_ns)) {
     leave_ns = shape(datagram.size(), now_ns);
     if (leave_ns < 0) {
       ++counters_.rate_dropped;

@@ -28,6 +28,10 @@ struct ImpairmentConfig {
   double rate_limit_mbit = 0.0;
   double rate_burst_bytes = 15'000.0;  // ten 1500-byte datagrams pass at once
   double rate_queue_ms = 100.0;
+  // When the limit holds, in seconds from the first datagram: [from, until) (until 0 = for ever),
+  // so that one run shows a sender finding a bottleneck and the bottleneck going away.
+  double rate_limit_from_s = 0.0;
+  double rate_limit_until_s = 0.0;
 };
 
 // Throws std::invalid_argument naming the first field out of range.
@@ -74,6 +78,8 @@ class Impairment {
   ImpairmentCounters counters_;
   std::uint64_t state_;
   std::int64_t last_in_order_ns_ = 0;
+  std::int64_t first_ns_ = -1;  // the first datagram's arrival
+  bool rate_limited(std::int64_t now_ns) const;
   // The token bucket: tokens at tokens_at_ns_; negative while datagrams queue for them.
   bool bucket_started_ = false;
   double tokens_bytes_ = 0.0;
