@@ -269,7 +269,12 @@ struct NatNetClient::Impl {
         version_major = si.natnet_version.major;
         version_minor = si.natnet_version.minor;
       }
-      if (si.has_connection_info) clock_hz = si.high_res_clock_hz;
+      // 3.0+: the connection fields, with the rate of the clock the frames' stamps count; a
+      // server whose info does not parse so has its frames' arrivals as their mid-exposure.
+      if (natnet::ServerInfo full;
+          natnet::parse_server_info(pkt.payload, si.natnet_version, full).ok())
+        si = std::move(full);
+      clock_hz = si.has_connection_info ? si.high_res_clock_hz : 0;
       std::lock_guard lock(info_mu);
       info = std::move(si);
       return;
