@@ -228,7 +228,7 @@ bool ScriptTracker::poll(std::int64_t now_ns, HandState& out) {
     finished_ = true;
   }
   script_.sample(t_s, out);
-  out.time_ns = now_ns;
+  out.time_ns = out.motion_ns = now_ns;
   ++stats_.updates;
   ++stats_.frames_in;
   return true;

@@ -27,6 +27,21 @@ const NatNetSample::Body* NatNetSample::find(std::int32_t id) const {
   return nullptr;
 }
 
+std::int64_t natnet_reported_latency_ns(const natnet::Frame& frame, const natnet::Version& v,
+                                        std::uint64_t high_res_clock_hz) {
+  constexpr double kMaxS = 1.0;  // beyond this the stamps are not a latency (a restarted clock)
+  double latency_s = 0.0;
+  if (!v.at_least(3, 0)) {
+    latency_s = static_cast<double>(frame.software_latency_s);
+  } else if (high_res_clock_hz != 0 && frame.stamp_mid_exposure != 0 &&
+             frame.stamp_transmit >= frame.stamp_mid_exposure) {
+    latency_s = static_cast<double>(frame.stamp_transmit - frame.stamp_mid_exposure) /
+                static_cast<double>(high_res_clock_hz);
+  }
+  if (!std::isfinite(latency_s) || latency_s <= 0.0 || latency_s > kMaxS) return 0;
+  return std::llround(latency_s * 1e9);
+}
+
 std::string_view to_string(PoseVerdict v) {
   switch (v) {
     case PoseVerdict::Ok:
@@ -81,6 +96,9 @@ struct NatNetClient::Impl {
   bool warned_foreign = false;
   int command_port = 0;  // bound, read by any thread
   natnet::Frame frame;   // reused, so the top-level arrays stop reallocating
+  // The server's high-resolution clock (Hz; 0 before its SERVERINFO), the unit of a frame's
+  // stamps. Receive thread only.
+  std::uint64_t clock_hz = 0;
   // Per published body (cfg.body_ids order): its last accepted pose and when (server seconds,
   // arrival ns), the reference of the speed check.
   struct Accepted {
@@ -251,6 +269,12 @@ struct NatNetClient::Impl {
         version_major = si.natnet_version.major;
         version_minor = si.natnet_version.minor;
       }
+      // 3.0+: the connection fields, with the rate of the clock the frames' stamps count; a
+      // server whose info does not parse so has its frames' arrivals as their mid-exposure.
+      if (natnet::ServerInfo full;
+          natnet::parse_server_info(pkt.payload, si.natnet_version, full).ok())
+        si = std::move(full);
+      clock_hz = si.has_connection_info ? si.high_res_clock_hz : 0;
       std::lock_guard lock(info_mu);
       info = std::move(si);
       return;
@@ -268,6 +292,7 @@ struct NatNetClient::Impl {
     s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                         std::chrono::steady_clock::now().time_since_epoch())
                         .count();
+    s.mid_exposure_ns = s.received_ns - natnet_reported_latency_ns(frame, v, clock_hz);
     // Servers before NatNet 2.6 send no frame timestamp: their frames are stamped on arrival.
     s.timestamp_s =
         v.at_least(2, 6) ? frame.timestamp_s : static_cast<double>(s.received_ns) * 1e-9;

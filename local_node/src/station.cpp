@@ -366,6 +366,7 @@ void Station::Run::print_status() {
                           : std::string(
                                 " | eyes none (no video from the remote: its --stereo "
                                 "source ended or never delivered, see its stats line)");
+  text += photon_status(view_.photon_recent());
   if (cfg_.status_line) {
     std::string forces;
     const TickSample& last = stats_.last();

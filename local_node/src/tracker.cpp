@@ -85,9 +85,12 @@ class NatNetTracker final : public HandTracker {
     if (!fresh || !have_sample_) return false;
     const NatNetSample::Body* head = sample_.find(cfg_.head_body_id);
     NatNetSample::Body hmd;
+    std::int64_t motion_ns = sample_.mid_exposure_ns;
     if (cfg_.head_from_hmd) {  // the headset's pose stands for the head body's
-      hmd.valid = hmd.present = cfg_.head_from_hmd(hmd.pose);
+      std::int64_t hmd_ns = 0;
+      hmd.valid = hmd.present = cfg_.head_from_hmd(hmd.pose, hmd_ns);
       head = &hmd;
+      if (hmd.valid) motion_ns = std::min(motion_ns, hmd_ns);
     }
     const bool head_valid = head && head->valid;
     const auto body = [&](std::int32_t id) -> const NatNetSample::Body* {
@@ -143,6 +146,7 @@ class NatNetTracker final : public HandTracker {
     previous_ = cur;
     out = cur;
     out.time_ns = mocap_ns_;
+    out.motion_ns = motion_ns;
     ++stats_.updates;
     return true;
   }
@@ -224,6 +228,7 @@ class GloveTracker final : public HandTracker {
     have_previous_ = true;
     out = cur;
     out.time_ns = now_ns;
+    out.motion_ns = g.received_ns;
     ++stats_.updates;
     return true;
   }

@@ -305,8 +305,16 @@ TEST(OpenXrView, EglBindingRunsHeadlessWithBothEyesAtPredictedTimes) {
   EXPECT_GT(ended, 10u);
   EXPECT_EQ(rec["frames_with_predicted_time"].get<std::uint64_t>(), ended);
   EXPECT_GT(rec["frames_with_projection"].get<std::uint64_t>(), 5u);
-  EXPECT_EQ(summary_of(local)["openxr"]["frames_submitted"],
-            rec["frames_with_projection"].get<std::uint64_t>());
+  const auto j = summary_of(local);
+  const auto submitted = j["openxr"]["frames_submitted"].get<std::uint64_t>();
+  EXPECT_EQ(submitted, rec["frames_with_projection"].get<std::uint64_t>());
+  // Motion and capture to photon, to xrEndFrame: at most one sample per frame submitted.
+  EXPECT_GT(j["motion_to_photon_samples"].get<std::uint64_t>(), 0u) << j.dump();
+  EXPECT_LE(j["motion_to_photon_samples"].get<std::uint64_t>(), submitted) << j.dump();
+  EXPECT_GT(j["capture_to_photon_samples"].get<std::uint64_t>(), 0u) << j.dump();
+  EXPECT_LE(j["capture_to_photon_samples"].get<std::uint64_t>(), submitted) << j.dump();
+  EXPECT_GT(j["motion_to_photon_ms_median"].get<double>(), 0.0) << j.dump();
+  EXPECT_GT(j["capture_to_photon_ms_median"].get<double>(), 0.0) << j.dump();
 }
 
 TEST(OpenXrView, MissingRuntimeIsAClearErrorNamingIt) {

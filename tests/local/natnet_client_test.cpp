@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <memory>
 #include <thread>
@@ -68,6 +69,9 @@ TEST_P(NatNetLoopback, UnicastPosesArriveAndMatchTheScriptedMotion) {
     EXPECT_GT(s2.frame_number, s1.frame_number);
     EXPECT_GT(s2.timestamp_s, s1.timestamp_s);
     expect_matches_motion(s2);
+    // The cameras' mid-exposure: the arrival less the latency the frame reports.
+    EXPECT_EQ(s2.received_ns - s2.mid_exposure_ns,
+              std::llround(NatNetServerConfig{}.reported_latency_s * 1e9));
     const auto info = client.server_info();
     ASSERT_TRUE(info.has_value());
     EXPECT_EQ(info->natnet_version, GetParam());

@@ -99,6 +99,22 @@ void StationView::summarize(StationSummary& s) const {
   s.glass_to_glass_ms_median = percentile(glass_ms_, 0.5);
   s.glass_to_glass_ms_p99 = percentile(glass_ms_, 0.99);
   s.glass_to_glass_mismatched = glass_mismatched_;
+  const PhotonLatency::Figures motion = photon_.motion(), capture = photon_.capture();
+  s.motion_to_photon_samples = motion.samples;
+  s.motion_to_photon_ms_median = motion.median_ms;
+  s.motion_to_photon_ms_p99 = motion.p99_ms;
+  s.capture_to_photon_samples = capture.samples;
+  s.capture_to_photon_ms_median = capture.median_ms;
+  s.capture_to_photon_ms_p99 = capture.p99_ms;
+}
+
+PhotonStamps StationView::photon_stamps(const StereoViewInputs& in) const {
+  return {in.hand.motion_ns, drawn_ ? drawn_->capture_ns : 0};
+}
+
+void StationView::photon_now(const PhotonStamps& stamps) {
+  auto* c = client_.load();
+  photon_.record(stamps, monotonic_ns(), c ? c->stats().clock_offset_ns.load() : 0);
 }
 
 void StationView::measure_glass(const cv::Mat3b& rendered_right) {
@@ -185,10 +201,12 @@ void StationView::request_stereo(const std::array<FingertipForce, kFingerCount>&
 }
 
 bool StationView::pump_window(std::atomic<bool>& stop) {
-  if (auto sbs = sbs_for_window_.take(std::chrono::milliseconds(0)))
-    window_->show(*sbs);
-  else
+  if (auto sbs = sbs_for_window_.take(std::chrono::milliseconds(0))) {
+    window_->show(sbs->bgr);
+    photon_now(sbs->stamps);  // swapped
+  } else {
     window_->refresh();
+  }
   if (!window_->should_close()) return false;
   if (!stop.exchange(true)) spdlog::info("the view window was closed: stopping");
   return true;
@@ -244,10 +262,13 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
     warned_one_eye_ = true;
   }
-  if (spec_.on_screen())
-    sbs_for_window_.put(in.fig7 ? v.fig7 : v.sbs);
-  else
+  const PhotonStamps stamps = photon_stamps(in);
+  if (spec_.on_screen()) {
+    sbs_for_window_.put({in.fig7 ? v.fig7 : v.sbs, stamps});  // to photon when the window swaps
+  } else {
     write_stereo_files(v);
+    photon_now(stamps);
+  }
   measure_glass(v.right);
   return true;
 }

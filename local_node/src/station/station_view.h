@@ -21,6 +21,7 @@
 #include "output_gate.h"
 #include "telex/base/latest_slot.h"
 #include "telex/base/triple_buffer.h"
+#include "telex/local/photon_latency.h"
 #include "telex/local/station.h"
 #include "telex/local/stereo_view.h"
 #include "telex/local/surface_client.h"
@@ -47,15 +48,18 @@ class StationView {
   std::uint64_t eye_frames_received() const {
     return video_ ? video_->counters().received.load() : 0;
   }
-  // The eyes in the run's summary: pairs shown, PLIs sent, shown-frame age.
+  // The eyes in the run's summary: pairs shown, PLIs sent, shown-frame age; motion and capture
+  // to photon.
   void summarize(StationSummary& s) const;
+  // The status line's motion and capture to photon (the newest frames' medians).
+  PhotonLatency::Recent photon_recent() const { return photon_.recent(); }
   bool openxr() const { return spec_.kind == ViewSpec::Kind::OpenXr; }
   // --view openxr: closed until the headset's session is FOCUSED, and whenever it is not.
   const OutputGate& output_gate() const { return gate_; }
   // --head-source hmd: the headset's newest pose in the NatNet frame (through the rig's
-  // operator.hmd_stage_in_natnet), read by the tracker on the haptic thread; false until the
-  // session located the headset.
-  std::function<bool(Pose&)> hmd_head_source();
+  // operator.hmd_stage_in_natnet) and when it was located, read by the tracker on the haptic
+  // thread; false until the session located the headset.
+  std::function<bool(Pose&, std::int64_t&)> hmd_head_source();
   // The headset's session ended by itself (the user quit, the runtime went): the station stops.
   bool xr_ended() const { return xr_ended_.load(); }
   struct XrStats {
@@ -133,7 +137,11 @@ class StationView {
   HandState hand_{};  // main thread
 
   // Main thread -> view thread, and on a screen the view thread's pairs back, newest wins.
-  LatestSlot<cv::Mat3b> sbs_for_window_;
+  struct WindowFrame {
+    cv::Mat3b bgr;
+    PhotonStamps stamps;
+  };
+  LatestSlot<WindowFrame> sbs_for_window_;
   std::mutex stereo_mu_;
   std::condition_variable_any stereo_cv_;
   struct StereoRequest {
@@ -145,12 +153,21 @@ class StationView {
   bool warned_one_eye_ = false;  // view thread
   // After the rendered eyes went to the display: the glass-to-glass sample of drawn_.
   void measure_glass(const cv::Mat3b& rendered_right);
+  // What a frame drawn from `in` and drawn_ is stamped with, and its motion and capture to
+  // photon, handed to the display now.
+  PhotonStamps photon_stamps(const StereoViewInputs& in) const;
+  void photon_now(const PhotonStamps& stamps);
+  PhotonLatency photon_;
   bool warned_no_warp_ = false;  // view thread
 
   // --view openxr.
   OutputGate gate_;
   std::atomic<bool> xr_ended_{false};
-  TripleBuffer<Pose> hmd_head_;  // NatNet frame
+  struct HmdSample {
+    Pose X_NatNetHead;
+    std::int64_t located_ns = 0;  // CLOCK_MONOTONIC
+  };
+  TripleBuffer<HmdSample> hmd_head_;
   mutable std::mutex xr_mu_;
   XrStats xr_stats_;  // guarded by xr_mu_
 };

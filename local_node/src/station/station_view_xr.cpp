@@ -31,10 +31,11 @@ void StationView::set_gate(bool open) {
   }
 }
 
-std::function<bool(Pose&)> StationView::hmd_head_source() {
-  return [this, have = false, last = Pose{}](Pose& out) mutable {
+std::function<bool(Pose&, std::int64_t&)> StationView::hmd_head_source() {
+  return [this, have = false, last = HmdSample{}](Pose& out, std::int64_t& located_ns) mutable {
     if (hmd_head_.take(last)) have = true;
-    out = last;
+    out = last.X_NatNetHead;
+    located_ns = last.located_ns;
     return have;
   };
 }
@@ -75,8 +76,10 @@ void StationView::run_openxr(std::stop_token stop) {
     p.view = std::make_unique<StereoView>(cfg_.body);
     p.view->use_current_context();
     p.view->set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
-    const auto draw = [this, &p](const std::array<XrEyeTarget, 2>& t,
-                                 std::array<XrEyeFov, 2>& fov) {
+    PhotonStamps drawn_stamps;  // of the frame step() drew, if it drew one
+    bool drew = false;
+    const auto draw = [this, &p, &drawn_stamps, &drew](const std::array<XrEyeTarget, 2>& t,
+                                                       std::array<XrEyeFov, 2>& fov) {
       StereoViewInputs in;
       {
         std::lock_guard lock(stereo_mu_);  // the newest request, drawn at the headset's rate
@@ -90,16 +93,24 @@ void StationView::run_openxr(std::stop_token stop) {
       const XrEyeFov f =
           fov_from_pinhole(in.k.fx, in.k.fy, in.k.cx, in.k.cy, in.k.width, in.k.height);
       fov = {f, f};  // a rectified pair: both eyes drawn with the right eye's intrinsics
+      drawn_stamps = photon_stamps(in);
+      drew = true;
       return true;
     };
     const RigidTransform& X_NatNetStage = cfg_.X_NatNetStage;
     const glm::dquat q_NatNetStage = glm::quat_cast(X_NatNetStage.rotation);
     int exit_steps = 0;
-    while (p.xr->step(draw) != OpenXrOutput::Phase::Ended) {
+    for (;;) {
+      drew = false;
+      const OpenXrOutput::Phase phase = p.xr->step(draw);
+      // step() returns right after xrEndFrame: a frame it drew is submitted now.
+      if (drew && phase != OpenXrOutput::Phase::Ended) photon_now(drawn_stamps);
+      if (phase == OpenXrOutput::Phase::Ended) break;
       if (const XrHeadPose h = p.xr->head(); h.valid)
         hmd_head_.publish(
-            Pose{X_NatNetStage.rotation * h.p_StageHead_m + X_NatNetStage.translation_m,
-                 glm::normalize(q_NatNetStage * h.q_StageHead)});
+            {Pose{X_NatNetStage.rotation * h.p_StageHead_m + X_NatNetStage.translation_m,
+                  glm::normalize(q_NatNetStage * h.q_StageHead)},
+             h.located_ns});
       if (stop.stop_requested()) {
         p.xr->request_exit();
         if (++exit_steps > kExitSteps) break;  // the runtime never stopped: destroyed anyway

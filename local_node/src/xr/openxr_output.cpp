@@ -20,6 +20,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "telex/base/periodic.h"
+
 namespace telex::local {
 namespace {
 
@@ -347,6 +349,7 @@ void OpenXrOutput::frame(const Draw& draw) {
   x.check(xrBeginFrame(x.session, &bi), "xrBeginFrame");
 
   auto head = xr_struct<XrSpaceLocation>(XR_TYPE_SPACE_LOCATION);
+  head_.located_ns = monotonic_ns();
   x.check(xrLocateSpace(x.view, x.base, fs.predictedDisplayTime, &head), "xrLocateSpace");
   constexpr XrSpaceLocationFlags kPose =
       XR_SPACE_LOCATION_ORIENTATION_VALID_BIT | XR_SPACE_LOCATION_POSITION_VALID_BIT;

@@ -35,6 +35,8 @@ struct XrEyeFov {
 struct XrHeadPose {
   bool valid = false;
   std::int64_t display_time_ns = 0;  // XrTime (CLOCK_MONOTONIC on Linux runtimes)
+  // When the runtime was asked for it (CLOCK_MONOTONIC): its sample, predicted to display time.
+  std::int64_t located_ns = 0;
   glm::dquat q_StageHead{1.0, 0.0, 0.0, 0.0};
   glm::dvec3 p_StageHead_m{0.0};
 };

@@ -290,6 +290,10 @@ struct NatNetServer::Impl {
     frame.frame_number = ++frame_number;
     frame.timestamp_s = t_s;
     frame.stamp_transmit = static_cast<std::uint64_t>(t_s * static_cast<double>(kSimClockHz));
+    const auto latency =
+        static_cast<std::uint64_t>(cfg.reported_latency_s * static_cast<double>(kSimClockHz));
+    frame.stamp_mid_exposure = frame.stamp_transmit > latency ? frame.stamp_transmit - latency : 0;
+    frame.software_latency_s = static_cast<float>(cfg.reported_latency_s);
     const auto bytes = natnet::encode_frame(frame, cfg.version);
     boost::system::error_code ec;
     std::lock_guard lock(mu);

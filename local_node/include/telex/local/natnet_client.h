@@ -71,6 +71,13 @@ PoseVerdict check_pose(const natnet::RigidBody& body, const PoseLimits& limits,
 NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& what,
                                      NatNetClientConfig base = {});
 
+// The latency a server reports for a frame, from the cameras' mid-exposure to its transmission
+// (ns, pure): NatNet 3.0+'s stamps over the server's high-resolution clock (`high_res_clock_hz`,
+// from its SERVERINFO), 2.x's software latency. 0 when the frame says nothing usable: no clock
+// rate, stamps unset or out of order, a latency outside 0..1 s.
+std::int64_t natnet_reported_latency_ns(const natnet::Frame& frame, const natnet::Version& v,
+                                        std::uint64_t high_res_clock_hz);
+
 struct NatNetSample {
   static constexpr int kMaxBodies = 8;
   struct Body {
@@ -83,6 +90,9 @@ struct NatNetSample {
   std::uint32_t frame_number = 0;
   double timestamp_s = 0;        // server clock (2.6+), else the arrival time
   std::int64_t received_ns = 0;  // steady clock on receipt
+  // When the cameras exposed it, steady clock: the arrival less the latency the server reports
+  // (natnet_reported_latency_ns), or the arrival when it reports none.
+  std::int64_t mid_exposure_ns = 0;
   std::array<Body, kMaxBodies> bodies{};
   const Body* find(std::int32_t id) const;
 };

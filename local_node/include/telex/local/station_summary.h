@@ -75,6 +75,12 @@ struct StationSummary {
   std::uint64_t glass_to_glass_samples = 0, glass_to_glass_mismatched = 0;
   double glass_to_glass_ms_median = 0, glass_to_glass_ms_p99 = 0;
   int video_eye_width_px = 0, video_eye_height_px = 0;  // of the newest pair decoded
+  // Latency a person notices, per stereo frame handed to the display (PNGs written, the window
+  // swapped, xrEndFrame returned): from the body or head sample it drew (HandState::motion_ns),
+  // and from the capture of the eyes' pair it drew (the remote's clock, offset-corrected).
+  std::uint64_t motion_to_photon_samples = 0, capture_to_photon_samples = 0;
+  double motion_to_photon_ms_median = 0, motion_to_photon_ms_p99 = 0;
+  double capture_to_photon_ms_median = 0, capture_to_photon_ms_p99 = 0;
   // Repair (FrameAssembler's counters) and tile ages in frame periods at each closed frame: the
   // tiles under the fingertip windows, and all tiles.
   std::uint64_t tiles_missing = 0, frames_incomplete = 0, frames_unclosed = 0, tiles_expired = 0;

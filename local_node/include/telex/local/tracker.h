@@ -56,6 +56,11 @@ struct HandState {
   // When the sample was taken, on the caller's clock (poll's now_ns); with NatNet, the poll that
   // took the newest accepted mocap frame (a glove-only update does not make old poses new).
   std::int64_t time_ns = 0;
+  // When the poses in it were sampled, CLOCK_MONOTONIC ns, the start of the view's motion to
+  // photon: NatNet's mid-exposure (the frame's arrival less the latency the server reports), or
+  // with --head-source hmd the older of that and the headset pose's; a script's poll; a glove
+  // report's arrival. 0: not known.
+  std::int64_t motion_ns = 0;
   std::array<Fingertip, kFingerCount> tips{};
   // Joint chain per finger for drawing: knuckle (MCP), PIP, DIP, tip. Valid when skeleton_valid.
   std::array<std::array<glm::dvec3, 4>, kFingerCount> joints_camera{};
@@ -132,7 +137,8 @@ struct TrackerConfig {
   int realtime_priority = 0;  // the NatNet receive thread's SCHED_FIFO priority (0: none)
   // --head-source hmd: the operator's head is the headset's pose (in the NatNet frame) that this
   // returns (false: not tracked now), not the head marker body's. Empty: the head body (natnet).
-  std::function<bool(Pose& X_NatNetHead)> head_from_hmd;
+  // `sampled_ns` (CLOCK_MONOTONIC) is when the headset's pose was located.
+  std::function<bool(Pose& X_NatNetHead, std::int64_t& sampled_ns)> head_from_hmd;
   // Test seam (NatNetClientConfig::receive_hook), never set by telex-local.
   std::function<void()> natnet_receive_hook;
 

@@ -27,6 +27,9 @@ struct NatNetServerConfig {
   natnet::Version version{3, 1};
   double rate_hz = 120.0;
   std::string app_name = "telex-sim-natnet";
+  // The latency each frame reports from its cameras' mid-exposure to its transmission (3.0+'s
+  // stamps, 2.x's software latency), as Motive's is a few milliseconds.
+  double reported_latency_s = 0.004;
 };
 
 // Fills frame.rigid_bodies (and anything else) for time t_s since the start of streaming.
