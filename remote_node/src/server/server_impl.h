@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "telex/base/pi_mutex.h"
 #include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
 #include "telex/proto/seal.h"
@@ -170,10 +171,10 @@ class RemoteServer::Impl {
   std::uint32_t streamed_generation_ = 0;  // the session the current part's tiles streamed to
 
   // shared
-  std::mutex cache_mu_;
-  RepairCache cache_;             // guarded by cache_mu_; filled by publish(), read by on_nack()
+  PiMutex cache_mu_;   // shared by the video thread with the real-time processing and io threads
+  RepairCache cache_;  // guarded by cache_mu_; filled by publish(), read by on_nack()
   VideoRepairCache video_cache_;  // guarded by cache_mu_; publish_video() -> on_video_nack()
-  mutable std::mutex mu_;
+  mutable PiMutex mu_;
   FrameRequest request_;
   bool frame_parts_ = false;  // guarded by mu_
   Link link_;

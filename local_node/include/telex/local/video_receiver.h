@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "telex/base/pi_mutex.h"
 #include "telex/local/video_reorder.h"
 #include "telex/proto/messages.h"
 
@@ -83,8 +84,10 @@ class VideoReceiver {
 
   Hooks hooks_;
   VideoReceiverCounters counters_;
-  std::mutex mu_;
-  std::condition_variable cv_;
+  // Taken by the real-time network thread (push) and the decode thread at nice 5: priority
+  // inheritance, so threads between them cannot keep the network thread waiting.
+  PiMutex mu_;
+  std::condition_variable_any cv_;
   std::deque<std::vector<std::uint8_t>> queue_;  // guarded by mu_
   bool stopping_ = false;                        // guarded by mu_
   mutable std::mutex pairs_mu_;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "telex/base/latest_slot.h"
+#include "telex/base/pi_mutex.h"
 #include "telex/common/rig.h"
 #include "telex/remote/eye_rate.h"
 #include "telex/remote/eye_stream.h"
@@ -188,13 +189,13 @@ class RemoteDaemon {
   // Head teleoperation: the operator's targets (network thread) and the measured poses (head
   // loop) read by the capture thread.
   bool head_driven_ = false;  // --head is not none
-  mutable std::mutex head_mu_;
+  mutable PiMutex head_mu_;
   HeadController head_control_;
   std::deque<HeadPose> head_history_;  // the last readings, oldest first
   HeadStats head_stats_;               // the driver's counts, copied by the head loop
   std::ofstream head_log_;             // --log-head, written by the head loop
   std::function<void(const ProcessedFrame&)> observer_;
-  mutable std::mutex stats_mu_;
+  mutable PiMutex stats_mu_;
   DaemonStats stats_;
 };
 
