@@ -378,6 +378,8 @@ struct BodyPass::Gl {
   GLuint vao = 0, corners = 0, instances = 0, ubo = 0, neighbours_ubo = 0;
   GLuint empty_vao = 0, depth_tex = 0;
   cv::Size depth_size;
+  bool has_scene_depth = false;
+  std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
   GLsizei vertices = 0;
   std::vector<Instance> instance_data, around_eye;
   std::vector<float> caps;
@@ -442,11 +444,10 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
 
 BodyPass::~BodyPass() = default;  // the GL objects go with the context
 
-void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                                    std::span<const glm::dvec3> fingertips,
-                                    const cv::Mat1f& window_depth) {
-  if (fingertips.empty() || window_depth.empty()) return;
+void BodyPass::set_scene_depth(const cv::Mat1f& window_depth) {
   Gl& g = *gl_;
+  g.has_scene_depth = !window_depth.empty();
+  if (!g.has_scene_depth) return;
   glBindTexture(GL_TEXTURE_2D, g.depth_tex);
   if (window_depth.size() != g.depth_size) {
     glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, window_depth.cols, window_depth.rows, 0, GL_RED,
@@ -455,6 +456,13 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   }
   glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, window_depth.cols, window_depth.rows, GL_RED, GL_FLOAT,
                   window_depth.data);
+}
+
+void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                                    std::span<const glm::dvec3> fingertips) {
+  Gl& g = *gl_;
+  if (fingertips.empty() || !g.has_scene_depth) return;
+  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
   glUseProgram(g.shadow);
   glUniform1i(glGetUniformLocation(g.shadow, "u_depth"), 0);
   glUniform4f(glGetUniformLocation(g.shadow, "u_k"), static_cast<float>(k.fx),
@@ -493,8 +501,8 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glBindVertexArray(0);
 }
 
-void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightEye,
-                         std::span<const Capsule> capsules, float exposure) {
+void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure, int divisor) {
   Gl& g = *gl_;
   if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
   const auto neighbours = blend_neighbours(capsules);
@@ -526,6 +534,12 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   const std::size_t outside = g.instance_data.size();
   g.instance_data.insert(g.instance_data.end(), g.around_eye.begin(), g.around_eye.end());
   if (g.instance_data.empty()) return;
+  if (divisor > 1 && !g.upsample) g.upsample = std::make_unique<BodyUpsample>();
+  const Intrinsics k_body = divisor > 1 ? g.upsample->begin(k, divisor) : k;
+  const glm::mat4 projection =
+      projection_from_intrinsics(k_body, StereoRenderer::kNear_m, StereoRenderer::kFar_m);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
   glUseProgram(g.body);
   glUniformMatrix4fv(glGetUniformLocation(g.body, "u_projection"), 1, GL_FALSE,
                      glm::value_ptr(projection));
@@ -561,6 +575,9 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   }
   glDisable(GL_CULL_FACE);
   glBindVertexArray(0);
+  if (divisor > 1)
+    g.upsample->composite(divisor, body_bounds_px(k, p_RightEye, capsules, divisor + 1),
+                          g.has_scene_depth ? g.depth_tex : 0);
 }
 
 }  // namespace telex::local
