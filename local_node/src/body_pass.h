@@ -53,9 +53,8 @@ class BodyUpsample {
   std::unique_ptr<Gl> gl_;
 };
 
-// Eye pixels (rows top-down) that hold all of the capsules' boxes (1.2 times the larger radius
-// around each segment, as the body pass draws them), padded by `pad_px`; the whole eye when one
-// reaches the near plane.
+// Eye pixels (rows top-down) that hold what the body pass can draw of the capsules' boxes (1.2
+// times the larger radius around each segment) in front of the near plane, padded by `pad_px`.
 cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
                         std::span<const Capsule> capsules, int pad_px);
 

@@ -28,23 +28,27 @@ void main() {
 
 // The four low-resolution samples around this pixel, each kept only where it holds body nearer
 // than the remote scene here, weighted bilinearly: premultiplied colour, blended over the eye.
+// Most pixels of the bounds hold no body: one filtered read of the coverage discards them first
+// (llvmpipe leaves a block of pixels once all are discarded).
 constexpr const char* kCompositeFs = R"(#version 330 core
-uniform sampler2D u_body_color;  // rgb, a = 1 where the body is
+uniform sampler2D u_body_color;  // rgb, a = 1 where the body is; filtered linearly
 uniform sampler2D u_body_depth;  // window depths, 1 where no body
 uniform sampler2D u_scene_depth; // this eye's remote depth as window depths, full resolution
 uniform bool u_has_scene;
 uniform float u_divisor;
 out vec4 o_color;
 void main() {
+  ivec2 size = textureSize(u_body_color, 0);
+  vec4 any = texture(u_body_color, gl_FragCoord.xy / (u_divisor * vec2(size)));
+  if (any.a < 0.5 / 255.0) discard;
   float scene = u_has_scene ? texelFetch(u_scene_depth, ivec2(gl_FragCoord.xy), 0).r : 1.0;
-  ivec2 last = textureSize(u_body_color, 0) - 1;
   vec2 q = gl_FragCoord.xy / u_divisor - 0.5;
   ivec2 i0 = ivec2(floor(q));
   vec2 f = q - vec2(i0);
   vec4 sum = vec4(0.0);
   for (int k = 0; k < 4; ++k) {
     ivec2 o = ivec2(k & 1, k >> 1);
-    ivec2 t = clamp(i0 + o, ivec2(0), last);
+    ivec2 t = clamp(i0 + o, ivec2(0), size - 1);
     vec2 w2 = mix(1.0 - f, f, vec2(o));
     vec4 c = texelFetch(u_body_color, t, 0);
     float d = texelFetch(u_body_depth, t, 0).r;
@@ -55,12 +59,14 @@ void main() {
 }
 )";
 
-GLuint texture(GLenum internal, int w, int h, GLenum format, GLenum type) {
+GLuint texture(GLenum internal, int w, int h, GLenum format, GLenum type, GLint filter) {
   GLuint t = 0;
   glGenTextures(1, &t);
   glBindTexture(GL_TEXTURE_2D, t);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
   return t;
 }
@@ -77,22 +83,25 @@ cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
     // A ball round each end holding the box's corners; the box lies in the hull of the two, and
     // the hull's image in the hull of theirs.
     const double reach = (std::max(c.radius_m, rb) * 1.2 + 5e-4) * std::sqrt(3.0);
-    for (const glm::dvec3& end : {c.a, c.b}) {
-      const glm::dvec3 p = end - p_RightEye;
-      if (!std::isfinite(p.x + p.y + p.z)) break;
-      const double z_near = p.z - reach;
-      if (z_near <= StereoRenderer::kNear_m) return all;
-      // x / z over the ball's bounding box is extreme at its corners.
-      for (const double z : {z_near, p.z + reach})
+    // The capsule's points in front of the near plane lie within `reach` of the segment's part
+    // with z >= near - reach: clipped to it, and each end's box cut at the near plane.
+    glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
+    if (!std::isfinite(a.x + a.y + a.z + b.x + b.y + b.z)) continue;
+    const double z_cut = StereoRenderer::kNear_m - reach;
+    if (a.z < z_cut && b.z < z_cut) continue;
+    if (a.z < z_cut) a += (b - a) * ((z_cut - a.z) / (b.z - a.z));
+    if (b.z < z_cut) b += (a - b) * ((z_cut - b.z) / (a.z - b.z));
+    for (const glm::dvec3& p : {a, b})
+      for (const double z : {p.z - reach, p.z + reach})
         for (const double s : {-1.0, 1.0}) {
-          const double u = k.fx * (p.x + s * reach) / z + k.cx;
-          const double v = k.fy * (p.y + s * reach) / z + k.cy;
+          const double z_in = std::max(z, StereoRenderer::kNear_m);
+          const double u = k.fx * (p.x + s * reach) / z_in + k.cx;
+          const double v = k.fy * (p.y + s * reach) / z_in + k.cy;
           x0 = std::min(x0, u);
           x1 = std::max(x1, u);
           y0 = std::min(y0, v);
           y1 = std::max(y1, v);
         }
-    }
   }
   if (x0 > x1) return {};
   const auto clamp = [](double v, int hi) {
@@ -139,8 +148,8 @@ Intrinsics BodyUpsample::begin(const Intrinsics& k, int divisor) {
     glDeleteFramebuffers(1, &g.fbo);
     const GLuint old[] = {g.color, g.depth};
     glDeleteTextures(2, old);
-    g.color = texture(GL_RGBA8, w, h, GL_RGBA, GL_UNSIGNED_BYTE);
-    g.depth = texture(GL_DEPTH_COMPONENT32F, w, h, GL_DEPTH_COMPONENT, GL_FLOAT);
+    g.color = texture(GL_RGBA8, w, h, GL_RGBA, GL_UNSIGNED_BYTE, GL_LINEAR);
+    g.depth = texture(GL_DEPTH_COMPONENT32F, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, GL_NEAREST);
     glGenFramebuffers(1, &g.fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, g.color, 0);
