@@ -6,12 +6,16 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+#include <memory>
 #include <opencv2/imgproc.hpp>
 
 #include "telex/local/fig7_view.h"
 #include "telex/local/stereo_renderer.h"
 #include "telex/local/stereo_view.h"
+#include "telex/local/warp.h"
 
 namespace telex::local {
 namespace {
@@ -41,9 +45,17 @@ BodyState reaching_body() {
 // upload, contact shadows of the ten fingertips, both smooth arms and hands, readback.
 // `body_divisor`: StereoRenderer::set_body_divisor's (0: by the eye's width); -1: no body at all
 // (what the eye costs besides it), the fingertips' shadows kept.
-void stereo_pair(benchmark::State& state, int width, int height, int body_divisor = 0) {
+// `warp`: each eye's video and depth first reprojected by DepthWarp (a 1 degree turn), in the
+// renderer's context, as StereoView does with both head poses.
+void stereo_pair(benchmark::State& state, int width, int height, int body_divisor = 0,
+                 bool warp = false) {
   StereoRenderer r(width, height);
   r.set_body_divisor(std::max(body_divisor, 0));
+  std::array<std::unique_ptr<DepthWarp>, 2> warps;
+  if (warp)
+    for (auto& w : warps) w = std::make_unique<DepthWarp>(width, height);
+  const glm::dmat3 R_DisplayCapture(
+      glm::rotate(glm::dmat4(1.0), 1.0 * 3.14159265358979323846 / 180.0, {0.0, 1.0, 0.0}));
   const BodyState body = reaching_body();
   auto capsules = body_capsules(body, [](const glm::dvec3& p) { return p; });
   EyeView right, left;
@@ -61,9 +73,18 @@ void stereo_pair(benchmark::State& state, int width, int height, int body_diviso
     for (const auto& finger : arm.hand.joints) right.fingertips.push_back(finger[3]);
   left.fingertips = right.fingertips;
   if (body_divisor < 0) capsules.clear();
+  const auto eye = [&](EyeView view, std::size_t i) {
+    if (warp) {
+      WarpedEye w = warps[i]->warp(view.background, view.depth_mm, view.k,
+                                   eye_display_from_capture(R_DisplayCapture, view.p_RightEye));
+      view.background = w.bgr;
+      view.depth_mm = w.depth_mm;
+    }
+    return r.render(view, capsules);
+  };
   for (auto _ : state) {
-    const cv::Mat3b a = r.render(right, capsules);
-    const cv::Mat3b b = r.render(left, capsules);
+    const cv::Mat3b a = eye(right, 0);
+    const cv::Mat3b b = eye(left, 1);
     benchmark::DoNotOptimize(a.data[0] + b.data[0]);
   }
   state.counters["capsules"] = static_cast<double>(capsules.size());
@@ -81,6 +102,17 @@ BENCHMARK(BM_StereoPair1280x720)
     ->Arg(0)
     ->Arg(1)
     ->Arg(4)
+    ->Arg(-1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The goal's whole figure: both eyes warped, then rendered with the body.
+void BM_StereoPairWarped1280x720(benchmark::State& state) {
+  stereo_pair(state, 1280, 720, static_cast<int>(state.range(0)), true);
+}
+BENCHMARK(BM_StereoPairWarped1280x720)
+    ->ArgName("body_divisor")
+    ->Arg(0)
     ->Arg(-1)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();

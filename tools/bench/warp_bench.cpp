@@ -39,6 +39,7 @@ void BM_WarpEye(benchmark::State& state) {
 }
 BENCHMARK(BM_WarpEye)
     ->Args({1280, 720, 8})
+    ->Args({1280, 720, 16})
     ->Args({1280, 720, 4})
     ->Args({640, 480, 8})
     ->Unit(benchmark::kMillisecond)
