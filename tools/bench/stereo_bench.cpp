@@ -45,15 +45,18 @@ BodyState reaching_body() {
 // upload, contact shadows of the ten fingertips, both smooth arms and hands, readback.
 // `body_divisor`: StereoRenderer::set_body_divisor's (0: by the eye's width); -1: no body at all
 // (what the eye costs besides it), the fingertips' shadows kept.
-// `warp`: each eye's video and depth first reprojected by DepthWarp (a 1 degree turn), in the
-// renderer's context, as StereoView does with both head poses.
+// `warp_merge_cells` > 0: each eye's video and depth first reprojected by DepthWarp (a 1 degree
+// turn) with that WarpOptions::merge_cells, in the renderer's context, as StereoView does with
+// both head poses.
 void stereo_pair(benchmark::State& state, int width, int height, int body_divisor = 0,
-                 bool warp = false) {
+                 int warp_merge_cells = 0) {
+  const bool warp = warp_merge_cells > 0;
   StereoRenderer r(width, height);
   r.set_body_divisor(std::max(body_divisor, 0));
   std::array<std::unique_ptr<DepthWarp>, 2> warps;
   if (warp)
-    for (auto& w : warps) w = std::make_unique<DepthWarp>(width, height);
+    for (auto& w : warps)
+      w = std::make_unique<DepthWarp>(width, height, WarpOptions{.merge_cells = warp_merge_cells});
   const glm::dmat3 R_DisplayCapture(
       glm::rotate(glm::dmat4(1.0), 1.0 * 3.14159265358979323846 / 180.0, {0.0, 1.0, 0.0}));
   const BodyState body = reaching_body();
@@ -106,14 +109,17 @@ BENCHMARK(BM_StereoPair1280x720)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
-// The goal's whole figure: both eyes warped, then rendered with the body.
+// The goal's whole figure: both eyes warped, then rendered with the body. Arguments: the body's
+// divisor (as above) and the warp's merge_cells; 1, 1 is the pipeline before both levers.
 void BM_StereoPairWarped1280x720(benchmark::State& state) {
-  stereo_pair(state, 1280, 720, static_cast<int>(state.range(0)), true);
+  stereo_pair(state, 1280, 720, static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
 }
 BENCHMARK(BM_StereoPairWarped1280x720)
-    ->ArgName("body_divisor")
-    ->Arg(0)
-    ->Arg(-1)
+    ->ArgNames({"body_divisor", "merge"})
+    ->Args({0, 4})
+    ->Args({1, 1})
+    ->Args({4, 4})
+    ->Args({-1, 4})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
