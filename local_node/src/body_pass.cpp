@@ -337,48 +337,17 @@ double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.r
 
 }  // namespace
 
-std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
-    std::span<const Capsule> capsules) {
-  constexpr double kSameEnd_m = 1e-3;
-  const auto near = [](const glm::dvec3& p, const glm::dvec3& q) {
-    return glm::length(p - q) < kSameEnd_m;
-  };
-  std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> out(capsules.size());
-  for (std::size_t i = 0; i < capsules.size(); ++i) {
-    out[i].fill(-1);
-    std::size_t n = 0;
-    const Capsule& c = capsules[i];
-    for (std::size_t j = 0; j < capsules.size() && n < kMaxBlendNeighbours; ++j) {
-      const Capsule& o = capsules[j];
-      if (j == i || c.lit != o.lit) continue;
-      if (near(c.a, o.a) || near(c.a, o.b) || near(c.b, o.a) || near(c.b, o.b))
-        out[i][n++] = static_cast<std::int32_t>(j);
-    }
-  }
-  return out;
-}
-
-float exposure_from_image(const cv::Mat3b& bgr) {
-  if (bgr.empty()) return 1.0f;
-  // Every 8th pixel of every 8th row is plenty for a mean.
-  double sum = 0.0;
-  std::size_t n = 0;
-  for (int y = 0; y < bgr.rows; y += 8)
-    for (int x = 0; x < bgr.cols; x += 8) {
-      const cv::Vec3b& c = bgr(y, x);
-      sum += 0.114 * c[0] + 0.587 * c[1] + 0.299 * c[2];
-      ++n;
-    }
-  // The square root keeps a dark room's skin readable while still following its brightness.
-  return static_cast<float>(std::clamp(std::sqrt(sum / static_cast<double>(n) / 118.0), 0.3, 1.5));
-}
-
 struct BodyPass::Gl {
   GLuint body = 0, shadow = 0;
   GLuint vao = 0, corners = 0, instances = 0, ubo = 0, neighbours_ubo = 0;
   GLuint empty_vao = 0, depth_tex = 0;
   cv::Size depth_size;
   bool has_scene_depth = false;
+  cv::Mat1f scene_depth;  // the last set_scene_depth's (shares its data)
+  // Per 16x16 tile of the scene depth its nearest and farthest window depth, made on the first
+  // contact shadow drawn after set_scene_depth.
+  cv::Mat2f depth_tiles;
+  bool tiles_valid = false;
   std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
   GLsizei vertices = 0;
   std::vector<Instance> instance_data, around_eye;
@@ -447,6 +416,8 @@ BodyPass::~BodyPass() = default;  // the GL objects go with the context
 void BodyPass::set_scene_depth(const cv::Mat1f& window_depth) {
   Gl& g = *gl_;
   g.has_scene_depth = !window_depth.empty();
+  g.scene_depth = window_depth;
+  g.tiles_valid = false;
   if (!g.has_scene_depth) return;
   glBindTexture(GL_TEXTURE_2D, g.depth_tex);
   if (window_depth.size() != g.depth_size) {
@@ -478,19 +449,27 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glDepthMask(GL_FALSE);
   glEnable(GL_BLEND);
   glBlendFunc(GL_DST_COLOR, GL_ZERO);  // multiplies what is there
+  if (!g.tiles_valid) {
+    depth_tiles(g.scene_depth, g.depth_tiles);
+    g.tiles_valid = true;
+  }
   for (const glm::dvec3& tip_right : fingertips) {
     const glm::dvec3 tip = tip_right - p_RightEye;
     if (!finite(tip) || tip.z <= StereoRenderer::kNear_m + kShadowReach_m) continue;
     // The reach's ball on screen, a little generously (the ball's centre is nearer the eye than
-    // the nearest point of the surface it shades).
+    // the nearest point of the surface it shades), cut to the tiles whose depths reach into the
+    // ball's: a hand in the air shades nothing and costs nothing.
     const double u = k.fx * tip.x / tip.z + k.cx, v = k.fy * tip.y / tip.z + k.cy;
     const double half = k.fx * kShadowReach_m / (tip.z - kShadowReach_m) + 2.0;
+    const cv::Rect r = tiles_within(
+        g.depth_tiles, cv::Rect2d(u - half, v - half, 2.0 * half + 1.0, 2.0 * half + 1.0),
+        window_depth_of(tip.z - kShadowReach_m), window_depth_of(tip.z + kShadowReach_m));
+    if (r.empty()) continue;
     const auto ndc = [](double px, int size) {
       return static_cast<float>(std::clamp(2.0 * px / size - 1.0, -1.0, 1.0));
     };
-    glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(u - half, k.width),
-                ndc(v - half, k.height), ndc(u + half + 1.0, k.width),
-                ndc(v + half + 1.0, k.height));
+    glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(r.x, k.width), ndc(r.y, k.height),
+                ndc(r.br().x, k.width), ndc(r.br().y, k.height));
     glUniform3f(glGetUniformLocation(g.shadow, "u_tip"), static_cast<float>(tip.x),
                 static_cast<float>(tip.y), static_cast<float>(tip.z));
     glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);

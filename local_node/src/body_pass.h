@@ -58,6 +58,16 @@ class BodyUpsample {
 cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
                         std::span<const Capsule> capsules, int pad_px);
 
+// The window depth (0 near .. 1 far, as the renderer's depth buffer holds it) of a point z_m
+// ahead of the eye, clamped to the near and far planes.
+double window_depth_of(double z_m);
+// Per kDepthTile x kDepthTile tile of `window_depth` its nearest and farthest value.
+inline constexpr int kDepthTile = 16;
+void depth_tiles(const cv::Mat1f& window_depth, cv::Mat2f& tiles);
+// The pixels of `rect_px` in the tiles holding a depth in [lo, hi] (their bounding box); empty
+// if none.
+cv::Rect tiles_within(const cv::Mat2f& tiles, const cv::Rect2d& rect_px, double lo, double hi);
+
 class BodyPass {
  public:
   BodyPass();  // compiles the shaders; the GL context must be current
