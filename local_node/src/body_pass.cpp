@@ -348,6 +348,8 @@ struct BodyPass::Gl {
   // contact shadow drawn after set_scene_depth.
   cv::Mat2f depth_tiles;
   bool tiles_valid = false;
+  bool depth_uploaded = false;  // scene_depth in depth_tex
+  void upload_scene_depth();
   std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
   GLsizei vertices = 0;
   std::vector<Instance> instance_data, around_eye;
@@ -418,22 +420,28 @@ void BodyPass::set_scene_depth(const cv::Mat1f& window_depth) {
   g.has_scene_depth = !window_depth.empty();
   g.scene_depth = window_depth;
   g.tiles_valid = false;
-  if (!g.has_scene_depth) return;
-  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
-  if (window_depth.size() != g.depth_size) {
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, window_depth.cols, window_depth.rows, 0, GL_RED,
-                 GL_FLOAT, nullptr);
-    g.depth_size = window_depth.size();
+  g.depth_uploaded = false;
+}
+
+// The scene depth into its texture (bound to the active unit) on its first use after
+// set_scene_depth: with the hands in the air and the body at full resolution nothing reads it.
+void BodyPass::Gl::upload_scene_depth() {
+  glBindTexture(GL_TEXTURE_2D, depth_tex);
+  if (depth_uploaded) return;
+  if (scene_depth.size() != depth_size) {
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, scene_depth.cols, scene_depth.rows, 0, GL_RED, GL_FLOAT,
+                 nullptr);
+    depth_size = scene_depth.size();
   }
-  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, window_depth.cols, window_depth.rows, GL_RED, GL_FLOAT,
-                  window_depth.data);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, scene_depth.cols, scene_depth.rows, GL_RED, GL_FLOAT,
+                  scene_depth.data);
+  depth_uploaded = true;
 }
 
 void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
                                     std::span<const glm::dvec3> fingertips) {
   Gl& g = *gl_;
   if (fingertips.empty() || !g.has_scene_depth) return;
-  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
   glUseProgram(g.shadow);
   glUniform1i(glGetUniformLocation(g.shadow, "u_depth"), 0);
   glUniform4f(glGetUniformLocation(g.shadow, "u_k"), static_cast<float>(k.fx),
@@ -470,6 +478,7 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
     };
     glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(r.x, k.width), ndc(r.y, k.height),
                 ndc(r.br().x, k.width), ndc(r.br().y, k.height));
+    g.upload_scene_depth();
     glUniform3f(glGetUniformLocation(g.shadow, "u_tip"), static_cast<float>(tip.x),
                 static_cast<float>(tip.y), static_cast<float>(tip.z));
     glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
@@ -554,9 +563,11 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
   }
   glDisable(GL_CULL_FACE);
   glBindVertexArray(0);
-  if (divisor > 1)
+  if (divisor > 1) {
+    if (g.has_scene_depth) g.upload_scene_depth();
     g.upsample->composite(divisor, body_bounds_px(k, p_RightEye, capsules, divisor + 1),
                           g.has_scene_depth ? g.depth_tex : 0);
+  }
 }
 
 }  // namespace telex::local
