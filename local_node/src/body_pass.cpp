@@ -337,47 +337,20 @@ double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.r
 
 }  // namespace
 
-std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
-    std::span<const Capsule> capsules) {
-  constexpr double kSameEnd_m = 1e-3;
-  const auto near = [](const glm::dvec3& p, const glm::dvec3& q) {
-    return glm::length(p - q) < kSameEnd_m;
-  };
-  std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> out(capsules.size());
-  for (std::size_t i = 0; i < capsules.size(); ++i) {
-    out[i].fill(-1);
-    std::size_t n = 0;
-    const Capsule& c = capsules[i];
-    for (std::size_t j = 0; j < capsules.size() && n < kMaxBlendNeighbours; ++j) {
-      const Capsule& o = capsules[j];
-      if (j == i || c.lit != o.lit) continue;
-      if (near(c.a, o.a) || near(c.a, o.b) || near(c.b, o.a) || near(c.b, o.b))
-        out[i][n++] = static_cast<std::int32_t>(j);
-    }
-  }
-  return out;
-}
-
-float exposure_from_image(const cv::Mat3b& bgr) {
-  if (bgr.empty()) return 1.0f;
-  // Every 8th pixel of every 8th row is plenty for a mean.
-  double sum = 0.0;
-  std::size_t n = 0;
-  for (int y = 0; y < bgr.rows; y += 8)
-    for (int x = 0; x < bgr.cols; x += 8) {
-      const cv::Vec3b& c = bgr(y, x);
-      sum += 0.114 * c[0] + 0.587 * c[1] + 0.299 * c[2];
-      ++n;
-    }
-  // The square root keeps a dark room's skin readable while still following its brightness.
-  return static_cast<float>(std::clamp(std::sqrt(sum / static_cast<double>(n) / 118.0), 0.3, 1.5));
-}
-
 struct BodyPass::Gl {
   GLuint body = 0, shadow = 0;
   GLuint vao = 0, corners = 0, instances = 0, ubo = 0, neighbours_ubo = 0;
   GLuint empty_vao = 0, depth_tex = 0;
   cv::Size depth_size;
+  bool has_scene_depth = false;
+  cv::Mat1f scene_depth;  // the last set_scene_depth's (shares its data)
+  // Per 16x16 tile of the scene depth its nearest and farthest window depth, made on the first
+  // contact shadow drawn after set_scene_depth.
+  cv::Mat2f depth_tiles;
+  bool tiles_valid = false;
+  bool depth_uploaded = false;  // scene_depth in depth_tex
+  void upload_scene_depth();
+  std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
   GLsizei vertices = 0;
   std::vector<Instance> instance_data, around_eye;
   std::vector<float> caps;
@@ -442,19 +415,33 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
 
 BodyPass::~BodyPass() = default;  // the GL objects go with the context
 
-void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                                    std::span<const glm::dvec3> fingertips,
-                                    const cv::Mat1f& window_depth) {
-  if (fingertips.empty() || window_depth.empty()) return;
+void BodyPass::set_scene_depth(const cv::Mat1f& window_depth) {
   Gl& g = *gl_;
-  glBindTexture(GL_TEXTURE_2D, g.depth_tex);
-  if (window_depth.size() != g.depth_size) {
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, window_depth.cols, window_depth.rows, 0, GL_RED,
-                 GL_FLOAT, nullptr);
-    g.depth_size = window_depth.size();
+  g.has_scene_depth = !window_depth.empty();
+  g.scene_depth = window_depth;
+  g.tiles_valid = false;
+  g.depth_uploaded = false;
+}
+
+// The scene depth into its texture (bound to the active unit) on its first use after
+// set_scene_depth: with the hands in the air and the body at full resolution nothing reads it.
+void BodyPass::Gl::upload_scene_depth() {
+  glBindTexture(GL_TEXTURE_2D, depth_tex);
+  if (depth_uploaded) return;
+  if (scene_depth.size() != depth_size) {
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, scene_depth.cols, scene_depth.rows, 0, GL_RED, GL_FLOAT,
+                 nullptr);
+    depth_size = scene_depth.size();
   }
-  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, window_depth.cols, window_depth.rows, GL_RED, GL_FLOAT,
-                  window_depth.data);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, scene_depth.cols, scene_depth.rows, GL_RED, GL_FLOAT,
+                  scene_depth.data);
+  depth_uploaded = true;
+}
+
+void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                                    std::span<const glm::dvec3> fingertips) {
+  Gl& g = *gl_;
+  if (fingertips.empty() || !g.has_scene_depth) return;
   glUseProgram(g.shadow);
   glUniform1i(glGetUniformLocation(g.shadow, "u_depth"), 0);
   glUniform4f(glGetUniformLocation(g.shadow, "u_k"), static_cast<float>(k.fx),
@@ -470,19 +457,28 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glDepthMask(GL_FALSE);
   glEnable(GL_BLEND);
   glBlendFunc(GL_DST_COLOR, GL_ZERO);  // multiplies what is there
+  if (!g.tiles_valid) {
+    depth_tiles(g.scene_depth, g.depth_tiles);
+    g.tiles_valid = true;
+  }
   for (const glm::dvec3& tip_right : fingertips) {
     const glm::dvec3 tip = tip_right - p_RightEye;
     if (!finite(tip) || tip.z <= StereoRenderer::kNear_m + kShadowReach_m) continue;
     // The reach's ball on screen, a little generously (the ball's centre is nearer the eye than
-    // the nearest point of the surface it shades).
+    // the nearest point of the surface it shades), cut to the tiles whose depths reach into the
+    // ball's: a hand in the air shades nothing and costs nothing.
     const double u = k.fx * tip.x / tip.z + k.cx, v = k.fy * tip.y / tip.z + k.cy;
     const double half = k.fx * kShadowReach_m / (tip.z - kShadowReach_m) + 2.0;
+    const cv::Rect r = tiles_within(
+        g.depth_tiles, cv::Rect2d(u - half, v - half, 2.0 * half + 1.0, 2.0 * half + 1.0),
+        window_depth_of(tip.z - kShadowReach_m), window_depth_of(tip.z + kShadowReach_m));
+    if (r.empty()) continue;
     const auto ndc = [](double px, int size) {
       return static_cast<float>(std::clamp(2.0 * px / size - 1.0, -1.0, 1.0));
     };
-    glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(u - half, k.width),
-                ndc(v - half, k.height), ndc(u + half + 1.0, k.width),
-                ndc(v + half + 1.0, k.height));
+    glUniform4f(glGetUniformLocation(g.shadow, "u_rect"), ndc(r.x, k.width), ndc(r.y, k.height),
+                ndc(r.br().x, k.width), ndc(r.br().y, k.height));
+    g.upload_scene_depth();
     glUniform3f(glGetUniformLocation(g.shadow, "u_tip"), static_cast<float>(tip.x),
                 static_cast<float>(tip.y), static_cast<float>(tip.z));
     glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
@@ -493,8 +489,8 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glBindVertexArray(0);
 }
 
-void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightEye,
-                         std::span<const Capsule> capsules, float exposure) {
+void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure, int divisor) {
   Gl& g = *gl_;
   if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
   const auto neighbours = blend_neighbours(capsules);
@@ -526,6 +522,12 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   const std::size_t outside = g.instance_data.size();
   g.instance_data.insert(g.instance_data.end(), g.around_eye.begin(), g.around_eye.end());
   if (g.instance_data.empty()) return;
+  if (divisor > 1 && !g.upsample) g.upsample = std::make_unique<BodyUpsample>();
+  const Intrinsics k_body = divisor > 1 ? g.upsample->begin(k, divisor) : k;
+  const glm::mat4 projection =
+      projection_from_intrinsics(k_body, StereoRenderer::kNear_m, StereoRenderer::kFar_m);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
   glUseProgram(g.body);
   glUniformMatrix4fv(glGetUniformLocation(g.body, "u_projection"), 1, GL_FALSE,
                      glm::value_ptr(projection));
@@ -561,6 +563,11 @@ void BodyPass::draw_body(const glm::mat4& projection, const glm::dvec3& p_RightE
   }
   glDisable(GL_CULL_FACE);
   glBindVertexArray(0);
+  if (divisor > 1) {
+    if (g.has_scene_depth) g.upload_scene_depth();
+    g.upsample->composite(divisor, body_bounds_px(k, p_RightEye, capsules, divisor + 1),
+                          g.has_scene_depth ? g.depth_tex : 0);
+  }
 }
 
 }  // namespace telex::local

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <span>
 #include <vector>
 
@@ -28,6 +29,45 @@ std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
 // picture lights the skin as designed), clamped to [0.3, 1.5]; 1 with no image.
 float exposure_from_image(const cv::Mat3b& bgr);
 
+// The body marched at 1/divisor of the eye's resolution into an offscreen target (colour with
+// coverage, depth) and composited over the eye: each of the four low-resolution samples around an
+// eye pixel counts only where it is nearer than the remote depth at that pixel, and the kept ones
+// blend bilinearly.
+class BodyUpsample {
+ public:
+  BodyUpsample();  // the GL context must be current
+  ~BodyUpsample();
+  BodyUpsample(const BodyUpsample&) = delete;
+  BodyUpsample& operator=(const BodyUpsample&) = delete;
+
+  // Binds the low-resolution target for the eye `k` (cleared: no body, far) and returns its
+  // intrinsics; remembers the framebuffer and viewport bound before.
+  Intrinsics begin(const Intrinsics& k, int divisor);
+  // Back to the framebuffer bound at begin(), and the body over it within `bounds_px` (eye
+  // pixels, rows top-down). `scene_depth`: the eye's remote window depths (an R32F texture at the
+  // eye's size), 0 for none.
+  void composite(int divisor, const cv::Rect& bounds_px, unsigned scene_depth);
+
+ private:
+  struct Gl;
+  std::unique_ptr<Gl> gl_;
+};
+
+// Eye pixels (rows top-down) that hold what the body pass can draw of the capsules' boxes (1.2
+// times the larger radius around each segment) in front of the near plane, padded by `pad_px`.
+cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                        std::span<const Capsule> capsules, int pad_px);
+
+// The window depth (0 near .. 1 far, as the renderer's depth buffer holds it) of a point z_m
+// ahead of the eye, clamped to the near and far planes.
+double window_depth_of(double z_m);
+// Per kDepthTile x kDepthTile tile of `window_depth` its nearest and farthest value.
+inline constexpr int kDepthTile = 16;
+void depth_tiles(const cv::Mat1f& window_depth, cv::Mat2f& tiles);
+// The pixels of `rect_px` in the tiles holding a depth in [lo, hi] (their bounding box); empty
+// if none.
+cv::Rect tiles_within(const cv::Mat2f& tiles, const cv::Rect2d& rect_px, double lo, double hi);
+
 class BodyPass {
  public:
   BodyPass();  // compiles the shaders; the GL context must be current
@@ -35,13 +75,17 @@ class BodyPass {
   BodyPass(const BodyPass&) = delete;
   BodyPass& operator=(const BodyPass&) = delete;
 
+  // The eye's remote depth for the passes below: the depth buffer's content (window depths, rows
+  // top-down); an empty image: none.
+  void set_scene_depth(const cv::Mat1f& window_depth);
   // Darkens the framebuffer's colour where the remote surface lies near a fingertip.
-  // `window_depth` is the eye's depth buffer content (window depths, rows top-down).
   void draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                            std::span<const glm::dvec3> fingertips, const cv::Mat1f& window_depth);
-  // The body into the bound framebuffer, depth-tested against what it holds.
-  void draw_body(const glm::mat4& projection, const glm::dvec3& p_RightEye,
-                 std::span<const Capsule> capsules, float exposure);
+                            std::span<const glm::dvec3> fingertips);
+  // The body into the bound framebuffer, hidden where the remote depth is nearer. `divisor` > 1
+  // marches it at 1/divisor of the eye's resolution (BodyUpsample); 1 draws it straight in,
+  // depth-tested against the bound depth buffer.
+  void draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                 std::span<const Capsule> capsules, float exposure, int divisor = 1);
 
   static constexpr std::size_t kMaxCapsules = 256;  // more are not drawn
 

@@ -86,6 +86,7 @@ struct StereoRenderer::Impl {
   std::vector<float> window_depth;  // by depth in mm
   cv::Mat1f depth_upload;
   std::unique_ptr<BodyPass> body;
+  int body_divisor = 0;  // 0: by the eye's width
   cv::Mat4b color_upload, readback;
 
   void init_egl() {
@@ -195,6 +196,13 @@ StereoRenderer::~StereoRenderer() {
   // No eglTerminate: the display is shared with any other renderer in the process.
 }
 
+void StereoRenderer::set_body_divisor(int divisor) {
+  if (divisor < 0 || divisor > 8)
+    throw std::invalid_argument("stereo view: body divisor " + std::to_string(divisor) +
+                                " is not in 0..8");
+  impl_->body_divisor = divisor;
+}
+
 std::string StereoRenderer::gl_renderer() const {
   const auto* s = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   return s ? s : "";
@@ -245,13 +253,12 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
   glEnable(GL_DEPTH_TEST);
   glDisable(GL_CULL_FACE);
 
-  const glm::mat4 projection = projection_from_intrinsics(eye.k, kNear_m, kFar_m);
-  if (has_depth)
-    g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips, g.depth_upload);
+  g.body->set_scene_depth(has_depth ? g.depth_upload : cv::Mat1f());
+  g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips);
   // The body, hidden where the remote scene is nearer.
-  glDepthFunc(GL_LESS);
-  g.body->draw_body(projection, eye.p_RightEye, capsules,
-                    exposure_from_image(has_color ? eye.background : cv::Mat3b()));
+  g.body->draw_body(eye.k, eye.p_RightEye, capsules,
+                    exposure_from_image(has_color ? eye.background : cv::Mat3b()),
+                    g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
 
   if (!eye.read_back) return {};
   g.readback.create(size);

@@ -45,19 +45,22 @@ cv::Point pixel(const Intrinsics& k, const glm::dvec3& p) {
           static_cast<int>(std::lround(k.fy * p.y / p.z + k.cy))};
 }
 
-StereoViewImages render_hand(StereoView& view, const HandState& hand, cv::Vec3b background) {
+StereoViewImages render_hand(StereoView& view, const HandState& hand, cv::Vec3b background,
+                             cv::Size eye_size = {}) {
   StereoViewInputs in;
   in.k = kinect_v1_intrinsics(640, 480);
+  in.eye_size = eye_size;
   in.hand = hand;
   in.eye_bgr = {cv::Mat3b(480, 640, background), cv::Mat3b(480, 640, background)};
   return view.render(in);
 }
 
-TEST(StereoBody, AFlatHandShowsFiveFingertipsAsFiveSeparateBlobs) {
-  StereoView view(640, 480);
+// At 640x480 the body is marched at the eye's resolution, at 1280x720 at half of it.
+void expect_five_separate_fingertips(cv::Size eye_size) {
+  StereoView view(eye_size.width, eye_size.height);
   const HandState hand = flat_hand();
-  const StereoViewImages v = render_hand(view, hand, {118, 118, 118});
-  const Intrinsics k = kinect_v1_intrinsics(640, 480);
+  const StereoViewImages v = render_hand(view, hand, {118, 118, 118}, eye_size);
+  const Intrinsics k = eye_intrinsics(kinect_v1_intrinsics(640, 480), eye_size);
   // Skin pixels within 0.6 of the fingers' spacing of any fingertip: discs of neighbouring tips
   // overlap, so fingers joined by skin (a mitten) would make one component of two tips.
   std::array<cv::Point, kFingerCount> tips{};
@@ -81,6 +84,11 @@ TEST(StereoBody, AFlatHandShowsFiveFingertipsAsFiveSeparateBlobs) {
     seen.insert(label);
   }
   EXPECT_EQ(seen.size(), kFingerCount) << "fingertips share a blob";
+}
+
+TEST(StereoBody, AFlatHandShowsFiveFingertipsAsFiveSeparateBlobs) {
+  expect_five_separate_fingertips({640, 480});
+  expect_five_separate_fingertips({1280, 720});
 }
 
 TEST(StereoBody, TheSkinIsLitToTheVideosBrightness) {

@@ -7,6 +7,7 @@
 #include <epoxy/gl.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -59,6 +60,42 @@ TEST(StereoRenderer, TheRemoteSceneHidesAFingertipBehindItInBothEyes) {
   const cv::Mat3b img =
       r.render(open, std::vector<Capsule>{{{0, 0, 1.0}, {0, 0, 1.0}, 0.012, skin}});
   EXPECT_NE(img(240, 320), open.background(240, 320));
+}
+
+// A 1280x720 eye marches the body at half its resolution and composites it: the remote depth must
+// still hide it to the eye pixel, the eye's own image must stay whole (the very first render
+// included), and the body must land where the intrinsics put it.
+TEST(StereoRenderer, AtHalfTheBodysResolutionTheSceneStillHidesItToThePixel) {
+  for (const int divisor : {2, 3}) {
+    StereoRenderer r(640, 480);
+    r.set_body_divisor(divisor);
+    // A box face at 0.8 m over the eye's left half, a wall at 2 m on the right; a ball at 1 m
+    // across the edge (16 px radius).
+    cv::Mat1w depth(480, 640, std::uint16_t{2000});
+    depth.colRange(0, 320).setTo(800);
+    const EyeView e = eye(false, depth);
+    const glm::dvec3 c{0.0, 0.0, 1.0};
+    const cv::Point2d px = project(e, c);
+    const std::vector<Capsule> body{{c, c, 0.03, {150, 170, 230}}};
+    const cv::Mat3b img = r.render(e, body);
+    const int row = static_cast<int>(px.y);
+    EXPECT_EQ(img(10, 10), e.background(10, 10)) << divisor;
+    EXPECT_EQ(img(470, 630), e.background(470, 630)) << divisor;
+    for (int x = 300; x < 320; ++x) EXPECT_EQ(img(row, x), e.background(row, x)) << x;
+    for (int x = 320; x < static_cast<int>(px.x) + 10; ++x)
+      EXPECT_GT(img(row, x)[2], img(row, x)[0] + 25) << "skin at " << x << ", divisor " << divisor;
+    // The ball's bottom edge (in its shadow side): its lowest pixel within 3/4 of a low-resolution
+    // pixel of the projection's (the bilinear blend reaches out that far).
+    const int col = static_cast<int>(px.x) + 8;
+    int lowest = -1;
+    for (int y = row; y < 480; ++y)
+      if (img(y, col) != e.background(y, col)) lowest = y;
+    const double dx = (col - e.k.cx) / e.k.fx;
+    const double half_chord = std::sqrt(0.03 * 0.03 - dx * dx * 1.0) * e.k.fy;
+    EXPECT_NEAR(lowest, px.y + half_chord, 0.75 * divisor) << divisor;
+  }
+  StereoRenderer r(640, 480);
+  EXPECT_THROW(r.set_body_divisor(9), std::invalid_argument);
 }
 
 // Centroid of the pixels that differ from the background.

@@ -59,6 +59,28 @@ TEST(Warp, MeshTrianglesDropTheCellsAcrossADepthStepOrAHole) {
   EXPECT_EQ(indices.size(), 3u * (2 * 8 * 6 - 6));
 }
 
+TEST(Warp, SmoothBlocksOfCellsMergeAndOnesWithAJumpInsideSplit) {
+  // 64x48 at a step of 8 (8 x 6 cells) in blocks of 2 x 2 cells: 4 x 3 blocks, 2 triangles each.
+  cv::Mat1w depth(48, 64, std::uint16_t{1000});
+  std::vector<std::uint32_t> indices;
+  mesh_triangles(depth, 8, 0.1, indices, 2);
+  EXPECT_EQ(indices.size(), 3u * 2 * 4 * 3);
+  // A nearer spot inside block (1, 1) (pixels 16..32), away from every vertex: the block is drawn
+  // as its four cells, whose corners see no jump.
+  depth(cv::Rect(20, 20, 3, 3)).setTo(500);
+  mesh_triangles(depth, 8, 0.1, indices, 2);
+  EXPECT_EQ(indices.size(), 3u * (2 * 11 + 2 * 4));
+  // Over the block's middle vertex (pixel 24, 24; vertex 3 * 9 + 3): the six triangles round it
+  // drop, the other blocks stay merged.
+  depth(cv::Rect(23, 23, 3, 3)).setTo(500);
+  mesh_triangles(depth, 8, 0.1, indices, 2);
+  EXPECT_EQ(indices.size(), 3u * (2 * 11 + 2 * 4 - 6));
+  EXPECT_EQ(std::count(indices.begin(), indices.end(), 30u), 0);
+  // A block at the grid's end with too few cells (here 64x40: 5 rows of cells) stays fine.
+  mesh_triangles(cv::Mat1w(40, 64, std::uint16_t{1000}), 8, 0.1, indices, 2);
+  EXPECT_EQ(indices.size(), 3u * (2 * 4 * 2 + 2 * 8));
+}
+
 TEST(Warp, AStillPoseGivesTheCaptureBackWithoutOutlines) {
   const Scene s;
   const Intrinsics k = kinect_v1_intrinsics(640, 480);
@@ -156,6 +178,7 @@ TEST(Warp, TheBorderTheCaptureDidNotSeeShowsThePreviousFrame) {
 TEST(Warp, BadSizesAndOptionsNameThemselves) {
   EXPECT_THROW(DepthWarp(0, 480), std::invalid_argument);
   EXPECT_THROW(DepthWarp(640, 480, {.grid_step_px = 0}), std::invalid_argument);
+  EXPECT_THROW(DepthWarp(640, 480, {.merge_cells = 0}), std::invalid_argument);
   DepthWarp warp(64, 48, {});
   const Intrinsics k = kinect_v1_intrinsics(64, 48);
   EXPECT_THROW(warp.warp(cv::Mat3b(48, 64), cv::Mat1w(40, 64), k, {}), std::invalid_argument);

@@ -18,7 +18,9 @@ namespace {
 void BM_WarpEye(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   const Intrinsics k = kinect_v1_intrinsics(640, 480).scaled(w, h);
-  DepthWarp warp(w, h, {.grid_step_px = static_cast<int>(state.range(2))});
+  DepthWarp warp(w, h,
+                 {.grid_step_px = static_cast<int>(state.range(2)),
+                  .merge_cells = static_cast<int>(state.range(3))});
   cv::Mat3b image(h, w);
   cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
   cv::Mat1w depth(h, w);
@@ -34,13 +36,18 @@ void BM_WarpEye(benchmark::State& state) {
     benchmark::DoNotOptimize(out.bgr.data[0]);
   }
   std::vector<std::uint32_t> indices;
-  mesh_triangles(depth, warp.options().grid_step_px, warp.options().max_depth_step_ratio, indices);
+  mesh_triangles(depth, warp.options().grid_step_px, warp.options().max_depth_step_ratio, indices,
+                 warp.options().merge_cells);
   state.counters["triangles"] = static_cast<double>(indices.size() / 3);
 }
 BENCHMARK(BM_WarpEye)
-    ->Args({1280, 720, 8})
-    ->Args({1280, 720, 4})
-    ->Args({640, 480, 8})
+    ->ArgNames({"w", "h", "grid_px", "merge"})
+    ->Args({1280, 720, 8, 2})
+    ->Args({1280, 720, 8, 4})
+    ->Args({1280, 720, 8, 1})
+    ->Args({1280, 720, 16, 1})
+    ->Args({1280, 720, 4, 1})
+    ->Args({640, 480, 8, 2})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

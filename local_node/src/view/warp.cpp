@@ -138,35 +138,68 @@ glm::mat3 to_float(const glm::dmat3& m) { return glm::mat3(m); }
 }  // namespace
 
 void mesh_triangles(const cv::Mat1w& depth_mm, int step, double max_depth_step_ratio,
-                    std::vector<std::uint32_t>& indices) {
+                    std::vector<std::uint32_t>& indices, int merge) {
   indices.clear();
   const int w = depth_mm.cols, h = depth_mm.rows;
   if (w < 2 || h < 2 || step < 1) return;
   const int vx = (w - 1 + step - 1) / step + 1, vy = (h - 1 + step - 1) / step + 1;
+  const int cells_x = vx - 1, cells_y = vy - 1;
   const auto ratio = static_cast<float>(max_depth_step_ratio);
-  std::vector<float> row0(static_cast<std::size_t>(vx)), row1(row0.size());
-  const auto sample_row = [&](int gy, std::vector<float>& row) {
-    const std::uint16_t* d = depth_mm.ptr<std::uint16_t>(std::min(gy * step, h - 1));
-    for (int gx = 0; gx < vx; ++gx)
-      row[static_cast<std::size_t>(gx)] = d[std::min(gx * step, w - 1)];
+  const auto sample = [&](int gx, int gy) -> float {
+    return depth_mm(std::min(gy * step, h - 1), std::min(gx * step, w - 1));
   };
   const auto keep = [ratio](float a, float b, float c) {
     const float lo = std::min({a, b, c}), hi = std::max({a, b, c});
     return lo > 0.0f && hi - lo <= ratio * lo;
   };
-  sample_row(0, row0);
-  for (int gy = 0; gy + 1 < vy; ++gy) {
-    sample_row(gy + 1, row1);
-    for (int gx = 0; gx + 1 < vx; ++gx) {
-      const auto i = static_cast<std::size_t>(gx);
-      const float z00 = row0[i], z10 = row0[i + 1], z01 = row1[i], z11 = row1[i + 1];
-      const auto v00 = static_cast<std::uint32_t>(gy * vx + gx), v10 = v00 + 1,
-                 v01 = v00 + static_cast<std::uint32_t>(vx), v11 = v01 + 1;
-      if (keep(z00, z10, z11)) indices.insert(indices.end(), {v00, v10, v11});
-      if (keep(z00, z11, z01)) indices.insert(indices.end(), {v00, v11, v01});
-    }
-    std::swap(row0, row1);
+  const auto vertex = [vx](int gx, int gy) { return static_cast<std::uint32_t>(gy * vx + gx); };
+  // One cell of `size` grid steps from (gx, gy): two triangles, each kept by its corners.
+  const auto cell = [&](int gx, int gy, int size) {
+    const float z00 = sample(gx, gy), z10 = sample(gx + size, gy), z01 = sample(gx, gy + size),
+                z11 = sample(gx + size, gy + size);
+    const std::uint32_t v00 = vertex(gx, gy), v10 = vertex(gx + size, gy),
+                        v01 = vertex(gx, gy + size), v11 = vertex(gx + size, gy + size);
+    if (keep(z00, z10, z11)) indices.insert(indices.end(), {v00, v10, v11});
+    if (keep(z00, z11, z01)) indices.insert(indices.end(), {v00, v11, v01});
+  };
+  if (merge <= 1) {
+    for (int gy = 0; gy < cells_y; ++gy)
+      for (int gx = 0; gx < cells_x; ++gx) cell(gx, gy, 1);
+    return;
   }
+  // Each cell's depth range over all its pixels (its border included): a coarse cell is drawn
+  // whole only where no pixel inside it jumps or lacks depth, so an edge between its corners
+  // still splits it into the fine cells, whose triangles drop there and open the hole.
+  std::vector<float> lo(static_cast<std::size_t>(cells_x * cells_y)), hi(lo.size());
+  for (int gy = 0; gy < cells_y; ++gy)
+    for (int gx = 0; gx < cells_x; ++gx) {
+      float l = 65536.0f, u = 0.0f;
+      for (int y = gy * step; y <= std::min((gy + 1) * step, h - 1); ++y) {
+        const std::uint16_t* row = depth_mm.ptr<std::uint16_t>(y);
+        for (int x = gx * step; x <= std::min((gx + 1) * step, w - 1); ++x) {
+          l = std::min(l, static_cast<float>(row[x]));
+          u = std::max(u, static_cast<float>(row[x]));
+        }
+      }
+      lo[static_cast<std::size_t>(gy * cells_x + gx)] = l;
+      hi[static_cast<std::size_t>(gy * cells_x + gx)] = u;
+    }
+  for (int cy = 0; cy < cells_y; cy += merge)
+    for (int cx = 0; cx < cells_x; cx += merge) {
+      bool smooth = cx + merge <= cells_x && cy + merge <= cells_y;
+      float l = 65536.0f, u = 0.0f;
+      for (int gy = cy; smooth && gy < cy + merge; ++gy)
+        for (int gx = cx; gx < cx + merge; ++gx) {
+          l = std::min(l, lo[static_cast<std::size_t>(gy * cells_x + gx)]);
+          u = std::max(u, hi[static_cast<std::size_t>(gy * cells_x + gx)]);
+        }
+      if (smooth && l > 0.0f && u - l <= ratio * l) {
+        cell(cx, cy, merge);
+        continue;
+      }
+      for (int gy = cy; gy < std::min(cy + merge, cells_y); ++gy)
+        for (int gx = cx; gx < std::min(cx + merge, cells_x); ++gx) cell(gx, gy, 1);
+    }
 }
 
 RigidTransform eye_display_from_capture(const glm::dmat3& R_DisplayCapture,
@@ -357,6 +390,9 @@ DepthWarp::DepthWarp(int width, int height, WarpOptions options)
   if (options.grid_step_px < 1 || options.grid_step_px > 64)
     throw std::invalid_argument("warp: grid step " + std::to_string(options.grid_step_px) +
                                 " px is not in 1..64");
+  if (options.merge_cells < 1 || options.merge_cells > 8)
+    throw std::invalid_argument("warp: merge_cells " + std::to_string(options.merge_cells) +
+                                " is not in 1..8");
   if (!(options.max_depth_step_ratio > 0.0))
     throw std::invalid_argument("warp: the depth step ratio must be positive");
   Impl& g = *impl_;
@@ -393,7 +429,8 @@ WarpedEye DepthWarp::warp(const cv::Mat3b& eye_bgr, const cv::Mat1w& depth_mm, c
     throw std::invalid_argument("warp: the image, depth and intrinsics must be " +
                                 std::to_string(g.width) + "x" + std::to_string(g.height));
   g.upload(eye_bgr, depth_mm);
-  mesh_triangles(depth_mm, options_.grid_step_px, options_.max_depth_step_ratio, g.indices);
+  mesh_triangles(depth_mm, options_.grid_step_px, options_.max_depth_step_ratio, g.indices,
+                 options_.merge_cells);
   const int previous = g.current, now = 1 - g.current;
   glBindFramebuffer(GL_FRAMEBUFFER, g.fbo[static_cast<std::size_t>(now)]);
   glViewport(0, 0, g.width, g.height);

@@ -69,6 +69,12 @@ class StereoRenderer {
   // an OpenXR swapchain image), scaled to width x height and flipped to GL's bottom-up rows.
   void blit_to(unsigned texture, int width, int height);
 
+  // The body is ray-marched at 1/divisor of the eye's resolution and composited over the eye
+  // with the remote depth tested at every eye pixel: its marching is most of an eye's cost. 0
+  // (the default): the eye's width over 640, rounded down, so a 1280x720 eye marches the body at
+  // 640x360 and a 640x480 eye at its own size. Throws std::invalid_argument outside 0..8.
+  void set_body_divisor(int divisor);
+
   std::string gl_renderer() const;  // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
   static constexpr double kNear_m = 0.05, kFar_m = 20.0;
 

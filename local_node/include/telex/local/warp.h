@@ -33,6 +33,11 @@ struct WarpOptions {
   // One mesh vertex per this many pixels each way (1..64). llvmpipe pays per triangle: at
   // 1280x720 a step of 4 cost twice the time of 8 for no error the check could see.
   int grid_step_px = 8;
+  // Blocks of merge_cells x merge_cells grid cells without a depth jump or a hole at any of their
+  // pixels are drawn as one cell (1..8; 1: every cell on its own), while edges keep the fine grid.
+  // llvmpipe pays per triangle: at 1280x720 a block of 4 cut an eye's warp from 28.7 to 21.1 ms
+  // CPU with the ground-truth check's error unchanged (0.0136 deg).
+  int merge_cells = 4;
   // A triangle is dropped when its corners' depths differ by more than this fraction of the
   // nearest one (a slanted plane 4 px apart changes by a few percent; an occlusion edge by more).
   double max_depth_step_ratio = 0.1;
@@ -78,9 +83,11 @@ class DepthWarp {
 // The warp's triangles over a depth image: a grid with one vertex per `step` pixels each way
 // (vertex (gx, gy) is index gy * columns + gx and samples pixel min(g * step, size - 1)), two
 // triangles a cell, a triangle kept only when all its corners have depth and they differ by at
-// most max_depth_step_ratio of the nearest. Pure; `indices` is cleared and refilled.
+// most max_depth_step_ratio of the nearest. With `merge` > 1, each block of merge x merge cells
+// whose every pixel has depth within that ratio of the block's nearest is two triangles over the
+// block's corners instead. Pure; `indices` is cleared and refilled.
 void mesh_triangles(const cv::Mat1w& depth_mm, int step, double max_depth_step_ratio,
-                    std::vector<std::uint32_t>& indices);
+                    std::vector<std::uint32_t>& indices, int merge = 1);
 
 // The rigid transform between an eye's capture and display poses when the head turns about the
 // right eye's centre by R_DisplayCapture and the eye sits at p_RightEye (the right eye: 0; a left
