@@ -400,4 +400,22 @@ void apply_station_switches(StationFlags& f) {
   cfg.status_line = !f.quiet;
 }
 
+std::optional<int> parse_station_command_line(int argc, char** argv, StationFlags& flags) {
+  // The rig sets the defaults before the flags are read, so any flag given overrides it.
+  if (const auto rc =
+          cli::load_before_flags("telex-local", [&] { load_station_rig(argc, argv, flags); }))
+    return rc;
+  CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
+  cli::prepare(app, "telex-local");
+  add_station_options(app, flags);
+  if (const auto rc = cli::parse(app, argc, argv)) return rc;
+  try {
+    resolve_station_flags(flags);
+  } catch (const CLI::ParseError& e) {
+    spdlog::error("{}", e.what());
+    return cli::kUsageExit;
+  }
+  return std::nullopt;
+}
+
 }  // namespace telex::local

@@ -3,6 +3,7 @@
 // station's configuration. main.cpp parses with it; the local tests test it.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "telex/local/station.h"
@@ -31,6 +32,11 @@ struct StationFlags {
   int bilateral_radius = 0;  // set from the configuration when the options are added
   bool no_frame_parts = false, no_repair = false;
 };
+
+// telex-local's command line, as main runs it: the rig (--rig) first, then every flag parsed and
+// resolved (resolve_station_flags). Returns the exit code when the program ends here (0 after
+// --help, 2 after a usage error, already reported); nothing when it goes on.
+std::optional<int> parse_station_command_line(int argc, char** argv, StationFlags& flags);
 
 // --rig FILE (docs/RIG.md), read before the flags so any flag given overrides it. Throws
 // std::runtime_error / std::invalid_argument naming the file and the key.

@@ -3,13 +3,11 @@
 #include <signal.h>
 #include <spdlog/spdlog.h>
 
-#include <CLI/CLI.hpp>
 #include <iostream>
 #include <thread>
 
 #include "flags.h"
 #include "telex/base/realtime.h"
-#include "telex/cli/cli.h"
 #include "telex/local/display_supervisor.h"
 #include "telex/local/station.h"
 
@@ -57,20 +55,7 @@ int run_station(const StationConfig& cfg, bool json_summary) {
 int main(int argc, char** argv) {
   using namespace telex::local;
   StationFlags flags;
-  // The rig sets the defaults before the flags are read, so any flag given overrides it.
-  if (const auto rc = telex::cli::load_before_flags("telex-local",
-                                                    [&] { load_station_rig(argc, argv, flags); }))
-    return *rc;
-  CLI::App app{"telex-local: operator station (surface client, 1 kHz fingertip haptics, view)"};
-  telex::cli::prepare(app, "telex-local");
-  add_station_options(app, flags);
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
-  try {
-    resolve_station_flags(flags);
-  } catch (const CLI::ParseError& e) {
-    spdlog::error("{}", e.what());
-    return telex::cli::kUsageExit;
-  }
+  if (const auto rc = parse_station_command_line(argc, argv, flags)) return *rc;
   try {
     apply_security_flags(flags);
   } catch (const std::exception& e) {

@@ -4,6 +4,7 @@
 #include "flags.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
@@ -483,6 +484,27 @@ void resolve_remote_flags(const CLI::App& app, RemoteFlags& f) {
   f.cfg.realtime = !f.no_realtime;
   resolve_security(f);
   validate(f.cfg);
+}
+
+std::optional<int> parse_remote_command_line(int argc, char** argv, RemoteFlags& flags) {
+  // The rig is read before the flags; the flags given override what it sets.
+  if (const auto rc =
+          cli::load_before_flags("telex-remote", [&] { load_remote_rig(argc, argv, flags); }))
+    return rc;
+  CLI::App app{
+      "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
+      "operator"};
+  cli::prepare(app, "telex-remote");
+  add_remote_options(app, flags);
+  if (const auto rc = cli::parse(app, argc, argv)) return rc;
+  if (flags.rig) spdlog::info("{}", describe_rig(*flags.rig));
+  try {
+    resolve_remote_flags(app, flags);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return cli::kUsageExit;
+  }
+  return std::nullopt;
 }
 
 }  // namespace telex::remote

@@ -3,7 +3,6 @@
 // daemon's configuration. main.cpp parses with it; the remote tests test it.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -11,6 +10,10 @@
 #include "telex/common/rig.h"
 #include "telex/remote/daemon.h"
 #include "telex/remote/pipeline.h"
+
+namespace CLI {
+class App;
+}
 
 namespace telex::remote {
 
@@ -31,6 +34,11 @@ struct RemoteFlags {
   std::string psk_file, cert_file, key_file, ca_file;
   bool insecure = false;
 };
+
+// telex-remote's whole command line, as main runs it: the rig (--rig) first, then every flag parsed
+// and resolved into flags.cfg. Returns the exit code when the program ends here (0 after --help,
+// 2 after a usage error, already reported); nothing when it goes on.
+std::optional<int> parse_remote_command_line(int argc, char** argv, RemoteFlags& flags);
 
 // --rig FILE (docs/RIG.md), read before the flags so any flag given overrides it. Throws
 // std::runtime_error / std::invalid_argument naming the file and the key.

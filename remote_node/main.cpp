@@ -8,7 +8,6 @@
 
 #include "flags.h"
 #include "telex/base/realtime.h"
-#include "telex/cli/cli.h"
 #include "telex/remote/daemon.h"
 
 namespace {
@@ -36,23 +35,7 @@ void log_started(RemoteDaemon& daemon, const DaemonConfig& cfg) {
 int main(int argc, char** argv) {
   using namespace telex::remote;
   RemoteFlags flags;
-  // The rig is read before the flags; the flags given override what it sets.
-  if (const auto rc = telex::cli::load_before_flags("telex-remote",
-                                                    [&] { load_remote_rig(argc, argv, flags); }))
-    return *rc;
-  CLI::App app{
-      "telex-remote: streams filled, tiled, compressed depth (and optional stereo video) to one "
-      "operator"};
-  telex::cli::prepare(app, "telex-remote");
-  add_remote_options(app, flags);
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
-  if (flags.rig) spdlog::info("{}", describe_rig(*flags.rig));
-  try {
-    resolve_remote_flags(app, flags);
-  } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
-  }
+  if (const auto rc = parse_remote_command_line(argc, argv, flags)) return *rc;
   const DaemonConfig& cfg = flags.cfg;
 
   std::unique_ptr<RemoteDaemon> daemon;

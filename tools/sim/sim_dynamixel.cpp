@@ -6,14 +6,15 @@
 #include <iostream>
 #include <sstream>
 
-#include "telex/cli/cli.h"
+#include "telex/cli/command_line.h"
 #include "telex/sim/dynamixel_servos.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  telex::cli::Program program{
       "telex-sim-dynamixel: DYNAMIXEL Protocol 2.0 servos (X series, position mode) on a "
-      "pseudo-terminal; prints the device to give telex-remote --head dynamixel:DEV"};
-  telex::cli::prepare(app, "telex-sim-dynamixel");
+      "pseudo-terminal; prints the device to give telex-remote --head dynamixel:DEV",
+      "telex-sim-dynamixel"};
+  const telex::cli::CommandLine& app = program.command_line();
   std::string ids_text = "1,2,3";
   double duration_s = 0.0;
   int mode = telex::dynamixel::xseries::kPositionMode;
@@ -22,10 +23,10 @@ int main(int argc, char** argv) {
                  "the servos' Operating Mode at start (3 position; 4 extended position, which "
                  "telex-remote refuses)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 16));
+      ->check(telex::cli::Range(0, 16));
   telex::cli::add(app, "--duration", duration_s, "Run this long (0 = until SIGINT/SIGTERM)", "s")
-      ->check(CLI::Range(0.0, 86400.0));
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+      ->check(telex::cli::Range(0.0, 86400.0));
+  if (const auto rc = program.parse(argc, argv)) return *rc;
 
   try {
     std::vector<std::uint8_t> ids;

@@ -1,7 +1,11 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-impair: a UDP proxy that applies a rate limit and seeded loss, delay, jitter, reorder,
 // dup and corruption.
-#include <CLI/CLI.hpp>
+
+// Boost 1.74's asio.hpp uses std::exchange without including <utility>: it comes first.
+// clang-format off
+#include <utility>
+// clang-format on
 #include <array>
 #include <boost/asio.hpp>
 #include <chrono>
@@ -12,8 +16,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
+#include <string>
 
-#include "telex/cli/cli.h"
+#include "telex/cli/command_line.h"
 #include "telex/common/endpoint.h"
 #include "telex/sim/impairment.h"
 
@@ -31,18 +37,15 @@ std::int64_t monotonic_ns() {
       .count();
 }
 
-// HOST:PORT with a numeric IPv4/IPv6 address ([::1]:PORT); throws CLI::ValidationError naming
+// HOST:PORT with a numeric IPv4/IPv6 address ([::1]:PORT); throws std::invalid_argument naming
 // the flag.
 udp::endpoint parse_udp_endpoint(const std::string& s, const char* flag, bool port_zero_ok) {
-  telex::Endpoint e;
-  try {
-    e = telex::parse_endpoint(s, flag, port_zero_ok);
-  } catch (const std::invalid_argument& error) {
-    throw CLI::ValidationError(error.what());
-  }
+  const telex::Endpoint e = telex::parse_endpoint(s, flag, port_zero_ok);
   boost::system::error_code ec;
   const auto addr = asio::ip::make_address(e.host, ec);
-  if (ec) throw CLI::ValidationError(flag, "'" + e.host + "' is not a numeric IP address");
+  if (ec)
+    throw std::invalid_argument(std::string(flag) + ": '" + e.host +
+                                "' is not a numeric IP address");
   return {addr, e.port};
 }
 
@@ -215,11 +218,12 @@ class Proxy {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  telex::cli::Program program{
       "telex-sim-impair: UDP proxy between a sender and --forward that applies a rate limit and "
       "seeded loss, delay, jitter, reordering, duplication and bit corruption (both directions), "
-      "since tc netem is not available here"};
-  telex::cli::prepare(app, "telex-sim-impair");
+      "since tc netem is not available here",
+      "telex-sim-impair"};
+  const telex::cli::CommandLine& app = program.command_line();
   std::string listen_text, forward_text;
   ImpairmentConfig cfg;
   double duration_s = 0.0, stats_every_s = 0.0;
@@ -228,64 +232,64 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("--forward", forward_text, "HOST:PORT to forward to")->required();
   app.add_option("--loss", cfg.loss, "loss probability per datagram")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(telex::cli::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--delay-ms", cfg.delay_ms, "one-way delay, ms")
-      ->check(CLI::Range(0.0, 60000.0))
+      ->check(telex::cli::Range(0.0, 60000.0))
       ->capture_default_str();
   app.add_option("--jitter-ms", cfg.jitter_ms, "uniform jitter +-ms around the delay (order kept)")
-      ->check(CLI::Range(0.0, 60000.0))
+      ->check(telex::cli::Range(0.0, 60000.0))
       ->capture_default_str();
   app.add_option("--reorder", cfg.reorder, "probability that a datagram is held back")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(telex::cli::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--reorder-hold-ms", cfg.reorder_hold_ms, "how long a reordered one is held, ms")
-      ->check(CLI::Range(0.0, 60000.0))
+      ->check(telex::cli::Range(0.0, 60000.0))
       ->capture_default_str();
   app.add_option("--duplicate", cfg.duplicate, "duplication probability")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(telex::cli::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--corrupt", cfg.corrupt, "probability of flipping one random bit")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(telex::cli::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_option("--seed", cfg.seed, "random seed")->capture_default_str();
   app.add_option("--rate-limit-mbit", cfg.rate_limit_mbit,
                  "rate limit each way, Mbit/s (10^6 bit/s; 0 = none): a token bucket in front of "
                  "a bounded queue, datagrams beyond it dropped (rate_dropped)")
-      ->check(CLI::Range(0.0, 100000.0))
+      ->check(telex::cli::Range(0.0, 100000.0))
       ->capture_default_str();
   app.add_option("--rate-burst-bytes", cfg.rate_burst_bytes,
                  "the rate limit's token bucket: bytes that may pass at once")
-      ->check(CLI::Range(1.0, 1e9))
+      ->check(telex::cli::Range(1.0, 1e9))
       ->capture_default_str();
   app.add_option("--rate-queue-ms", cfg.rate_queue_ms,
                  "the rate limit's queue: the longest a datagram waits for tokens, ms; longer "
                  "waits are drops")
-      ->check(CLI::Range(0.0, 60000.0))
+      ->check(telex::cli::Range(0.0, 60000.0))
       ->capture_default_str();
   app.add_option("--rate-limit-from-s", cfg.rate_limit_from_s,
                  "the rate limit holds from this many seconds after the first datagram")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(telex::cli::Range(0.0, 1e7))
       ->capture_default_str();
   app.add_option("--rate-limit-until-s", cfg.rate_limit_until_s,
                  "... until this many (0 = to the end); must be above --rate-limit-from-s")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(telex::cli::Range(0.0, 1e7))
       ->capture_default_str();
   app.add_option("--duration", duration_s, "exit after this many seconds (0 = until a signal)")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(telex::cli::Range(0.0, 1e7))
       ->capture_default_str();
   app.add_option("--stats-every", stats_every_s, "print counters on stderr every S seconds (0 off)")
-      ->check(CLI::Range(0.0, 86400.0))
+      ->check(telex::cli::Range(0.0, 86400.0))
       ->capture_default_str();
   app.add_flag("--json-summary", json, "print the final counters as JSON on stdout");
   udp::endpoint listen_ep, forward_ep;
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+  if (const auto rc = program.parse(argc, argv)) return *rc;
   try {
     listen_ep = parse_udp_endpoint(listen_text, "--listen", true);
     forward_ep = parse_udp_endpoint(forward_text, "--forward", false);
     if (cfg.rate_limit_until_s != 0.0 && cfg.rate_limit_until_s <= cfg.rate_limit_from_s)
-      throw CLI::ValidationError("--rate-limit-until-s", "must be 0 or above --rate-limit-from-s");
-  } catch (const CLI::ValidationError& e) {
+      throw std::invalid_argument("--rate-limit-until-s: must be 0 or above --rate-limit-from-s");
+  } catch (const std::invalid_argument& e) {
     std::cerr << "telex-sim-impair: " << e.what() << "\n";
     return telex::cli::kUsageExit;
   }

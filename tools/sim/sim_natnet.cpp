@@ -5,16 +5,17 @@
 #include <iostream>
 #include <thread>
 
-#include "telex/cli/cli.h"
+#include "telex/cli/command_line.h"
 #include "telex/sim/natnet_server.h"
 
 int main(int argc, char** argv) {
   using namespace telex::local;
   using namespace telex::sim;
-  CLI::App app{
+  telex::cli::Program program{
       "telex-sim-natnet: NatNet server simulator (answers PING with server info, streams "
-      "FRAMEOFDATA with head id 1, right hand id 2, right shoulder id 3)"};
-  telex::cli::prepare(app, "telex-sim-natnet");
+      "FRAMEOFDATA with head id 1, right hand id 2, right shoulder id 3)",
+      "telex-sim-natnet"};
+  const telex::cli::CommandLine& app = program.command_line();
   NatNetServerConfig cfg;
   std::string version = "3.1";
   std::string motion = "press";
@@ -22,7 +23,7 @@ int main(int argc, char** argv) {
   bool loop = true;
   app.add_option("--natnet-version", version, "NatNet layout to stream: 2.x, 3.x or 4.x")
       ->capture_default_str()
-      ->check(CLI::Validator(
+      ->check(telex::cli::Predicate(
           [](std::string& text) -> std::string {
             try {
               natnet::parse_version(text);
@@ -33,10 +34,10 @@ int main(int argc, char** argv) {
           },
           "MAJOR.MINOR"));
   telex::cli::add(app, "--rate", cfg.rate_hz, "Frames per second", "Hz")
-      ->check(CLI::Range(1.0, 1000.0));
+      ->check(telex::cli::Range(1.0, 1000.0));
   telex::cli::add(app, "--duration", duration_s, "Stream this long, then exit (0 = until stopped)",
                   "s")
-      ->check(CLI::Range(0.0, 86400.0));
+      ->check(telex::cli::Range(0.0, 86400.0));
   app.add_option("--bind", cfg.bind_address, "address of the command socket")
       ->capture_default_str();
   app.add_option("--command-port", cfg.command_port, "command port (connect requests)")
@@ -58,8 +59,8 @@ int main(int argc, char** argv) {
                  "into (the desk frames: 0.85, synthetic:plane: 0.8); the index fingertip goes "
                  "from 0.30 m short of it to 0.04 m past it. Default: the fixed 0.25-0.55 m hand "
                  "path")
-      ->check(CLI::Range(0.35, 5.0));
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+      ->check(telex::cli::Range(0.35, 5.0));
+  if (const auto rc = program.parse(argc, argv)) return *rc;
   if (reach_m > 0.0 && motion != "press") {
     std::cerr << "telex-sim-natnet: --reach moves the press motion; it does not apply to --motion "
               << motion << "\n";

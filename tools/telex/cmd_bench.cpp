@@ -255,7 +255,7 @@ const RegisterCommand kRegister{
     "bench",
     "error against run time of the depth chain over a grid of configurations (CSV, Markdown, "
     "PNG plots)",
-    [](CLI::App& app) {
+    [](cli::CommandLine& app) {
       auto o = std::make_shared<Options>();
       if (const char* env = std::getenv("TELEX_REAL_DESK_DIR")) o->real = env;
       app.add_flag("--quick", o->quick, "small grid for CI smoke runs (under two minutes)");
@@ -268,11 +268,11 @@ const RegisterCommand kRegister{
       app.add_option("--config", o->configs,
                      "only these configurations of the grid (names as in bench.csv); repeatable")
           ->delimiter(',')
-          ->check(CLI::IsMember(config_names()));
+          ->check(cli::IsMember(config_names()));
       app.add_option("--session", o->sessions,
                      "a recorded session FILE.bag (telex-local --record) whose depth joins the "
                      "real-frame rows; repeatable")
-          ->check(CLI::ExistingFile);
+          ->check(cli::ExistingFile());
       return [o]() { return run(*o); };
     }};
 

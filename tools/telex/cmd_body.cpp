@@ -50,7 +50,7 @@ int run(const Options& o) {
 
 const RegisterCommand kRegister{
     "body", "The virtual body's arm solve: --check runs its ground-truth and hostile cases",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto o = std::make_shared<Options>();
       app.add_flag("--check", o->check,
                    "run the check suite (generated arms with known elbows, singular and hostile "

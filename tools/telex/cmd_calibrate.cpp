@@ -33,7 +33,7 @@
 namespace telex::tool {
 
 // cmd_calibrate_body.cpp: `body` and `glove`; the runner returns -1 when neither was parsed.
-std::function<int()> add_calibrate_operator(CLI::App& app);
+std::function<int()> add_calibrate_operator(cli::CommandLine& app);
 
 namespace {
 
@@ -431,12 +431,14 @@ int run_render(const RenderOptions& o) {
   return 0;
 }
 
-void board_flags(CLI::App& app, std::string& board, double& square_mm, bool required) {
-  auto* b = app.add_option("--board", board,
-                           "chessboard as CxR INNER corners (OpenCV's pattern size: a 10x7-square "
-                           "board is 9x6); best one side even, one odd");
-  auto* s = app.add_option("--square-mm", square_mm, "side of one square, millimetres")
-                ->check(CLI::PositiveNumber);
+void board_flags(const cli::CommandLine& app, std::string& board, double& square_mm,
+                 bool required) {
+  const auto b =
+      app.add_option("--board", board,
+                     "chessboard as CxR INNER corners (OpenCV's pattern size: a 10x7-square "
+                     "board is 9x6); best one side even, one odd");
+  const auto s = app.add_option("--square-mm", square_mm, "side of one square, millimetres")
+                     ->check(cli::PositiveNumber());
   if (required) {
     b->required();
     s->required();
@@ -448,10 +450,10 @@ const RegisterCommand kRegister{
     "Calibrate the eyes (stereo) and the depth sensor against the right eye (depth-eye) from "
     "chessboard images, the operator's arms (body) and gloves (glove), into a rig file; render "
     "boards with known answers",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       app.require_subcommand(1);
       auto so = std::make_shared<StereoOptions>();
-      CLI::App* stereo = app.add_subcommand(
+      cli::CommandLine stereo = app.add_subcommand(
           "stereo",
           "each eye's intrinsics and distortion, then the right eye's pose of the left; writes "
           "eyes.left, eyes.right, extrinsics.right_eye_from_left_eye into --out");
@@ -462,17 +464,17 @@ const RegisterCommand kRegister{
                        "glob of the right eye's images, paired in sorted "
                        "name order with --left")
           ->required();
-      board_flags(*stereo, so->board, so->square_mm, true);
+      board_flags(stereo, so->board, so->square_mm, true);
       stereo->add_option("--out", so->out, "rig file to write (created or updated)")->required();
       stereo
           ->add_option("--min-views", so->min_views,
                        "fewest pairs with the board found in both images")
-          ->check(CLI::Range(3, 1000));
+          ->check(cli::Range(3, 1000));
       stereo->add_flag("--k3", so->k3, "also estimate k3 (wide-angle lenses)");
       stereo->add_flag("--json", so->json, "print one JSON object");
 
       auto de = std::make_shared<DepthEyeOptions>();
-      CLI::App* depth_eye = app.add_subcommand(
+      cli::CommandLine depth_eye = app.add_subcommand(
           "depth-eye",
           "the depth sensor's pose in the right eye from the board seen in the sensor's IR image "
           "and the right eye at once; writes extrinsics.right_eye_from_depth into --out");
@@ -486,7 +488,7 @@ const RegisterCommand kRegister{
       depth_eye->add_option("--depth", de->depth,
                             "glob of the depth maps taken with the IR images (16-bit PNG, mm): "
                             "adds the board-plane check and the plane-only estimate");
-      board_flags(*depth_eye, de->board, de->square_mm, true);
+      board_flags(depth_eye, de->board, de->square_mm, true);
       depth_eye
           ->add_option("--rig", de->rig,
                        "rig file with eyes.right (and depth, unless --depth-intrinsics)")
@@ -498,21 +500,21 @@ const RegisterCommand kRegister{
                        "also written into --out")
           ->delimiter(',');
       depth_eye->add_option("--min-views", de->min_views, "fewest views with the board in both")
-          ->check(CLI::Range(3, 1000));
+          ->check(cli::Range(3, 1000));
       depth_eye->add_flag("--json", de->json, "print one JSON object");
 
       auto ro = std::make_shared<RenderOptions>();
-      CLI::App* render = app.add_subcommand(
+      cli::CommandLine render = app.add_subcommand(
           "render",
           "render boards with known answers (both eyes, the IR image and the depth map of a "
           "paper-like head) and truth.json, for trying the other subcommands");
       render->add_option("--out", ro->out, "directory to write into")->required();
-      board_flags(*render, ro->board, ro->square_mm, false);
+      board_flags(render, ro->board, ro->square_mm, false);
       render->add_option("--views", ro->views, "number of board poses")
-          ->check(CLI::Range(1, 10000));
+          ->check(cli::Range(1, 10000));
       render->add_option("--seed", ro->seed, "seed of the poses and the noise");
       render->add_option("--noise", ro->noise, "image noise sigma, grey levels")
-          ->check(CLI::Range(0.0, 128.0));
+          ->check(cli::Range(0.0, 128.0));
       render->add_option("--blur-px", ro->blur_px, "Gaussian blur sigma, pixels");
       render->add_option("--depth-noise-mm", ro->depth_noise_mm, "depth map noise sigma, mm");
 

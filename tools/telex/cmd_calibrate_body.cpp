@@ -307,9 +307,9 @@ int run_glove(const GloveOptions& o) {
 
 // Adds `body` and `glove` to `telex calibrate`; the returned function runs whichever was parsed
 // and returns its exit code, or -1 when neither was.
-std::function<int()> add_calibrate_operator(CLI::App& app) {
+std::function<int()> add_calibrate_operator(cli::CommandLine& app) {
   auto bo = std::make_shared<BodyOptions>();
-  CLI::App* body = app.add_subcommand(
+  cli::CommandLine body = app.add_subcommand(
       "body",
       "the operator's upper arm and forearm lengths from a few seconds of T-pose (a tracking "
       "CSV or live NatNet); writes operator.body.upper_arm_m and forearm_m into --out");
@@ -318,9 +318,9 @@ std::function<int()> add_calibrate_operator(CLI::App& app) {
   body->add_option("--natnet", bo->natnet,
                    "live Motive server: SERVER[,unicast][,local=IP][,cmd=PORT][,data=PORT]");
   body->add_option("--seconds", bo->seconds, "live: how long to record")
-      ->check(CLI::Range(0.5, 60.0));
+      ->check(cli::Range(0.5, 60.0));
   body->add_option("--settle-s", bo->settle_s, "live: time to take the pose before recording")
-      ->check(CLI::Range(0.0, 30.0));
+      ->check(cli::Range(0.0, 30.0));
   body->add_option("--rig", bo->rig, "rig file whose operator.bodies name the marker bodies");
   body->add_option("--out", bo->out, "rig file to write (created or updated; default: --rig)");
   for (auto [flag, id] :
@@ -329,16 +329,16 @@ std::function<int()> add_calibrate_operator(CLI::App& app) {
         std::pair{"--left-shoulder", &bo->left_shoulder},
         std::pair{"--left-wrist", &bo->left_wrist}, std::pair{"--left-elbow", &bo->left_elbow}})
     body->add_option(flag, *id, "rigid body id, overriding the rig's (-1: not tracked)")
-        ->check(CLI::Range(-1, 1 << 30));
+        ->check(cli::Range(-1, 1 << 30));
   body->add_option("--max-spread-mm", bo->max_spread_mm,
                    "reject when the shoulder-to-wrist distance spreads more (10th-90th percentile)")
-      ->check(CLI::Range(0.1, 200.0));
+      ->check(cli::Range(0.1, 200.0));
   body->add_option("--min-samples", bo->min_samples, "fewest frames with every body valid")
-      ->check(CLI::Range(3, 1000000));
+      ->check(cli::Range(3, 1000000));
   body->add_flag("--json", bo->json, "print one JSON object");
 
   auto go = std::make_shared<GloveOptions>();
-  CLI::App* glove = app.add_subcommand(
+  cli::CommandLine glove = app.add_subcommand(
       "glove",
       "a data glove's per-sensor range: the flat hand's values (min) and the fist's (max); "
       "writes operator.gloves.SIDE into --out");
@@ -349,19 +349,19 @@ std::function<int()> add_calibrate_operator(CLI::App& app) {
                     "live glove: 5dt-usb[:HIDPATH] | 5dt-serial:DEV[,wireless] (prompts on "
                     "stderr)");
   glove->add_option("--sensors", go->sensors, "live: the glove's sensor count (5 or 14)")
-      ->check(CLI::IsMember({5, 14}));
+      ->check(cli::IsMember({5, 14}));
   glove->add_option("--side", go->side, "which hand")
       ->required()
-      ->check(CLI::IsMember({"right", "left"}));
+      ->check(cli::IsMember({"right", "left"}));
   glove->add_option("--out", go->out, "rig file to write (created or updated)")->required();
   glove->add_option("--seconds", go->seconds, "live: how long each phase records")
-      ->check(CLI::Range(0.5, 60.0));
+      ->check(cli::Range(0.5, 60.0));
   glove->add_option("--settle-s", go->settle_s, "live: time to take each pose before recording")
-      ->check(CLI::Range(0.0, 30.0));
+      ->check(cli::Range(0.0, 30.0));
   glove
       ->add_option("--min-range-pct", go->min_range_pct,
                    "a sensor must move at least this percentage of full scale")
-      ->check(CLI::Range(0.1, 90.0));
+      ->check(cli::Range(0.1, 90.0));
   glove->add_flag("--json", go->json, "print one JSON object");
 
   return [=]() -> int {

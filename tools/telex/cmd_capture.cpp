@@ -239,19 +239,19 @@ int run_capture(const CaptureArgs& a) {
 
 const RegisterCommand kRegister{
     "capture", "save N depth frames (16-bit mm PNG) and eye images from any source",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto a = std::make_shared<CaptureArgs>();
       app.add_option("--source", a->source, "depth source spec: " + remote::depth_source_help())
           ->required();
       app.add_option(
           "--stereo", a->stereo,
           "eye view spec (default: a bag source's colour=): " + remote::stereo_source_help());
-      app.add_option("--frames", a->frames, "frames to save")->check(CLI::Range(1, 1'000'000));
+      app.add_option("--frames", a->frames, "frames to save")->check(cli::Range(1, 1'000'000));
       app.add_option("--out", a->out, "output directory (created)")->required();
       app.add_option("--every", a->every, "keep every K-th frame read")
-          ->check(CLI::Range(1, 1'000'000));
+          ->check(cli::Range(1, 1'000'000));
       app.add_option("--timeout", a->timeout_s, "seconds to wait for a frame before giving up")
-          ->check(CLI::Range(0.1, 3600.0));
+          ->check(cli::Range(0.1, 3600.0));
       app.add_flag("--json", a->json, "print a JSON summary instead of the text line");
       app.add_flag("--ir", a->ir,
                    "also save the depth sensor's IR image with each frame (ir_NNNNNN.png, for "
@@ -259,7 +259,7 @@ const RegisterCommand kRegister{
                    "openni:URI and freenect:N only");
       app.add_option("--ir-bits", a->ir_bits,
                      "IR depth: 8 (8-bit PNG) or 10 (16-bit PNG holding 0..1023)")
-          ->check(CLI::IsMember({8, 10}));
+          ->check(cli::IsMember({8, 10}));
       return [a] { return run_capture(*a); };
     }};
 

@@ -211,7 +211,7 @@ std::vector<std::string> candidate_names() {
 
 const telex::tool::RegisterCommand kRegister{
     "codec", "Measure depth codecs (ours and peers) on one frame: ratio, speed, losslessness",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto in = std::make_shared<std::string>();
       auto units = std::make_shared<std::string>("mm");
       auto json = std::make_shared<bool>(false);
@@ -220,16 +220,16 @@ const telex::tool::RegisterCommand kRegister{
       app.add_option("--in", *in, "depth image (16-bit PNG, or PGM for kinect-disparity)")
           ->required();
       app.add_option("--units", *units, "depth units of the file: mm | tum | kinect-disparity")
-          ->check(CLI::IsMember({"mm", "tum", "kinect-disparity"}));
+          ->check(cli::IsMember({"mm", "tum", "kinect-disparity"}));
       app.add_flag("--json", *json, "print one JSON object {\"codecs\": [...]}");
-      app.add_option("--runs", *runs, "repetitions; times are medians")->check(CLI::Range(1, 1000));
+      app.add_option("--runs", *runs, "repetitions; times are medians")->check(cli::Range(1, 1000));
       auto only = std::make_shared<std::vector<std::string>>();
       app.add_option("--only", *only, "measure only these codecs (default: all); repeatable")
-          ->check(CLI::IsMember(candidate_names()))
+          ->check(cli::IsMember(candidate_names()))
           ->delimiter(',');
       app.add_option("--zip-level", *level,
                      "deflate level of our zip codec (0 = Huffman-only, the default)")
-          ->check(CLI::Range(0, 9));
+          ->check(cli::Range(0, 9));
       return [=]() {
         const cv::Mat1w frame = load_frame(*in, *units);
         std::vector<Candidate> cands = candidates(*level);

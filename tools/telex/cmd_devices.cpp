@@ -137,7 +137,7 @@ int run_devices(const DevicesArgs& a) {
 
 const RegisterCommand kRegister{
     "devices", "list connected sensors, cameras, gloves, displays and serial ports",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto a = std::make_shared<DevicesArgs>();
       app.add_flag("--json", a->json, "print one JSON object");
       app.add_option("--usb-id", a->usb_ids,

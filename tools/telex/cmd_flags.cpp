@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "command.h"
-#include "telex/cli/cli.h"
 
 namespace telex::tool {
 namespace {
@@ -92,7 +91,7 @@ int run(const Options& o, const CLI::App& telex) {
 
 const RegisterCommand kRegister{
     "flags", "Every flag of every program with its default and unit, as Markdown (docs/FLAGS.md)",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto o = std::make_shared<Options>();
       app.add_flag("--markdown", o->markdown, "Print the Markdown table");
       app.add_option("--program", o->programs,

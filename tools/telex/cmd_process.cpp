@@ -155,12 +155,13 @@ int run_process(const ProcessArgs& a) {
 }
 
 const RegisterCommand kRegister{
-    "process", "Fill holes, smooth and compute normals of one depth frame", [](CLI::App& app) {
+    "process", "Fill holes, smooth and compute normals of one depth frame",
+    [](cli::CommandLine& app) {
       auto a = std::make_shared<ProcessArgs>();
       app.add_option("--in", a->in, "Depth file (16-bit PNG, or 16-bit PGM for kinect-disparity)")
           ->required();  // a missing file is bad input (exit 1 from load_depth), not a bad flag
       app.add_option("--units", a->units, "Stored units: mm | tum | kinect-disparity")
-          ->check(CLI::IsMember({"mm", "tum", "kinect-disparity"}))
+          ->check(cli::IsMember({"mm", "tum", "kinect-disparity"}))
           ->capture_default_str();
       app.add_option("--out", a->out_dir,
                      "Directory for the filled depth, normals and colour PNGs");
@@ -168,7 +169,7 @@ const RegisterCommand kRegister{
       app.add_option("--runs", a->runs,
                      "Run the stages this often on the frame; times are medians of the runs after "
                      "the first (first_run in the JSON has the cold figures)")
-          ->check(CLI::Range(1, 1000))
+          ->check(cli::Range(1, 1000))
           ->capture_default_str();
       app.add_option("--fx", a->fx, "Focal length x (px) at 640x480")->capture_default_str();
       app.add_option("--fy", a->fy, "Focal length y (px) at 640x480")->capture_default_str();

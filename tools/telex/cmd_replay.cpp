@@ -80,29 +80,31 @@ const RegisterCommand kRegister{
     "replay",
     "Re-run the surface build and force model on a recorded session (telex-local --record) and "
     "compare with the recorded forces",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto o = std::make_shared<Options>();
-      app.add_option("bag", o->bag, "the session, FILE.bag")->required()->check(CLI::ExistingFile);
+      app.add_option("bag", o->bag, "the session, FILE.bag")
+          ->required()
+          ->check(cli::ExistingFile());
       app.add_flag("--json", o->json,
                    "one JSON object: rows, rms_diff_N, peak_N, recorded_peak_N, ...");
       app.add_option("--stiffness", o->stiffness, "surface stiffness, N/m")
-          ->check(CLI::Range(1.0, 1e7));
+          ->check(cli::Range(1.0, 1e7));
       app.add_option("--friction", o->friction, "MU_S,MU_D: static and dynamic friction")
           ->delimiter(',')
           ->expected(2)
-          ->check(CLI::Range(0.0, 5.0));
+          ->check(cli::Range(0.0, 5.0));
       app.add_option("--mu-static", o->mu_static, "static friction coefficient")
-          ->check(CLI::Range(0.0, 5.0));
+          ->check(cli::Range(0.0, 5.0));
       app.add_option("--mu-dynamic", o->mu_dynamic, "dynamic friction coefficient")
-          ->check(CLI::Range(0.0, 5.0));
-      app.add_option("--max-force", o->max_force, "force clamp, N")->check(CLI::Range(0.01, 100.0));
+          ->check(cli::Range(0.0, 5.0));
+      app.add_option("--max-force", o->max_force, "force clamp, N")->check(cli::Range(0.01, 100.0));
       app.add_option("--max-force-step", o->max_force_step, "force rate limit per tick, N")
-          ->check(CLI::Range(1e-4, 100.0));
-      app.add_option("--ramp", o->ramp, "start-up force ramp, s")->check(CLI::Range(0.0, 60.0));
+          ->check(cli::Range(1e-4, 100.0));
+      app.add_option("--ramp", o->ramp, "start-up force ramp, s")->check(cli::Range(0.0, 60.0));
       app.add_option("--stale-limit", o->stale_limit, "surface/tracking age that fades out, s")
-          ->check(CLI::Range(0.01, 10.0));
+          ->check(cli::Range(0.01, 10.0));
       app.add_option("--damping", o->damping, "virtual damping in contact, N s/m")
-          ->check(CLI::Range(0.0, 1e4));
+          ->check(cli::Range(0.0, 1e4));
       cli::add_bilateral_radius(app, o->bilateral_radius)
           ->default_str("the session's")
           ->each([o](const std::string&) { o->bilateral_radius_given = true; });

@@ -55,12 +55,12 @@ int run(const Options& o) {
 
 const RegisterCommand kRegister{
     "stability", "Stability and accuracy suite of the haptic force model",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto o = std::make_shared<Options>();
       app.add_flag("--json", o->json, "print one JSON object instead of the table");
       app.add_option("--random-ticks", o->random_ticks,
                      "ticks of the random fingertip/surface case (default 1e6)")
-          ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{100'000'000}));
+          ->check(cli::Range(std::uint64_t{1}, std::uint64_t{100'000'000}));
       app.add_option("--seed", o->seed, "seed of the random case");
       return [o] { return run(*o); };
     }};

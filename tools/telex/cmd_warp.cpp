@@ -61,7 +61,7 @@ const RegisterCommand kRegister{
     "warp",
     "The view's reprojection warp: --check measures world points' angular error on a synthetic "
     "room",
-    [](CLI::App& app) -> std::function<int()> {
+    [](cli::CommandLine& app) -> std::function<int()> {
       auto o = std::make_shared<Options>();
       local::WarpCheckOptions& c = o->check_options;
       app.add_flag("--check", o->check,
@@ -71,32 +71,32 @@ const RegisterCommand kRegister{
                    "print {\"yaw_deg_s\",\"lag_ms\",\"error_deg_with\",\"error_deg_without\","
                    "\"warp_ms_per_eye\"} instead of the table");
       app.add_option("--yaw-deg-s", c.yaw_deg_s, "the operator's head's yaw rate, deg/s")
-          ->check(CLI::Range(-720.0, 720.0))
+          ->check(cli::Range(-720.0, 720.0))
           ->capture_default_str();
       app.add_option("--lag-ms", c.lag_ms, "how far the robot head lags the operator's, ms")
-          ->check(CLI::Range(0.0, 1000.0))
+          ->check(cli::Range(0.0, 1000.0))
           ->capture_default_str();
-      app.add_option_function<std::string>(
+      app.add_option_function(
           "--eye-size",
           [&c](const std::string& text) {
             int w = 0, h = 0;
             char x = 0, extra = 0;
             if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x' ||
                 w < 64 || h < 64 || w > 8192 || h > 8192)
-              throw CLI::ValidationError("--eye-size",
-                                         "'" + text + "' is not WxH with each in 64..8192");
+              cli::throw_validation_error("--eye-size",
+                                          "'" + text + "' is not WxH with each in 64..8192");
             c.width = w;
             c.height = h;
           },
           "each eye's size WxH (default 1280x720)");
       app.add_option("--frames", c.frames, "displayed frames per eye (the first is not timed)")
-          ->check(CLI::Range(2, 1000))
+          ->check(cli::Range(2, 1000))
           ->capture_default_str();
       app.add_option("--grid-step", c.warp.grid_step_px, "one mesh vertex per this many pixels")
-          ->check(CLI::Range(1, 64))
+          ->check(cli::Range(1, 64))
           ->capture_default_str();
       app.add_option("--bound-deg", o->bound_deg, "the error allowed with the warp, deg")
-          ->check(CLI::Range(0.0, 90.0))
+          ->check(cli::Range(0.0, 90.0))
           ->capture_default_str();
       return [o] { return run(*o); };
     }};

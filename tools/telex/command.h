@@ -2,15 +2,16 @@
 // Sub-command registry of the `telex` tool: each command_*.cpp registers itself at start-up.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
 #include <vector>
 
+#include "telex/cli/command_line.h"
+
 namespace telex::tool {
 
 // A sub-command adds its options to `app` and returns the function that runs it (exit code).
-using CommandSetup = std::function<std::function<int()>(CLI::App& app)>;
+using CommandSetup = std::function<std::function<int()>(cli::CommandLine& app)>;
 
 struct CommandEntry {
   std::string name;

@@ -6,7 +6,6 @@
 #include <memory>
 
 #include "command.h"
-#include "telex/cli/cli.h"
 
 namespace telex::tool {
 std::vector<CommandEntry>& command_registry() {
@@ -17,23 +16,23 @@ std::vector<CommandEntry>& command_registry() {
 
 int main(int argc, char** argv) {
   using namespace telex::tool;
-  CLI::App app{"telex: offline tool for the telexistence haptics system"};
-  telex::cli::prepare(app, "telex");
+  telex::cli::Program program{"telex: offline tool for the telexistence haptics system", "telex"};
+  const telex::cli::CommandLine& app = program.command_line();
   app.require_subcommand(1);
   auto& reg = command_registry();
   std::sort(reg.begin(), reg.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-  std::vector<std::pair<CLI::App*, std::function<int()>>> runners;
+  std::vector<std::pair<telex::cli::CommandLine, std::function<int()>>> runners;
   for (auto& entry : reg) {
-    CLI::App* sub = app.add_subcommand(entry.name, entry.description);
-    runners.emplace_back(sub, entry.setup(*sub));
+    telex::cli::CommandLine sub = app.add_subcommand(entry.name, entry.description);
+    runners.emplace_back(sub, entry.setup(sub));
   }
-  if (const auto rc = telex::cli::parse(app, argc, argv)) return *rc;
+  if (const auto rc = program.parse(argc, argv)) return *rc;
   for (auto& [sub, run] : runners) {
-    if (sub->parsed()) {
+    if (sub.parsed()) {
       try {
         return run();
       } catch (const std::exception& e) {
-        std::cerr << "telex " << sub->get_name() << ": error: " << e.what() << "\n";
+        std::cerr << "telex " << sub.get_name() << ": error: " << e.what() << "\n";
         return 1;
       }
     }

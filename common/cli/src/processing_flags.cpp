@@ -52,4 +52,16 @@ void add_bilateral_sigmas(CLI::App& app, BilateralOptions& bilateral) {
       ->check(CLI::Range(0.1, 100.0));
 }
 
+void add_fill_flags(const CommandLine& cmd, HoleFillOptions& fill) {
+  add_fill_flags(cmd.app(), fill);
+}
+
+Flag add_bilateral_radius(const CommandLine& cmd, int& radius_px) {
+  return Flag(add_bilateral_radius(cmd.app(), radius_px));
+}
+
+void add_bilateral_sigmas(const CommandLine& cmd, BilateralOptions& bilateral) {
+  add_bilateral_sigmas(cmd.app(), bilateral);
+}
+
 }  // namespace telex::cli

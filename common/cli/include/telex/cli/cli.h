@@ -13,9 +13,9 @@
 #include <utility>
 #include <vector>
 
-namespace telex::cli {
+#include "telex/cli/command_line.h"
 
-inline constexpr int kUsageExit = 2;
+namespace telex::cli {
 
 // Makes `app` one of our programs: `program` prefixes every message ("telex-remote"), option
 // defaults are captured for the help, --help-json prints the options as JSON. Call before adding
