@@ -59,18 +59,6 @@ void main() {
 }
 )";
 
-GLuint texture(GLenum internal, int w, int h, GLenum format, GLenum type, GLint filter) {
-  GLuint t = 0;
-  glGenTextures(1, &t);
-  glBindTexture(GL_TEXTURE_2D, t);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
-  return t;
-}
-
 }  // namespace
 
 cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
@@ -148,8 +136,8 @@ Intrinsics BodyUpsample::begin(const Intrinsics& k, int divisor) {
     glDeleteFramebuffers(1, &g.fbo);
     const GLuint old[] = {g.color, g.depth};
     glDeleteTextures(2, old);
-    g.color = texture(GL_RGBA8, w, h, GL_RGBA, GL_UNSIGNED_BYTE, GL_LINEAR);
-    g.depth = texture(GL_DEPTH_COMPONENT32F, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, GL_NEAREST);
+    g.color = make_texture(GL_RGBA8, w, h, GL_RGBA, GL_UNSIGNED_BYTE, GL_LINEAR);
+    g.depth = make_texture(GL_DEPTH_COMPONENT32F, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, GL_NEAREST);
     glGenFramebuffers(1, &g.fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, g.color, 0);

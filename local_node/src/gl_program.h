@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // One GLSL program from a vertex and a fragment shader, for the view's passes (the body, the
 // warp): compile errors and link errors come back as std::runtime_error with the driver's log.
+// And the passes' offscreen textures.
 #pragma once
 
 #include <epoxy/gl.h>
@@ -11,5 +12,8 @@ namespace telex::local {
 
 // `what` names the pass in the error ("stereo view: body", "warp"). The GL context must be current.
 GLuint link_program(const char* vertex_source, const char* fragment_source, std::string_view what);
+
+// A 2D texture of w x h with no data yet, `filter` for both directions, edges clamped.
+GLuint make_texture(GLenum internal, int w, int h, GLenum format, GLenum type, GLint filter);
 
 }  // namespace telex::local

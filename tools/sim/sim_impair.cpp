@@ -215,22 +215,8 @@ class Proxy {
   std::uint64_t sent_ = 0, send_errors_ = 0, foreign_ = 0, no_client_ = 0, client_changes_ = 0;
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  telex::cli::Program program{
-      "telex-sim-impair: UDP proxy between a sender and --forward that applies a rate limit and "
-      "seeded loss, delay, jitter, reordering, duplication and bit corruption (both directions), "
-      "since tc netem is not available here",
-      "telex-sim-impair"};
-  const telex::cli::CommandLine& app = program.command_line();
-  std::string listen_text, forward_text;
-  ImpairmentConfig cfg;
-  double duration_s = 0.0, stats_every_s = 0.0;
-  bool json = false;
-  app.add_option("--listen", listen_text, "HOST:PORT to receive on (port 0 = any free port)")
-      ->required();
-  app.add_option("--forward", forward_text, "HOST:PORT to forward to")->required();
+// The link's impairments (ImpairmentConfig), each flag with its range.
+void add_impairment_options(const telex::cli::CommandLine& app, ImpairmentConfig& cfg) {
   app.add_option("--loss", cfg.loss, "loss probability per datagram")
       ->check(telex::cli::Range(0.0, 1.0))
       ->capture_default_str();
@@ -275,6 +261,25 @@ int main(int argc, char** argv) {
                  "... until this many (0 = to the end); must be above --rate-limit-from-s")
       ->check(telex::cli::Range(0.0, 1e7))
       ->capture_default_str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  telex::cli::Program program{
+      "telex-sim-impair: UDP proxy between a sender and --forward that applies a rate limit and "
+      "seeded loss, delay, jitter, reordering, duplication and bit corruption (both directions), "
+      "since tc netem is not available here",
+      "telex-sim-impair"};
+  const telex::cli::CommandLine& app = program.command_line();
+  std::string listen_text, forward_text;
+  ImpairmentConfig cfg;
+  double duration_s = 0.0, stats_every_s = 0.0;
+  bool json = false;
+  app.add_option("--listen", listen_text, "HOST:PORT to receive on (port 0 = any free port)")
+      ->required();
+  app.add_option("--forward", forward_text, "HOST:PORT to forward to")->required();
+  add_impairment_options(app, cfg);
   app.add_option("--duration", duration_s, "exit after this many seconds (0 = until a signal)")
       ->check(telex::cli::Range(0.0, 1e7))
       ->capture_default_str();

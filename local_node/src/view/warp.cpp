@@ -231,32 +231,21 @@ struct DepthWarp::Impl {
       throw std::runtime_error(egl_error("cannot make a surfaceless OpenGL context current"));
   }
 
-  static GLuint texture(GLenum internal, int w, int h, GLenum format, GLenum type, GLint filter) {
-    GLuint t = 0;
-    glGenTextures(1, &t);
-    glBindTexture(GL_TEXTURE_2D, t);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
-    return t;
-  }
-
   void make_objects() {
     mesh = link_program(kMeshVs, kMeshFs, "warp");
     fill = link_program(kFillVs, kFillFs, "warp");
     glGenVertexArrays(1, &vao);
     glGenBuffers(1, &elements);
-    color_in = texture(GL_RGBA8, width, height, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
-    depth_in = texture(GL_R16UI, width, height, GL_RED_INTEGER, GL_UNSIGNED_SHORT, GL_NEAREST);
-    depth_mm_out = texture(GL_R16UI, width, height, GL_RED_INTEGER, GL_UNSIGNED_SHORT, GL_NEAREST);
+    color_in = make_texture(GL_RGBA8, width, height, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
+    depth_in = make_texture(GL_R16UI, width, height, GL_RED_INTEGER, GL_UNSIGNED_SHORT, GL_NEAREST);
+    depth_mm_out =
+        make_texture(GL_R16UI, width, height, GL_RED_INTEGER, GL_UNSIGNED_SHORT, GL_NEAREST);
     glGenRenderbuffers(1, &z_buffer);
     glBindRenderbuffer(GL_RENDERBUFFER, z_buffer);
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, width, height);
     glGenFramebuffers(2, fbo.data());
     for (std::size_t i = 0; i < 2; ++i) {
-      color_out[i] = texture(GL_RGBA8, width, height, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
+      color_out[i] = make_texture(GL_RGBA8, width, height, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
       glBindFramebuffer(GL_FRAMEBUFFER, fbo[i]);
       glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color_out[i], 0);
       glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, depth_mm_out, 0);

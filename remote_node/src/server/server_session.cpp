@@ -196,6 +196,29 @@ void RemoteServer::Impl::request_key_frame() {
   request_.force_key_frame = true;
 }
 
+// Whether a resend of `bytes` may go (issue 27's bounds): under kMaxQueuedRepairBytes with what is
+// `queued` (which it then grows), not sent again within the dedup interval (`slot` and `id` name
+// it), within the byte budget. Each refusal is counted.
+bool RemoteServer::Impl::admit_repair(std::size_t& queued, std::uint16_t slot, std::uint32_t id,
+                                      std::size_t bytes, std::int64_t now_ns) {
+  if (queued + bytes > kMaxQueuedRepairBytes) {
+    ++counters_.repair_over_queue;
+    return false;
+  }
+  switch (active_->repair.admit(slot, id, bytes, now_ns)) {
+    case RepairLimiter::Verdict::Duplicate:
+      ++counters_.repair_duplicates;
+      return false;
+    case RepairLimiter::Verdict::OverBudget:
+      ++counters_.repair_over_budget;
+      return false;
+    case RepairLimiter::Verdict::Send:
+      break;
+  }
+  queued += bytes;
+  return true;
+}
+
 // A TileNack (PROTOCOL.md 2.5): each tile it lists goes out again once, as cached, behind the
 // frames already queued (at most max_queued_frames); a tile the cache no longer holds is counted
 // and the next frame is a key frame.
@@ -221,22 +244,7 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
   msgs.reserve(answer.resend.size());
   for (const auto& c : answer.resend) {
-    const std::size_t bytes = c.tile->bytes.size();
-    if (queued + bytes > kMaxQueuedRepairBytes) {
-      ++counters_.repair_over_queue;
-      continue;
-    }
-    switch (active_->repair.admit(c.tile->index, c.frame_id, bytes, now)) {
-      case RepairLimiter::Verdict::Duplicate:
-        ++counters_.repair_duplicates;
-        continue;
-      case RepairLimiter::Verdict::OverBudget:
-        ++counters_.repair_over_budget;
-        continue;
-      case RepairLimiter::Verdict::Send:
-        break;
-    }
-    queued += bytes;
+    if (!admit_repair(queued, c.tile->index, c.frame_id, c.tile->bytes.size(), now)) continue;
     msgs.emplace_back(header(l->session_id, c.frame_id, c.capture_ns, false, proto::kFlagRepair),
                       proto::tile_message(*c.tile, c.codec));
   }
@@ -270,24 +278,9 @@ void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
       ++counters_.video_repair_unavailable;
       continue;
     }
-    const std::size_t bytes = p->frame->size();
-    if (queued + bytes > kMaxQueuedRepairBytes) {
-      ++counters_.repair_over_queue;
-      continue;
-    }
     // Pairs share the limiter with tiles: their dedup slots follow the tiles' index range.
     const auto slot = static_cast<std::uint16_t>(proto::kMaxManifestTiles + seq % 64);
-    switch (active_->repair.admit(slot, seq, bytes, now)) {
-      case RepairLimiter::Verdict::Duplicate:
-        ++counters_.repair_duplicates;
-        continue;
-      case RepairLimiter::Verdict::OverBudget:
-        ++counters_.repair_over_budget;
-        continue;
-      case RepairLimiter::Verdict::Send:
-        break;
-    }
-    queued += bytes;
+    if (!admit_repair(queued, slot, seq, p->frame->size(), now)) continue;
     ++counters_.video_pairs_resent;
     std::vector<std::pair<proto::Header, proto::Message>> msgs;
     msgs.emplace_back(
