@@ -222,6 +222,17 @@ TEST(HmdCalibrateCommand, WritesTheStageIntoTheRigAndKeepsTheRest) {
   EXPECT_EQ(j["residuals"].size(), 400u);
   EXPECT_LT(j["rms_position_mm"].get<double>(), 5.0);
   EXPECT_TRUE(j.contains("hmd_view_in_head_body"));
+  // The rig's (default) eye camera in the head body, re-expressed in the view frame.
+  const Rig defaults;
+  const glm::dvec3 p_ViewCamera =
+      glm::transpose(kBodyView.rotation) * (defaults.p_HeadCamera - kBodyView.translation_m);
+  const auto& cam = j["head_to_camera_for_hmd"];
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(cam["translation_m"][i].get<double>(), p_ViewCamera[i], 0.003) << i;
+  const glm::dmat3 R_CameraView = defaults.R_CameraHead * kBodyView.rotation;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col)
+      EXPECT_NEAR(cam["rotation"][r][col].get<double>(), R_CameraView[col][r], 0.005);
   const Rig loaded = load_rig(rig);
   expect_near(loaded.X_NatNetStage, kNatNetStage, 2.0, 0.3);
   EXPECT_EQ(loaded.skin_rgb[0], 200);
