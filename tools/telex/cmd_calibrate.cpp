@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `telex calibrate stereo|depth-eye|render`: chessboard calibration of the eyes and of the depth
 // sensor against the right eye, written into a rig file; `render` makes boards with known answers.
-// `body` and `glove` (the operator) live in cmd_calibrate_body.cpp.
+// `body` and `glove` (the operator) live in cmd_calibrate_body.cpp, `hmd` in cmd_calibrate_hmd.cpp.
 #include <fmt/format.h>
 #include <glob.h>
 
@@ -34,6 +34,8 @@ namespace telex::tool {
 
 // cmd_calibrate_body.cpp: `body` and `glove`; the runner returns -1 when neither was parsed.
 std::function<int()> add_calibrate_operator(cli::CommandLine& app);
+// cmd_calibrate_hmd.cpp: `hmd`; the runner returns -1 when it was not parsed.
+std::function<int()> add_calibrate_hmd(cli::CommandLine& app);
 
 namespace {
 
@@ -449,7 +451,7 @@ const RegisterCommand kRegister{
     "calibrate",
     "Calibrate the eyes (stereo) and the depth sensor against the right eye (depth-eye) from "
     "chessboard images, the operator's arms (body) and gloves (glove), into a rig file; render "
-    "boards with known answers",
+    "boards with known answers; the headset's tracking space in the NatNet frame (hmd)",
     [](cli::CommandLine& app) -> std::function<int()> {
       app.require_subcommand(1);
       auto so = std::make_shared<StereoOptions>();
@@ -519,12 +521,14 @@ const RegisterCommand kRegister{
       render->add_option("--depth-noise-mm", ro->depth_noise_mm, "depth map noise sigma, mm");
 
       const std::function<int()> run_operator = add_calibrate_operator(app);
+      const std::function<int()> run_hmd = add_calibrate_hmd(app);
 
       return [=]() -> int {
         if (stereo->parsed()) return guarded("stereo", [&] { return run_stereo(*so); });
         if (depth_eye->parsed()) return guarded("depth-eye", [&] { return run_depth_eye(*de); });
         if (render->parsed()) return guarded("render", [&] { return run_render(*ro); });
         if (const int rc = run_operator(); rc >= 0) return rc;
+        if (const int rc = run_hmd(); rc >= 0) return rc;
         return 2;
       };
     }};

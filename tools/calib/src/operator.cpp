@@ -10,8 +10,13 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "csv_cells.h"
+
 namespace telex::calib {
 namespace {
+
+using detail::split_csv;
+using detail::to_double;
 
 constexpr double kDeg = 180.0 / 3.14159265358979323846;
 
@@ -50,25 +55,6 @@ double percentile(std::vector<double> v, double pct) {
 double angle_rad(const glm::dvec3& a, const glm::dvec3& b) {
   const double c = glm::dot(a, b) / (glm::length(a) * glm::length(b));
   return std::acos(std::clamp(c, -1.0, 1.0));
-}
-
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::stringstream ss(line);
-  std::string cell;
-  while (std::getline(ss, cell, ',')) {
-    const auto b = cell.find_first_not_of(" \t\r");
-    const auto e = cell.find_last_not_of(" \t\r");
-    out.push_back(b == std::string::npos ? std::string{} : cell.substr(b, e - b + 1));
-  }
-  return out;
-}
-
-bool to_double(const std::string& s, double& out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  out = std::strtod(s.c_str(), &end);
-  return end == s.c_str() + s.size() && std::isfinite(out);
 }
 
 }  // namespace
