@@ -276,13 +276,6 @@ void main() {
 // A screen rectangle (NDC, from u_rect) around one fingertip; the remote surface point of each
 // pixel is rebuilt from the eye's depth and darkened by its nearness to the fingertip: an
 // occluding ball's falloff, (r / d)^2, faded out by kShadowReach_m.
-constexpr const char* kShadowVs = R"(#version 330 core
-uniform vec4 u_rect;  // x0, y0, x1, y1 in NDC
-void main() {
-  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
-  gl_Position = vec4(mix(u_rect.xy, u_rect.zw, c), 0.0, 1.0);
-}
-)";
 constexpr const char* kShadowFs = R"(#version 330 core
 uniform sampler2D u_depth;  // window depths, rows top-down
 uniform vec4 u_k;           // fx, fy, cx, cy
@@ -360,7 +353,7 @@ struct BodyPass::Gl {
 BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   Gl& g = *gl_;
   g.body = link_program(kBodyVs, kBodyFs, "stereo view: body");
-  g.shadow = link_program(kShadowVs, kShadowFs, "stereo view: body");
+  g.shadow = link_program(kRectVertexShader, kShadowFs, "stereo view: body");
   glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Capsules"), 0);
   glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Neighbours"), 1);
   const float c[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},

@@ -18,14 +18,6 @@
 namespace telex::local {
 namespace {
 
-constexpr const char* kRectVs = R"(#version 330 core
-uniform vec4 u_rect;  // x0, y0, x1, y1 in NDC
-void main() {
-  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
-  gl_Position = vec4(mix(u_rect.xy, u_rect.zw, c), 0.0, 1.0);
-}
-)";
-
 // The four low-resolution samples around this pixel, each kept only where it holds body nearer
 // than the remote scene here, weighted bilinearly: premultiplied colour, blended over the eye.
 // Most pixels of the bounds hold no body: one filtered read of the coverage discards them first
@@ -111,7 +103,7 @@ struct BodyUpsample::Gl {
 };
 
 BodyUpsample::BodyUpsample() : gl_(std::make_unique<Gl>()) {
-  gl_->program = link_program(kRectVs, kCompositeFs, "stereo view: body composite");
+  gl_->program = link_program(kRectVertexShader, kCompositeFs, "stereo view: body composite");
   glGenVertexArrays(1, &gl_->vao);
   gl_->context = eglGetCurrentContext();
 }
