@@ -84,6 +84,7 @@ nlohmann::json StationSummary::to_json() const {
                    {"depth_mbit_s", depth_mbit_per_s()},
                    {"video_pairs_received", video_pairs_received},
                    {"video_pairs_decoded", video_pairs_decoded},
+                   {"video_pairs_with_head_pose", video_pairs_with_head_pose},
                    {"video_pairs_damaged", video_pairs_damaged},
                    {"video_decode_errors", video_decode_errors},
                    {"video_pairs_shown", video_pairs_shown},

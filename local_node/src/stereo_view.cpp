@@ -167,7 +167,10 @@ StereoView::~StereoView() = default;
 
 void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes) {
   const glm::dmat3 R_DisplayBase = glm::transpose(*in.R_BaseDisplay);
-  const glm::dmat3 R_DisplayCapture = R_DisplayBase * *in.R_BaseCapture;
+  const glm::dmat3 R_DisplayDepth = R_DisplayBase * *in.R_BaseDepth;
+  // The video's own capture pose, when the pair carried it; else the depth's.
+  const glm::dmat3 R_VideoDepth =
+      in.R_BaseVideo ? glm::transpose(*in.R_BaseVideo) * *in.R_BaseDepth : glm::dmat3(1.0);
   const glm::dmat3 R_DisplayPrevious =
       R_BasePreviousDisplay_ ? R_DisplayBase * *R_BasePreviousDisplay_ : glm::dmat3(1.0);
   R_BasePreviousDisplay_ = in.R_BaseDisplay;
@@ -175,9 +178,9 @@ void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> e
     EyeView& e = *eyes[index_of(side)];
     auto& w = warp_[index_of(side)];
     if (!w) w = std::make_unique<DepthWarp>(e.k.width, e.k.height);
-    WarpedEye warped =
-        w->warp(e.background, e.depth_mm, e.k,
-                eye_display_from_capture(R_DisplayCapture, e.p_RightEye), R_DisplayPrevious);
+    WarpedEye warped = w->warp(
+        e.background, e.depth_mm, e.k, eye_display_from_capture(R_DisplayDepth, e.p_RightEye),
+        eye_display_from_capture(R_VideoDepth, e.p_RightEye), R_DisplayPrevious);
     e.background = std::move(warped.bgr);
     e.depth_mm = std::move(warped.depth_mm);
   }
@@ -259,7 +262,7 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
     const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
     right.depth_mm = resample_pinhole(in.depth_mm, in.k, k_eye, cv::INTER_NEAREST);
     left.depth_mm = resample_pinhole(left_mm, in.k, k_eye, cv::INTER_NEAREST);
-    if (in.R_BaseCapture && in.R_BaseDisplay && !eye[0].empty()) {
+    if (in.R_BaseDepth && in.R_BaseDisplay && !eye[0].empty()) {
       warp_eyes(in, {&left, &right});
       warped_ = true;
     }

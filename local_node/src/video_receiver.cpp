@@ -138,6 +138,8 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       auto p = std::make_shared<EyePair>();
       p->frame_id = d.out.header.frame_id;
       p->capture_ns = d.out.header.capture_ns;
+      p->head_joint_rad = d.out.header.head_joint_rad;
+      if (p->head_joint_rad) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
       p->left_bgr = d.out.left_bgr.clone();  // the decoder reuses its images
       p->right_bgr = d.out.right_bgr.clone();
       std::lock_guard lock(pairs_mu_);

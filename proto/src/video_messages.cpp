@@ -88,6 +88,8 @@ std::optional<PayloadError> get_video(Reader& r, EncodedVideo& m) {
       return bad("EncodedVideo frame header flags");
     case video::HeaderStatus::TrailingBytes:
       return bad("EncodedVideo bytes beyond the frame's payload");
+    case video::HeaderStatus::BadHeadPose:
+      return bad("EncodedVideo head joint not finite or beyond pi");
   }
   m.frame.assign(bytes.begin(), bytes.end());
   return std::nullopt;

@@ -5,6 +5,7 @@
 #include <openssl/bio.h>
 #include <openssl/ssl.h>
 
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -114,8 +115,9 @@ std::vector<telex::proto::Message> messages() {
   m.push_back(Stats{{{"key_frame_request", 1}}});
   m.push_back(TileNack{41, {9, 10, 17}});
   m.push_back(HeadCommand{123456789, {0.3f, -0.1f, 0.05f}, 77, 4500, DeadmanState::Pressed});
-  // The eyes (docs/PROTOCOL.md 2.7): an encoded pair, a PLI, a receiver report.
-  {
+  // The eyes (docs/PROTOCOL.md 2.7): an encoded pair (and one with the robot head's joints at its
+  // capture), a PLI, a receiver report.
+  for (const bool posed : {false, true}) {
     telex::video::EncodedFrameHeader h;
     h.frame_id = 7;
     h.encode_seq = 3;
@@ -125,6 +127,7 @@ std::vector<telex::proto::Message> messages() {
     h.eye_height_px = 48;
     const Bytes payload{0, 0, 0, 1, 0x65, 0x88, 0x84};
     h.payload_bytes = static_cast<std::uint32_t>(payload.size());
+    if (posed) h.head_joint_rad = std::array<float, 3>{0.4f, -0.2f, 0.05f};
     Bytes frame;
     telex::video::serialize_header(h, frame);
     frame.insert(frame.end(), payload.begin(), payload.end());
@@ -361,6 +364,10 @@ int main(int argc, char** argv) {
     write(out / "video_header_fuzz", "mjpeg",
           pair(video::VideoCodec::Mjpeg, true, Bytes{2, 0, 0, 0, 0xff, 0xd8, 0xff, 0xd8}));
     write(out / "video_header_fuzz", "empty_payload", pair(video::VideoCodec::H264, false, {}));
+    // With the robot head's joints at capture (flag bit 1, three f32 before the payload).
+    Bytes posed = pair(video::VideoCodec::H264, false, Bytes{0, 0, 0, 1, 0x41, 0x9a});
+    video::stamp_head_pose(posed, {0.5f, -0.25f, 0.0f});
+    write(out / "video_header_fuzz", "h264_head_pose", posed);
   }
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;

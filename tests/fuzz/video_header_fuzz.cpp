@@ -19,7 +19,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     return 0;
   }
   if (parsed.payload.size() != parsed.header.payload_bytes ||
-      parsed.payload.data() != data + kHeaderBytes)
+      parsed.payload.data() != data + header_bytes(parsed.header))
     std::abort();
   std::vector<std::uint8_t> again;
   serialize_header(parsed.header, again);

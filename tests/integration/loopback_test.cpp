@@ -5,6 +5,7 @@
 #include <signal.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -228,6 +229,27 @@ TEST(Loopback, ViewPngShowsHandAndForceArrow) {
   EXPECT_EQ(img.at<cv::Vec3b>(img.rows / 2, img.cols / 2), contact);
 }
 
+// A remote with a head stamps each eye pair with its joints at the pair's capture (PROTOCOL.md
+// 2.7): the station's summary counts the pairs that came with one, here all it decoded whole but
+// any captured before the head loop's first reading.
+TEST(Loopback, EyePairsFromARemoteWithAHeadCarryItsPose) {
+  const auto dir = scratch_dir("loopback_pair_pose");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--size", "160x120", "--stereo",
+                             "synthetic:plane", "--head", "sim"});
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:press", "--repeat", "--duration", "3", "--view",
+                            "png:" + (dir / "view").string()}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(40s).value_or(-1), 0) << local.stderr_text();
+  const auto j = summary_of(local);
+  const int decoded = j["video_pairs_decoded"].get<int>();
+  const int posed = j["video_pairs_with_head_pose"].get<int>();
+  std::printf("eye pairs: %d decoded whole, %d with the head's pose\n", decoded, posed);
+  EXPECT_GT(decoded, 10) << j.dump();
+  EXPECT_GE(posed, decoded - 2) << j.dump();
+  EXPECT_LE(posed, decoded) << j.dump();
+}
+
 TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
   const auto dir = scratch_dir("loopback_stereo_view");
   // The synthetic stereo source: both eyes' renders of the plane at 30 fps over UDP with the depth.
@@ -249,6 +271,7 @@ TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
   EXPECT_EQ(j["video_eye_width_px"].get<int>(), 640) << j.dump();
   EXPECT_EQ(j["video_eye_height_px"].get<int>(), 480) << j.dump();
   EXPECT_GT(j["video_pairs_shown"].get<int>(), 0) << j.dump();
+  EXPECT_EQ(j["video_pairs_with_head_pose"].get<int>(), 0) << j.dump();  // the remote has no head
   EXPECT_GT(j["video_mbit_s"].get<double>(), 0.0) << j.dump();
   EXPECT_GT(j["depth_mbit_s"].get<double>(), 0.0) << j.dump();
   EXPECT_TRUE(j.contains("shown_frame_age_ms_p99")) << j.dump();

@@ -118,7 +118,7 @@ TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
   EXPECT_NEAR(green_x(still.right), 320.0, 0.5);
 
   const double a = 4.0 * 3.14159265358979323846 / 180.0;
-  in.R_BaseCapture = glm::dmat3(1.0);
+  in.R_BaseDepth = glm::dmat3(1.0);
   in.R_BaseDisplay = glm::dmat3(glm::dvec3(std::cos(a), 0.0, -std::sin(a)), glm::dvec3(0, 1, 0),
                                 glm::dvec3(std::sin(a), 0.0, std::cos(a)));
   const StereoViewImages turned = view.render(in);
@@ -127,6 +127,51 @@ TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
   // The left eye sits off the turn's axis (the right eye): at 3 m its shift is the same but for
   // the parallax of a 4.5 mm step, under 1 px.
   EXPECT_NEAR(green_x(turned.left), 320.0 - in.k.fx * std::tan(a), 1.5);
+}
+
+// The eye pair captured at its own head pose (1 degree further right than the depth's, 16 ms at
+// 60 deg/s): the dot straight ahead of the video's camera is where the world puts it at the
+// operator's pose, fx tan(b - a) from the centre; taken as captured at the depth's pose (a pair
+// without a pose) it is fx tan(b) off that.
+TEST(StereoView, ThePairsOwnHeadPoseTurnsTheVideoAndTheDepthIsBroughtToIt) {
+  StereoView view(640, 480);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  cv::Mat3b eye(480, 640, cv::Vec3b(60, 60, 60));
+  cv::rectangle(eye, cv::Rect(314, 234, 13, 13), cv::Vec3b(0, 220, 0), cv::FILLED);
+  in.eye_bgr = {eye, eye};
+  // A wall 3 m away across the depth's view, but for a near box on the left: the depth has its
+  // own pose, and where the video takes its colours follows the wall, not the box.
+  in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{3000});
+  in.depth_mm(cv::Rect(0, 0, 120, 480)).setTo(1000);
+  const auto green_x = [](const cv::Mat3b& img) {
+    double sum = 0.0;
+    int n = 0;
+    for (int y = 0; y < img.rows; ++y)
+      for (int x = 0; x < img.cols; ++x)
+        if (img(y, x)[1] > 150 && img(y, x)[0] < 80 && img(y, x)[2] < 80) {
+          sum += x;
+          ++n;
+        }
+    return n > 50 ? sum / n : -1.0;
+  };
+  const auto yaw = [](double rad) {
+    return glm::dmat3(glm::dvec3(std::cos(rad), 0.0, -std::sin(rad)), glm::dvec3(0, 1, 0),
+                      glm::dvec3(std::sin(rad), 0.0, std::cos(rad)));
+  };
+  const double deg = 3.14159265358979323846 / 180.0;
+  const double a = 4.0 * deg, b = 1.0 * deg;
+  in.R_BaseDepth = glm::dmat3(1.0);
+  in.R_BaseDisplay = yaw(a);
+  in.R_BaseVideo = yaw(b);
+  const StereoViewImages own = view.render(in);
+  ASSERT_TRUE(own.warped);
+  EXPECT_NEAR(green_x(own.right), 320.0 + in.k.fx * std::tan(b - a), 1.0);
+  EXPECT_NEAR(green_x(own.left), 320.0 + in.k.fx * std::tan(b - a), 1.5);
+  in.R_BaseVideo.reset();
+  const StereoViewImages depth_pose = view.render(in);
+  EXPECT_NEAR(green_x(depth_pose.right), 320.0 - in.k.fx * std::tan(a), 1.0);
+  EXPECT_GT(green_x(own.right) - green_x(depth_pose.right), 8.0);
 }
 
 TEST(StereoView, EyesComeOutAtTheRequestedSizeElseTheVideosElseTheDepths) {

@@ -90,6 +90,24 @@ TEST(VideoReceiver, DecodesPairsOfTheRightSizeInOrder) {
   EXPECT_EQ(f.pli_count(), 0u);
 }
 
+// The robot head's joints stamped in a pair's header come out with the decoded pair; a pair
+// without them (no head reading at its capture) comes out without, and is not counted.
+TEST(VideoReceiver, APairKeepsTheHeadPoseItWasCapturedAt) {
+  Fixture f;
+  const std::array<float, 3> joints{0.3f, -0.1f, 0.0f};
+  auto posed = f.next_pair();
+  ASSERT_TRUE(video::stamp_head_pose(posed, joints));
+  f.receiver->push(std::move(posed));
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 1; }));
+  ASSERT_TRUE(f.receiver->pair()->head_joint_rad.has_value());
+  EXPECT_EQ(*f.receiver->pair()->head_joint_rad, joints);
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 2; }));
+  EXPECT_EQ(f.receiver->pair()->frame_id, 2u);
+  EXPECT_FALSE(f.receiver->pair()->head_joint_rad.has_value());
+  EXPECT_EQ(f.receiver->counters().with_head_pose.load(), 1u);
+}
+
 TEST(VideoReceiver, ALostPairSendsOnePliPerRoundTripAndTheIntraPairRecovers) {
   Fixture f;
   for (int i = 0; i < 3; ++i) f.receiver->push(f.next_pair());

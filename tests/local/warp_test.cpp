@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
@@ -196,6 +197,28 @@ TEST(WarpCheck, TheWarpHoldsWorldPointsWithinHalfADegreeAtSixtyDegreesPerSecond)
   // 80 ms at 60 deg/s is 4.8 degrees of turn; the eyes sit off the yaw axis, so a little more.
   EXPECT_GE(r.error_deg_without, 4.0);
   EXPECT_LE(r.error_deg_without, 6.0);
+}
+
+// The eye pair and the depth drawn with it captured 20 ms apart while the head yaws at 60 deg/s
+// (1.2 degrees between them): warped from the pair's own pose, with the depth brought into it,
+// the world holds within the half degree; warped as if the video were captured at the
+// depth's pose, the gap's turn shows.
+TEST(WarpCheck, APairWarpedFromItsOwnPoseHoldsTheWorldWhereTheDepthsPoseDoesNot) {
+  WarpCheckOptions o;
+  o.width = 640;
+  o.height = 360;
+  o.frames = 6;
+  o.pair_gap_ms = 20.0;
+  const WarpCheckResult r = run_warp_check(o);
+  std::printf(
+      "pair 20 ms after its depth: error %.3f deg with the pair's pose, %.3f with the "
+      "depth's, %.3f without the warp\n",
+      r.error_deg_with, r.error_deg_depth_pose, r.error_deg_without);
+  EXPECT_GE(r.points_measured, 20);
+  EXPECT_EQ(r.points_missed, 0);
+  EXPECT_LE(r.error_deg_with, 0.5);
+  EXPECT_GE(r.error_deg_depth_pose, 0.9);  // about the 1.2 degrees turned in the gap
+  EXPECT_GE(r.error_deg_depth_pose, r.error_deg_with + 0.6);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // One valid sample of every message type, shared by the proto tests.
 #pragma once
 
+#include <array>
+#include <optional>
 #include <vector>
 
 #include "telex/proto/messages.h"
@@ -9,8 +11,11 @@
 namespace telex::proto::test {
 
 // An encoded pair as EyeEncoder writes it (header, then `payload_bytes` of payload); the bytes are
-// not H.264, which the protocol does not look into.
-inline std::vector<std::uint8_t> encoded_pair(std::uint32_t payload_bytes = 9) {
+// not H.264, which the protocol does not look into. With `head_joint_rad`, the header carries the
+// robot head's joints at capture as the remote daemon stamps them.
+inline std::vector<std::uint8_t> encoded_pair(
+    std::uint32_t payload_bytes = 9,
+    std::optional<std::array<float, 3>> head_joint_rad = std::nullopt) {
   video::EncodedFrameHeader h;
   h.frame_id = 31;
   h.encode_seq = 30;
@@ -20,6 +25,7 @@ inline std::vector<std::uint8_t> encoded_pair(std::uint32_t payload_bytes = 9) {
   h.eye_width_px = 64;
   h.eye_height_px = 48;
   h.payload_bytes = payload_bytes;
+  h.head_joint_rad = head_joint_rad;
   std::vector<std::uint8_t> b;
   video::serialize_header(h, b);
   for (std::uint32_t i = 0; i < payload_bytes; ++i) b.push_back(static_cast<std::uint8_t>(i * 7));

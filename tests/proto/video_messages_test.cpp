@@ -44,6 +44,32 @@ TEST(VideoMessages, EncodedVideoCarriesThePairByteForByte) {
   EXPECT_EQ(msg_type_name(MsgType::EncodedVideo), "EncodedVideo");
 }
 
+// Since version 7 a pair's header may carry the robot head's joints at its capture (PROTOCOL.md
+// 2.7): they cross the wire unchanged, and a pair without them (the old layout) still decodes and
+// says it has none.
+TEST(VideoMessages, EncodedVideoCarriesTheHeadPoseAndAPairWithoutOneStillDecodes) {
+  EXPECT_EQ(kProtocolVersion, 7);
+  const std::array<float, 3> joints{0.4f, -0.2f, 0.05f};
+  const auto posed = test::encoded_pair(9, joints);
+  ASSERT_EQ(posed.size(), video::kHeaderBytes + video::kHeadPoseBytes + 9);
+  const auto r = decode(encode(test::sample_header(), EncodedVideo{posed}));
+  ASSERT_TRUE(r.ok()) << r.detail;
+  const auto& frame = std::get<EncodedVideo>(r.envelope->message).frame;
+  EXPECT_EQ(frame, posed);
+  const video::ParsedFrame parsed = video::parse_frame(frame);
+  ASSERT_EQ(parsed.status, video::HeaderStatus::Ok);
+  ASSERT_TRUE(parsed.header.head_joint_rad.has_value());
+  EXPECT_EQ(*parsed.header.head_joint_rad, joints);
+  EXPECT_EQ(parsed.payload.size(), 9u);
+
+  const auto plain = test::encoded_pair(9);
+  ASSERT_EQ(plain.size(), video::kHeaderBytes + 9);
+  const auto old = decode(encode(test::sample_header(), EncodedVideo{plain}));
+  ASSERT_TRUE(old.ok()) << old.detail;
+  EXPECT_FALSE(video::parse_frame(std::get<EncodedVideo>(old.envelope->message).frame)
+                   .header.head_joint_rad.has_value());
+}
+
 TEST(VideoMessages, PictureLossAndReceiverReportLayouts) {
   EXPECT_EQ(payload_of(PictureLoss{0x01020304, PictureLossReason::DecodeError}),
             (std::vector<std::uint8_t>{4, 3, 2, 1, 1}));
@@ -107,6 +133,17 @@ std::vector<Malformed> malformed_inputs() {
   huge[29] = 0x7F;  // payload_bytes far above 32 MiB
   out.push_back(
       {"video: huge payload", MsgType::EncodedVideo, huge, ErrorReason::DecompressionBomb});
+  auto posed = test::encoded_pair(9, std::array<float, 3>{0.1f, 0.2f, 0.3f});
+  out.push_back({"video: head pose cut",
+                 MsgType::EncodedVideo,
+                 {posed.begin(), posed.begin() + 36},
+                 ErrorReason::Truncated});
+  auto beyond_pi = posed;
+  beyond_pi[33] = 0x7F;  // yaw's top byte (bytes 30..33): 0x7FCCCCCD is not a number
+  out.push_back({"video: head pose", MsgType::EncodedVideo, beyond_pi, ErrorReason::BadPayload});
+  auto flags = pair;
+  flags[4] |= 0x04;
+  out.push_back({"video: unknown flag", MsgType::EncodedVideo, flags, ErrorReason::BadPayload});
   out.push_back({"pli: short", MsgType::PictureLoss, {1, 0, 0}, ErrorReason::Truncated});
   out.push_back({"pli: reason", MsgType::PictureLoss, {1, 0, 0, 0, 2}, ErrorReason::BadPayload});
   out.push_back({"video nack: short", MsgType::VideoNack, {1, 0, 0, 0, 1}, ErrorReason::Truncated});

@@ -355,6 +355,7 @@ TEST(RemoteDaemon, VideoIsSentOnlyWhenAsked) {
   ASSERT_EQ(first.status, video::HeaderStatus::Ok);
   EXPECT_EQ(first.header.codec, video::VideoCodec::H264);
   EXPECT_TRUE(first.header.is_intra);
+  EXPECT_FALSE(first.header.head_joint_rad.has_value());  // no head: no pose
   EXPECT_EQ(first.header.eye_width_px, 160);
   EXPECT_EQ(first.header.eye_height_px, 120);
   video::EyeDecoder decoder;
@@ -363,6 +364,54 @@ TEST(RemoteDaemon, VideoIsSentOnlyWhenAsked) {
   EXPECT_EQ(pair.left_bgr.size(), cv::Size(160, 120));
   EXPECT_EQ(pair.right_bgr.size(), cv::Size(160, 120));
   d.stop();
+}
+
+// With a head the pairs carry its joints at their capture (PROTOCOL.md 2.7, version 7): the
+// operator turns the head's yaw target to 0.3 rad, the sim servos follow it late, and the pairs
+// show the yaw growing along the encoder's sequence, never past the target. Without a head (the
+// test above) the pairs carry none.
+TEST(RemoteDaemon, EyePairsCarryTheHeadsJointsAtTheirCapture) {
+  auto cfg = base_config("synthetic:plane");
+  cfg.stereo_source = "synthetic:sphere";
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  cfg.head = "sim";
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient viewer(d.port(), true, proto::kCapVideo);
+  std::uint32_t sample_id = 0;
+  const auto turned = [&] {
+    for (const auto& v : viewer.video_) {
+      const auto p = video::parse_frame(v.frame);
+      if (p.header.head_joint_rad && (*p.header.head_joint_rad)[0] > 0.2f) return true;
+    }
+    return false;
+  };
+  for (int i = 0; i < 1000 && !turned(); ++i) {
+    viewer.send(proto::HeadCommand{static_cast<std::uint64_t>(steady_now_ns()),
+                                   {0.3f, 0.0f, 0.0f},
+                                   ++sample_id,
+                                   0,
+                                   proto::DeadmanState::NotUsed});
+    viewer.run_until([] { return false; }, 10ms);
+  }
+  d.stop();
+  ASSERT_TRUE(turned()) << viewer.video_.size() << " pairs";
+  float previous_yaw = -1.0f;
+  int posed = 0;
+  for (const auto& v : viewer.video_) {
+    const auto p = video::parse_frame(v.frame);
+    ASSERT_EQ(p.status, video::HeaderStatus::Ok);
+    // Only a pair captured before the head loop's first reading may go without.
+    if (posed == 0 && !p.header.head_joint_rad) continue;
+    ASSERT_TRUE(p.header.head_joint_rad.has_value()) << "pair " << p.header.encode_seq;
+    const float yaw = (*p.header.head_joint_rad)[0];
+    EXPECT_GE(yaw, previous_yaw - 1e-4f) << "pair " << p.header.encode_seq;
+    EXPECT_LE(yaw, 0.3f + 1e-4f);
+    previous_yaw = yaw;
+    ++posed;
+  }
+  EXPECT_GE(posed, 2);
 }
 
 TEST(RemoteDaemon, EyesThatPlayOnceWaitForAViewerAndTheirEndIsReported) {

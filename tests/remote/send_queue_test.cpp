@@ -116,14 +116,38 @@ TEST(SendQueue, DepthKeepsItsBoundWhateverVideoWaits) {
   EXPECT_EQ(order, "d2.0 r9.0 d3.0 ");
 }
 
-TEST(SendQueue, RepairBytesCountOnlyUnsentResends) {
+// Resent tiles and resent pairs (issue 28: pairs asked for by VideoNack) share one bound.
+TEST(SendQueue, RepairBytesCountOnlyUnsentResendsInBothLanes) {
   SendQueue q;
   q.push(Lane::Depth, frame('r', 1, 2, false));  // "r1.0", "r1.1": 4 bytes each
   q.push(Lane::Depth, frame('d', 2, 2));
-  q.push(Lane::Video, frame('v', 3, 2, false));
-  EXPECT_EQ(q.queued_repair_bytes(), 8u);
-  drain(q, 1);
+  q.push(Lane::Video, frame('v', 3, 2, false));  // a resent pair: "v3.0", "v3.1"
+  q.push(Lane::Video, frame('v', 4, 2));         // a pair sent once: not a resend
+  EXPECT_EQ(q.queued_repair_bytes(), 16u);
+  EXPECT_EQ(drain(q, 1), "r1.0");
+  EXPECT_EQ(q.queued_repair_bytes(), 12u);
+  EXPECT_EQ(drain(q, 4), "r1.1 d2.0 d2.1 v3.0");
   EXPECT_EQ(q.queued_repair_bytes(), 4u);
+  drain(q);
+  EXPECT_EQ(q.queued_repair_bytes(), 0u);
+}
+
+// A resent pair is packed late (its ids and seals are those of its sending): until then its
+// messages' size stands in for the datagrams it will become; once packed, what is left of them.
+TEST(SendQueue, AResentPairNotYetPackedCountsItsMessagesBytes) {
+  SendQueue q;
+  OutFrame late;
+  late.trimmable = false;
+  late.counts_as_frame = false;
+  late.unpacked_bytes = 5000;
+  late.pack = [] { return frame('v', 9, 3).items; };
+  q.push(Lane::Video, std::move(late));
+  EXPECT_EQ(q.queued_repair_bytes(), 5000u);
+  q.push(Lane::Depth, frame('d', 1, 1));
+  EXPECT_EQ(drain(q, 1), "d1.0");  // depth first: the pair is still unpacked
+  EXPECT_EQ(q.queued_repair_bytes(), 5000u);
+  EXPECT_EQ(drain(q, 1), "v9.0");  // packed: two 4-byte items left
+  EXPECT_EQ(q.queued_repair_bytes(), 8u);
 }
 
 TEST(SendQueue, LatePackingRunsWhenTheFrameIsFirstTaken) {

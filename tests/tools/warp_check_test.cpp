@@ -58,6 +58,24 @@ TEST(WarpCheckTool, PrintsTheIssuesKeysWithTheWarpWithinHalfADegree) {
   EXPECT_GT(j["warp_ms_per_eye"].get<double>(), 0.0);
 }
 
+// --pair-gap-ms adds its case after the issue's five keys: the pair's own pose against the depth's.
+TEST(WarpCheckTool, APairGapAddsTheDepthPoseErrorAfterTheFiveKeys) {
+  const ToolRun r = run_telex("warp --check --json --eye-size 640x360 --frames 3 --pair-gap-ms 20");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::ordered_json::parse(r.out);
+  std::vector<std::string> keys;
+  for (const auto& [key, value] : j.items()) keys.push_back(key);
+  EXPECT_EQ(keys,
+            (std::vector<std::string>{"yaw_deg_s", "lag_ms", "error_deg_with", "error_deg_without",
+                                      "warp_ms_per_eye", "pair_gap_ms", "error_deg_depth_pose"}));
+  EXPECT_EQ(j["pair_gap_ms"].get<double>(), 20.0);
+  EXPECT_LE(j["error_deg_with"].get<double>(), 0.5);
+  EXPECT_GE(j["error_deg_depth_pose"].get<double>(), j["error_deg_with"].get<double>() + 0.6);
+  const ToolRun bad = run_telex("warp --check --pair-gap-ms -5");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--pair-gap-ms"), std::string::npos) << bad.err;
+}
+
 TEST(WarpCheckTool, WithoutLagThereIsNothingToCorrect) {
   const ToolRun r = run_telex("warp --check --json --eye-size 320x180 --frames 3 --lag-ms 0");
   ASSERT_EQ(r.exit_code, 0) << r.err;

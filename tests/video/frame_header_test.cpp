@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <limits>
+#include <span>
 #include <vector>
 
 namespace telex::video {
@@ -74,7 +77,10 @@ TEST(FrameHeader, BadFieldsRefusedWithTheirReason) {
   EXPECT_EQ(with(2, kHeaderVersion + 1), HeaderStatus::BadMagic);
   EXPECT_EQ(with(3, 0), HeaderStatus::UnknownCodec);
   EXPECT_EQ(with(3, 3), HeaderStatus::UnknownCodec);
-  EXPECT_EQ(with(4, 0x02), HeaderStatus::BadFlags);
+  EXPECT_EQ(with(4, 0x04), HeaderStatus::BadFlags);
+  EXPECT_EQ(with(4, 0x80), HeaderStatus::BadFlags);
+  // Bit 1 says a head pose follows: a frame too short for it is truncated.
+  EXPECT_EQ(with(4, 0x02), HeaderStatus::Truncated);
   EXPECT_EQ(with(5, 1), HeaderStatus::BadFlags);
 }
 
@@ -93,6 +99,61 @@ TEST(FrameHeader, GeometryBounded) {
               ok ? HeaderStatus::Ok : HeaderStatus::BadGeometry)
         << w << "x" << h << " " << video_codec_name(codec);
   }
+}
+
+// The robot head's joints at capture: flag bit 1 and three f32 between the header and the payload.
+TEST(FrameHeader, HeadPoseRoundTripsBetweenHeaderAndPayload) {
+  EncodedFrameHeader h = sample(3);
+  h.head_joint_rad = std::array<float, 3>{0.5f, -0.25f, 3.14159f};
+  const Bytes bytes = frame_bytes(h, {7, 8, 9});
+  ASSERT_EQ(header_bytes(h), kHeaderBytes + kHeadPoseBytes);
+  ASSERT_EQ(bytes.size(), kHeaderBytes + kHeadPoseBytes + 3);
+  EXPECT_EQ(bytes[4], 0x03);  // intra | head pose
+  const ParsedFrame p = parse_frame(bytes);
+  ASSERT_EQ(p.status, HeaderStatus::Ok) << header_status_name(p.status);
+  EXPECT_EQ(p.header, h);
+  EXPECT_EQ(Bytes(p.payload.begin(), p.payload.end()), (Bytes{7, 8, 9}));
+  for (std::size_t n = kHeaderBytes; n < kHeaderBytes + kHeadPoseBytes; ++n)
+    EXPECT_EQ(parse_frame(std::span(bytes).first(n)).status, HeaderStatus::Truncated) << n;
+}
+
+// A frame without a pose is byte for byte what the header was before poses: it still parses, and
+// says it has none; stamping one in afterwards gives what serializing it with one gives.
+TEST(FrameHeader, AnOldFrameWithoutAPoseParsesAndCanBeStamped) {
+  const EncodedFrameHeader h = sample(4);
+  Bytes bytes = frame_bytes(h, {1, 2, 3, 4});
+  ASSERT_EQ(bytes.size(), kHeaderBytes + 4);
+  EXPECT_EQ(bytes[4], 0x01);  // intra only
+  const ParsedFrame old = parse_frame(bytes);
+  ASSERT_EQ(old.status, HeaderStatus::Ok);
+  EXPECT_FALSE(old.header.head_joint_rad.has_value());
+
+  const std::array<float, 3> joints{-0.75f, 0.125f, 0.0f};
+  ASSERT_TRUE(stamp_head_pose(bytes, joints));
+  EncodedFrameHeader posed = h;
+  posed.head_joint_rad = joints;
+  EXPECT_EQ(bytes, frame_bytes(posed, {1, 2, 3, 4}));
+  // Once only; and not into what does not parse.
+  const Bytes stamped = bytes;
+  EXPECT_FALSE(stamp_head_pose(bytes, joints));
+  EXPECT_EQ(bytes, stamped);
+  Bytes broken{1, 2, 3};
+  EXPECT_FALSE(stamp_head_pose(broken, joints));
+  EXPECT_EQ(broken, (Bytes{1, 2, 3}));
+}
+
+TEST(FrameHeader, HeadPoseBeyondPiOrNotFiniteRefused) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const float bad : {3.2f, -3.2f, nan, inf}) {
+    EncodedFrameHeader h = sample(0);
+    h.head_joint_rad = std::array<float, 3>{0.0f, bad, 0.0f};
+    EXPECT_EQ(parse_frame(frame_bytes(h, {})).status, HeaderStatus::BadHeadPose) << bad;
+    EXPECT_FALSE(head_pose_fits(*h.head_joint_rad));
+    Bytes plain = frame_bytes(sample(0), {});
+    EXPECT_FALSE(stamp_head_pose(plain, *h.head_joint_rad));
+  }
+  EXPECT_TRUE(head_pose_fits({3.14159f, -3.14159f, 0.0f}));
 }
 
 TEST(FrameHeader, PayloadLengthBoundedBeforeItIsRead) {

@@ -81,6 +81,7 @@ void StationView::summarize(StationSummary& s) const {
   const auto& c = video_->counters();
   s.video_pairs_received = c.received.load();
   s.video_pairs_decoded = c.decoded.load();
+  s.video_pairs_with_head_pose = c.with_head_pose.load();
   s.video_pairs_damaged = c.damaged.load();
   s.video_decode_errors = c.decode_errors.load();
   s.video_plis_sent = c.plis_sent.load();
@@ -297,13 +298,14 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
     std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms", gap_ms);
     in.status += pairing;
   }
-  // The warp: the robot head's pose when the depth drawn (and the eye video paired with it) was
-  // captured, as the remote measured it with that frame, and the operator's head in the newest
-  // tracking sample, which `in.hand` is in.
+  // The warp: the robot head's pose when the depth drawn was captured, as the remote measured it
+  // with that frame, the pose when the eye pair was captured (its own instant: at 60 deg/s a 16 ms
+  // gap is a degree), and the operator's head in the newest tracking sample, which `in.hand` is in.
   const bool warp = cfg_.view_warp && vs->head_valid && in.hand.head_valid;
   if (warp) {
-    in.R_BaseCapture = head_rotation(cfg_.robot_head, vs->head_joint_rad);
+    in.R_BaseDepth = head_rotation(cfg_.robot_head, vs->head_joint_rad);
     in.R_BaseDisplay = in.hand.R_BaseCamera;
+    video_pose(in);
   } else if (cfg_.view_warp && !warned_no_warp_) {
     spdlog::info(
         "view: no warp until both head poses are known ({}): the video is shown as "
@@ -313,6 +315,21 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
     warned_no_warp_ = true;
   }
   return true;
+}
+
+void StationView::video_pose(StereoViewInputs& in) {
+  if (drawn_ && drawn_->head_joint_rad) {
+    const auto& j = *drawn_->head_joint_rad;
+    in.R_BaseVideo = head_rotation(cfg_.robot_head, {j[0], j[1], j[2]});
+    return;
+  }
+  if (drawn_ && !warned_pair_pose_) {
+    spdlog::info(
+        "view: an eye pair came without the robot head's pose at its capture (the remote had no "
+        "head reading then): such a pair's video is warped from the pose of the depth frame "
+        "drawn with it");
+    warned_pair_pose_ = true;
+  }
 }
 
 void StationView::write_stereo_files(const StereoViewImages& v) const {

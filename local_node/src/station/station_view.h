@@ -106,6 +106,9 @@ class StationView {
   void write_stereo_files(const StereoViewImages& v) const;
   // The inputs of one pair (surface, depth, eyes' video, status); false before the first surface.
   bool stereo_inputs(StereoViewInputs& in);
+  // in.R_BaseVideo from the drawn pair's own head pose; a pair without one leaves it unset (the
+  // video is turned from the depth's pose, as before the pairs carried one), said once.
+  void video_pose(StereoViewInputs& in);
   // --view openxr: the view thread's body (station_view_xr.cpp).
   void run_openxr(std::stop_token stop);
   void set_gate(bool open);
@@ -158,7 +161,8 @@ class StationView {
   PhotonStamps photon_stamps(const StereoViewInputs& in) const;
   void photon_now(const PhotonStamps& stamps);
   PhotonLatency photon_;
-  bool warned_no_warp_ = false;  // view thread
+  bool warned_no_warp_ = false;    // view thread
+  bool warned_pair_pose_ = false;  // view thread: pairs without a head pose were said once
 
   // --view openxr.
   OutputGate gate_;

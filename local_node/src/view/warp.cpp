@@ -34,6 +34,9 @@ uniform int u_vertices_per_row;
 uniform vec4 u_k;  // fx, fy, cx, cy
 uniform mat3 u_R_DisplayCapture;
 uniform vec3 u_p_DisplayCapture_m;
+uniform bool u_video_apart;  // the video was captured at another pose than the depth
+uniform mat3 u_R_VideoDepth;
+uniform vec3 u_p_VideoDepth_m;
 uniform mat4 u_projection;
 out vec2 v_uv;
 out float v_z_mm;
@@ -45,6 +48,9 @@ void main() {
   vec3 p_Display = u_R_DisplayCapture * p_Capture + u_p_DisplayCapture_m;
   gl_Position = u_projection * vec4(p_Display, 1.0);
   v_uv = (vec2(p) + 0.5) / vec2(u_size);
+  vec3 p_Video = u_R_VideoDepth * p_Capture + u_p_VideoDepth_m;
+  if (u_video_apart && p_Video.z > 0.0)
+    v_uv = (u_k.xy * p_Video.xy / p_Video.z + u_k.zw + 0.5) / vec2(u_size);
   v_z_mm = p_Display.z * 1000.0;
 }
 )";
@@ -88,12 +94,22 @@ uniform mat3 u_H_previous;
 uniform vec4 u_k;  // fx, fy, cx, cy
 uniform mat3 u_R_DisplayCapture;
 uniform vec3 u_p_DisplayCapture_m;
+uniform bool u_video_apart;
+uniform mat3 u_R_VideoDepth;
+uniform vec3 u_p_VideoDepth_m;
+uniform mat3 u_H_video;  // display pixel -> video pixel, the rotation only
 uniform vec2 u_size;
 uniform vec3 u_neutral_rgb;
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out uint o_depth_mm;
 bool in_image(vec2 px) {
   return all(greaterThanEqual(px, vec2(-0.5))) && all(lessThanEqual(px, u_size - 0.5));
+}
+// The video's colour of a depth pixel `source` whose point is p_Capture (the depth's frame).
+vec3 video_at(vec2 source, vec3 p_Capture) {
+  vec3 p_Video = u_R_VideoDepth * p_Capture + u_p_VideoDepth_m;
+  if (u_video_apart && p_Video.z > 0.0) source = u_k.xy * p_Video.xy / p_Video.z + u_k.zw;
+  return texture(u_color, (source + 0.5) / u_size).rgb;
 }
 void main() {
   vec2 want = gl_FragCoord.xy - 0.5;
@@ -106,7 +122,9 @@ void main() {
       // The remote has no depth there (a sensor's shadow, beyond its range or view): the video
       // as if far away, turned only, which is exact for the eye the head turns about.
       if (i == 0) {
-        o_color = vec4(texture(u_color, (source + 0.5) / u_size).rgb, 1.0);
+        vec3 v = u_H_video * vec3(want, 1.0);
+        vec2 seen = u_video_apart && v.z > 0.0 ? v.xy / v.z : source;
+        o_color = vec4(texture(u_color, (seen + 0.5) / u_size).rgb, 1.0);
         o_depth_mm = 0u;
         return;
       }
@@ -117,7 +135,7 @@ void main() {
     if (p_Display.z <= 0.0) break;
     vec2 error = u_k.xy * p_Display.xy / p_Display.z + u_k.zw - want;
     if (dot(error, error) <= 0.25) {
-      o_color = vec4(texture(u_color, (source + 0.5) / u_size).rgb, 1.0);
+      o_color = vec4(video_at(source, p_Capture), 1.0);
       o_depth_mm = uint(clamp(p_Display.z * 1000.0 + 0.5, 1.0, 65535.0));
       return;
     }
@@ -134,6 +152,12 @@ void main() {
 std::string egl_error(const char* what) { return local::egl_error("warp", what); }
 
 glm::mat3 to_float(const glm::dmat3& m) { return glm::mat3(m); }
+
+// One warp's poses: the depth's capture to the display, and to the video's capture.
+struct WarpPoses {
+  RigidTransform X_DisplayDepth, X_VideoDepth;
+  bool video_apart = false;  // X_VideoDepth is not the identity
+};
 
 }  // namespace
 
@@ -283,8 +307,9 @@ struct DepthWarp::Impl {
                     d.data);
   }
 
-  // The pose's uniforms, shared by both programs.
-  static void set_pose(GLuint program, const Intrinsics& k, const RigidTransform& X) {
+  // The poses' uniforms, shared by both programs.
+  static void set_pose(GLuint program, const Intrinsics& k, const WarpPoses& poses) {
+    const RigidTransform& X = poses.X_DisplayDepth;
     glUniform4f(glGetUniformLocation(program, "u_k"), static_cast<float>(k.fx),
                 static_cast<float>(k.fy), static_cast<float>(k.cx), static_cast<float>(k.cy));
     const glm::mat3 R = to_float(X.rotation);
@@ -293,13 +318,24 @@ struct DepthWarp::Impl {
     glUniform3f(glGetUniformLocation(program, "u_p_DisplayCapture_m"),
                 static_cast<float>(X.translation_m.x), static_cast<float>(X.translation_m.y),
                 static_cast<float>(X.translation_m.z));
+    const RigidTransform& V = poses.X_VideoDepth;
+    glUniform1i(glGetUniformLocation(program, "u_video_apart"), poses.video_apart ? 1 : 0);
+    const glm::mat3 R_VideoDepth = to_float(V.rotation);
+    glUniformMatrix3fv(glGetUniformLocation(program, "u_R_VideoDepth"), 1, GL_FALSE,
+                       glm::value_ptr(R_VideoDepth));
+    glUniform3f(glGetUniformLocation(program, "u_p_VideoDepth_m"),
+                static_cast<float>(V.translation_m.x), static_cast<float>(V.translation_m.y),
+                static_cast<float>(V.translation_m.z));
   }
 
-  void draw_fill(const WarpOptions& o, const Intrinsics& k, const RigidTransform& X,
+  void draw_fill(const WarpOptions& o, const Intrinsics& k, const WarpPoses& poses,
                  const glm::dmat3& R_DisplayPrevious, int previous) {
     const glm::dmat3 K(k.fx, 0.0, 0.0, 0.0, k.fy, 0.0, k.cx, k.cy, 1.0);  // column-major
-    const glm::mat3 H_previous = to_float(K * glm::transpose(R_DisplayPrevious) * glm::inverse(K));
-    const glm::mat3 H_capture = to_float(K * glm::transpose(X.rotation) * glm::inverse(K));
+    const glm::dmat3 K_inv = glm::inverse(K);
+    const glm::dmat3 R_DepthDisplay = glm::transpose(poses.X_DisplayDepth.rotation);
+    const glm::mat3 H_previous = to_float(K * glm::transpose(R_DisplayPrevious) * K_inv);
+    const glm::mat3 H_capture = to_float(K * R_DepthDisplay * K_inv);
+    const glm::mat3 H_video = to_float(K * poses.X_VideoDepth.rotation * R_DepthDisplay * K_inv);
     glUseProgram(fill);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, color_in);
@@ -316,7 +352,9 @@ struct DepthWarp::Impl {
                        glm::value_ptr(H_capture));
     glUniformMatrix3fv(glGetUniformLocation(fill, "u_H_previous"), 1, GL_FALSE,
                        glm::value_ptr(H_previous));
-    set_pose(fill, k, X);
+    glUniformMatrix3fv(glGetUniformLocation(fill, "u_H_video"), 1, GL_FALSE,
+                       glm::value_ptr(H_video));
+    set_pose(fill, k, poses);
     glUniform2f(glGetUniformLocation(fill, "u_size"), static_cast<float>(width),
                 static_cast<float>(height));
     glUniform3f(glGetUniformLocation(fill, "u_neutral_rgb"), o.neutral_bgr[2] / 255.0f,
@@ -329,7 +367,7 @@ struct DepthWarp::Impl {
     glActiveTexture(GL_TEXTURE0);
   }
 
-  void draw_mesh(const WarpOptions& o, const Intrinsics& k, const RigidTransform& X) {
+  void draw_mesh(const WarpOptions& o, const Intrinsics& k, const WarpPoses& poses) {
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, elements);  // the VAO's
     glBufferData(GL_ELEMENT_ARRAY_BUFFER,
                  static_cast<GLsizeiptr>(indices.size() * sizeof(std::uint32_t)), indices.data(),
@@ -346,7 +384,7 @@ struct DepthWarp::Impl {
     glUniform2i(glGetUniformLocation(mesh, "u_size"), width, height);
     glUniform1i(glGetUniformLocation(mesh, "u_step"), step);
     glUniform1i(glGetUniformLocation(mesh, "u_vertices_per_row"), quads_x + 1);
-    set_pose(mesh, k, X);
+    set_pose(mesh, k, poses);
     const glm::mat4 projection =
         projection_from_intrinsics(k, StereoRenderer::kNear_m, StereoRenderer::kFar_m);
     glUniformMatrix4fv(glGetUniformLocation(mesh, "u_projection"), 1, GL_FALSE,
@@ -411,13 +449,22 @@ void DepthWarp::reset_previous() { impl_->has_previous = false; }
 WarpedEye DepthWarp::warp(const cv::Mat3b& eye_bgr, const cv::Mat1w& depth_mm, const Intrinsics& k,
                           const RigidTransform& X_DisplayCapture,
                           const glm::dmat3& R_DisplayPrevious) {
+  return warp(eye_bgr, depth_mm, k, X_DisplayCapture, RigidTransform{}, R_DisplayPrevious);
+}
+
+WarpedEye DepthWarp::warp(const cv::Mat3b& video_bgr, const cv::Mat1w& depth_mm,
+                          const Intrinsics& k, const RigidTransform& X_DisplayDepth,
+                          const RigidTransform& X_VideoDepth, const glm::dmat3& R_DisplayPrevious) {
   Impl& g = *impl_;
+  const WarpPoses poses{
+      X_DisplayDepth, X_VideoDepth,
+      X_VideoDepth.rotation != glm::dmat3(1.0) || X_VideoDepth.translation_m != glm::dvec3(0.0)};
   const cv::Size size(g.width, g.height);
-  if (k.width != g.width || k.height != g.height || eye_bgr.size() != size ||
+  if (k.width != g.width || k.height != g.height || video_bgr.size() != size ||
       depth_mm.size() != size)
     throw std::invalid_argument("warp: the image, depth and intrinsics must be " +
                                 std::to_string(g.width) + "x" + std::to_string(g.height));
-  g.upload(eye_bgr, depth_mm);
+  g.upload(video_bgr, depth_mm);
   mesh_triangles(depth_mm, options_.grid_step_px, options_.max_depth_step_ratio, g.indices,
                  options_.merge_cells);
   const int previous = g.current, now = 1 - g.current;
@@ -428,8 +475,8 @@ WarpedEye DepthWarp::warp(const cv::Mat3b& eye_bgr, const cv::Mat1w& depth_mm, c
   const GLfloat far_plane = 1.0f;
   glClearBufferfv(GL_DEPTH, 0, &far_plane);
   glBindVertexArray(g.vao);
-  g.draw_mesh(options_, k, X_DisplayCapture);
-  g.draw_fill(options_, k, X_DisplayCapture, R_DisplayPrevious, previous);
+  g.draw_mesh(options_, k, poses);
+  g.draw_fill(options_, k, poses, R_DisplayPrevious, previous);
   glBindVertexArray(0);
   WarpedEye out;
   g.read_back(out);

@@ -195,16 +195,52 @@ double angle_deg(const Intrinsics& k, const glm::dvec2& a, const glm::dvec2& b) 
   return std::acos(std::clamp(glm::dot(ra, rb), -1.0, 1.0)) * 180.0 / kPi;
 }
 
+// X_AB: points in B's eye frame into A's.
+RigidTransform relative(const EyePose& A, const EyePose& B) {
+  const glm::dmat3 R_ABase = glm::transpose(A.R_BaseEye);
+  return {R_ABase * B.R_BaseEye, R_ABase * (B.p_BaseEye - A.p_BaseEye)};
+}
+
+// The sums behind WarpCheckResult's means.
+struct ErrorSums {
+  double with = 0.0, without = 0.0, depth_pose = 0.0;
+};
+
+// Each disc in view at the video's and the display's poses, found in what is shown (`with`, and
+// `depth_pose` when given) and in the video as captured (`without`), against the world's place.
+void measure(const Room& room, const Intrinsics& k, const EyePose& video, const EyePose& display,
+             const cv::Mat3b& with_bgr, const cv::Mat3b& without_bgr,
+             const cv::Mat3b* depth_pose_bgr, ErrorSums& sums, WarpCheckResult& r) {
+  const auto with = find_discs(with_bgr), without = find_discs(without_bgr);
+  std::array<std::optional<glm::dvec2>, kDiscs> depth_pose;
+  if (depth_pose_bgr) depth_pose = find_discs(*depth_pose_bgr);
+  for (std::size_t i = 0; i < room.discs.size(); ++i) {
+    const auto truth = visible_at(room, room.discs[i], display, k);
+    if (!truth || !visible_at(room, room.discs[i], video, k)) continue;
+    if (!with[i] || !without[i] || (depth_pose_bgr && !depth_pose[i])) {
+      ++r.points_missed;
+      continue;
+    }
+    const double e_with = angle_deg(k, *with[i], *truth);
+    sums.with += e_with;
+    sums.without += angle_deg(k, *without[i], *truth);
+    sums.depth_pose += depth_pose_bgr ? angle_deg(k, *depth_pose[i], *truth) : e_with;
+    r.max_error_deg_with = std::max(r.max_error_deg_with, e_with);
+    ++r.points_measured;
+  }
+}
+
 }  // namespace
 
 WarpCheckResult run_warp_check(const WarpCheckOptions& o) {
   if (o.width < 64 || o.height < 64 || o.width > 8192 || o.height > 8192)
     throw std::invalid_argument("warp check: the eye size must be 64..8192 each way");
   if (o.frames < 2 || o.frames > 1000 || !(o.frame_rate_hz > 0.0) || !(o.lag_ms >= 0.0) ||
-      !std::isfinite(o.yaw_deg_s) || std::abs(o.yaw_deg_s) > 720.0)
+      !std::isfinite(o.yaw_deg_s) || std::abs(o.yaw_deg_s) > 720.0 || !(o.pair_gap_ms >= 0.0) ||
+      o.pair_gap_ms > 1000.0)
     throw std::invalid_argument(
-        "warp check: frames 2..1000, a positive frame rate, a lag >= 0 and |yaw rate| <= 720 "
-        "deg/s");
+        "warp check: frames 2..1000, a positive frame rate, a lag >= 0, |yaw rate| <= 720 "
+        "deg/s and a pair gap in 0..1000 ms");
   const Room room;
   Intrinsics k;
   k.width = o.width;
@@ -212,50 +248,49 @@ WarpCheckResult run_warp_check(const WarpCheckOptions& o) {
   k.fx = k.fy = o.width / 2.0;  // 90 degrees across
   k.cx = (o.width - 1) / 2.0;
   k.cy = (o.height - 1) / 2.0;
-  std::array<std::unique_ptr<DepthWarp>, 2> warps;
+  const bool gap = o.pair_gap_ms > 0.0;
+  // The warps keep their previous output for the hole fill: one per eye and per way of warping.
+  std::array<std::unique_ptr<DepthWarp>, 2> warps, depth_pose_warps;
   for (auto& w : warps) w = std::make_unique<DepthWarp>(o.width, o.height, o.warp);
+  if (gap)
+    for (auto& w : depth_pose_warps) w = std::make_unique<DepthWarp>(o.width, o.height, o.warp);
 
   const double rate = o.yaw_deg_s * kPi / 180.0;
   // The sweep is centred on straight ahead.
   const double yaw0 = -rate * (o.frames - 1) / o.frame_rate_hz / 2.0;
   std::array<glm::dmat3, 2> R_BasePreviousDisplay{glm::dmat3(1.0), glm::dmat3(1.0)};
-  double sum_with = 0.0, sum_without = 0.0;
+  ErrorSums sums;
   WarpCheckResult r;
   std::vector<double> ms;
   for (int f = 0; f < o.frames; ++f) {
     const double yaw_display = yaw0 + rate * f / o.frame_rate_hz;
-    const double yaw_capture = yaw_display - rate * o.lag_ms * 1e-3;
+    const double yaw_video = yaw_display - rate * o.lag_ms * 1e-3;
+    const double yaw_depth = yaw_video - rate * o.pair_gap_ms * 1e-3;
     for (std::size_t eye = 0; eye < 2; ++eye) {
-      const EyePose C = eye_pose(yaw_capture, eye), D = eye_pose(yaw_display, eye);
-      const Capture cap = render(room, C, k);
-      const glm::dmat3 R_DisplayBase = glm::transpose(D.R_BaseEye);
-      const RigidTransform X_DisplayCapture{R_DisplayBase * C.R_BaseEye,
-                                            R_DisplayBase * (C.p_BaseEye - D.p_BaseEye)};
+      const EyePose V = eye_pose(yaw_video, eye), S = eye_pose(yaw_display, eye),
+                    D = eye_pose(yaw_depth, eye);
+      const Capture video = render(room, V, k);
+      const cv::Mat1w depth_mm = gap ? render(room, D, k).depth_mm : video.depth_mm;
+      const glm::dmat3 R_DisplayPrevious = glm::transpose(S.R_BaseEye) * R_BasePreviousDisplay[eye];
       const auto t0 = std::chrono::steady_clock::now();
-      const WarpedEye shown = warps[eye]->warp(cap.bgr, cap.depth_mm, k, X_DisplayCapture,
-                                               R_DisplayBase * R_BasePreviousDisplay[eye]);
+      const WarpedEye shown = warps[eye]->warp(video.bgr, depth_mm, k, relative(S, D),
+                                               relative(V, D), R_DisplayPrevious);
       const auto t1 = std::chrono::steady_clock::now();
       if (f > 0) ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
-      R_BasePreviousDisplay[eye] = D.R_BaseEye;
-      const auto with = find_discs(shown.bgr), without = find_discs(cap.bgr);
-      for (std::size_t i = 0; i < room.discs.size(); ++i) {
-        const auto truth = visible_at(room, room.discs[i], D, k);
-        if (!truth || !visible_at(room, room.discs[i], C, k)) continue;
-        if (!with[i] || !without[i]) {
-          ++r.points_missed;
-          continue;
-        }
-        const double e_with = angle_deg(k, *with[i], *truth);
-        sum_with += e_with;
-        sum_without += angle_deg(k, *without[i], *truth);
-        r.max_error_deg_with = std::max(r.max_error_deg_with, e_with);
-        ++r.points_measured;
-      }
+      // A pair without its own pose: the video taken as captured at the depth's pose.
+      std::optional<WarpedEye> depth_pose;
+      if (gap)
+        depth_pose =
+            depth_pose_warps[eye]->warp(video.bgr, depth_mm, k, relative(S, D), R_DisplayPrevious);
+      R_BasePreviousDisplay[eye] = S.R_BaseEye;
+      measure(room, k, V, S, shown.bgr, video.bgr, depth_pose ? &depth_pose->bgr : nullptr, sums,
+              r);
     }
   }
   if (r.points_measured > 0) {
-    r.error_deg_with = sum_with / r.points_measured;
-    r.error_deg_without = sum_without / r.points_measured;
+    r.error_deg_with = sums.with / r.points_measured;
+    r.error_deg_without = sums.without / r.points_measured;
+    r.error_deg_depth_pose = sums.depth_pose / r.points_measured;
   }
   std::nth_element(ms.begin(), ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2), ms.end());
   r.warp_ms_per_eye = ms[ms.size() / 2];

@@ -84,10 +84,15 @@ Buffer SendQueue::next_item(bool& frame_done, bool& counts, Lane& lane) {
 
 std::size_t SendQueue::queued_repair_bytes() const {
   std::size_t bytes = 0;
-  for (const OutFrame& f : depth_) {
-    if (f.trimmable) continue;
-    for (std::size_t i = f.next; i < f.items.size(); ++i) bytes += f.items[i]->size();
-  }
+  for (const auto* q : {&depth_, &video_})
+    for (const OutFrame& f : *q) {
+      if (f.trimmable) continue;
+      if (f.pack) {
+        bytes += f.unpacked_bytes;
+        continue;
+      }
+      for (std::size_t i = f.next; i < f.items.size(); ++i) bytes += f.items[i]->size();
+    }
   return bytes;
 }
 

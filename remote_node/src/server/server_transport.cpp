@@ -158,6 +158,10 @@ void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
       // frame wins) neither drops them as stale nor drops depth for them. With 30 fps of video
       // a station built one surface in 5 s: its depth was dropped as stale.
       f.frame_id = frame_id;
+      for (const auto& [h, m] : msgs) {
+        const auto* v = std::get_if<proto::EncodedVideo>(&m);
+        f.unpacked_bytes += proto::kHeaderSize + (v ? v->frame.size() : 0);
+      }
       f.pack = [this, l, msgs = std::move(msgs)] {
         return pack(l, newest_queued_frame_id_, msgs).items;
       };

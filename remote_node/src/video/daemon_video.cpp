@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The remote daemon's eyes: the video thread (pair -> EyeStream -> the server) and the station's
 // receiver reports, where the rate controller plugs in.
+#include <array>
 #include <chrono>
 
 #include "telex/remote/daemon.h"
@@ -38,6 +39,7 @@ void RemoteDaemon::video_loop() {
     if (!frame || !server_->video_wanted()) continue;
     bool is_intra = false;
     const bool ok = eye_stream_->encode(*frame, encoded, is_intra);
+    if (ok && head_driven_) stamp_head_pose(encoded);
     if (ok)
       server_->publish_video(static_cast<std::uint32_t>(frame->frame_id), frame->capture_ns,
                              is_intra, std::move(encoded));
@@ -47,6 +49,19 @@ void RemoteDaemon::video_loop() {
     stats_.video_failed = eye_stream_->counters().failed;
     stats_.video_intra_requests = eye_stream_->counters().intra_requests;
   }
+}
+
+// The head's joints when the pair was captured, interpolated between the head loop's readings as
+// for a depth frame (head_pose_at), go in the pair's header: the station warps the video from
+// them. The header's capture time is the pair's (a buffering encoder's output is an older pair).
+void RemoteDaemon::stamp_head_pose(std::vector<std::uint8_t>& encoded) const {
+  const video::ParsedFrame parsed = video::parse_frame(encoded);
+  if (parsed.status != video::HeaderStatus::Ok) return;
+  const HeadPose h = head_pose_at(parsed.header.capture_ns);
+  if (!h.valid) return;
+  std::array<float, 3> joint_rad{};
+  for (std::size_t j = 0; j < kHeadJoints; ++j) joint_rad[j] = static_cast<float>(h.joint_rad[j]);
+  video::stamp_head_pose(encoded, joint_rad);
 }
 
 void RemoteDaemon::on_receiver_report(const proto::ReceiverReport& report,

@@ -69,6 +69,9 @@ struct StationSummary {
   // share of those decoded whole is the share of the remote's pairs a person could see.
   std::uint64_t video_nacks_sent = 0, video_pairs_repaired = 0, video_pairs_given_up = 0;
   std::uint64_t video_pairs_expected = 0;
+  // Pairs decoded whole that carried the robot head's joints at their capture (the warp turns
+  // the video from them; without, from the depth frame's).
+  std::uint64_t video_pairs_with_head_pose = 0;
   double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
   // Glass to glass: capture to the rendered eye handed to the display (PNG, window), for pairs
   // whose frame counter read back from that image is their id (synthetic eyes stamp it).

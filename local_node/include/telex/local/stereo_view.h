@@ -44,10 +44,14 @@ struct StereoViewInputs {
   std::array<glm::dvec3, 2> default_shoulder_camera{glm::dvec3{-0.264, 0.30, -0.10},
                                                     glm::dvec3{0.20, 0.30, -0.10}};
   // The warp (--warp on, telex/local/warp.h): the right eye camera's orientation in the head
-  // base's frame when the depth and the video paired with it were captured (the robot head's
-  // measured joints), and now (the operator's head, the frame `hand` is in). Both set: each eye's
-  // video and depth are reprojected to the operator's pose before the body is drawn over them.
-  std::optional<glm::dmat3> R_BaseCapture, R_BaseDisplay;
+  // base's frame when the depth was captured (the robot head's joints the remote measured with
+  // that frame), and now (the operator's head, the frame `hand` is in). Both set: each eye's video
+  // and depth are reprojected to the operator's pose before the body is drawn over them.
+  std::optional<glm::dmat3> R_BaseDepth, R_BaseDisplay;
+  // The same when the eye pair was captured (the joints in the pair's header): the video is
+  // turned from there, the depth brought into it from R_BaseDepth. Unset (a pair without a head
+  // pose): the video is taken to have been captured at R_BaseDepth.
+  std::optional<glm::dmat3> R_BaseVideo;
 };
 
 struct StereoViewImages {

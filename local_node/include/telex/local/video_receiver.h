@@ -6,6 +6,7 @@
 // whole pair.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -14,6 +15,7 @@
 #include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -27,6 +29,8 @@ namespace telex::local {
 struct EyePair {
   std::uint32_t frame_id = 0;
   std::int64_t capture_ns = 0;  // the remote's clock
+  // The robot head's joints (yaw, pitch, roll) at capture_ns, when the remote has a head.
+  std::optional<std::array<float, 3>> head_joint_rad;
   cv::Mat3b left_bgr, right_bgr;
 };
 
@@ -35,10 +39,11 @@ struct VideoReceiverCounters {
   std::atomic<std::uint64_t> queue_dropped{0};  // dropped before decoding: the decoder fell behind
   std::atomic<std::uint64_t> decoded{0};        // pairs decoded whole (shown when asked for)
   std::atomic<std::uint64_t> damaged{0};  // decoded on a missing reference or held back: not shown
-  std::atomic<std::uint64_t> decode_errors{0};  // bad header or refused by the codec
-  std::atomic<std::uint64_t> intra{0};          // intra pairs decoded
-  std::atomic<std::uint64_t> plis_sent{0};      //
-  std::atomic<std::uint64_t> plis_held{0};      // PLIs not sent: one went out less than an RTT ago
+  std::atomic<std::uint64_t> decode_errors{0};   // bad header or refused by the codec
+  std::atomic<std::uint64_t> intra{0};           // intra pairs decoded
+  std::atomic<std::uint64_t> with_head_pose{0};  // of the pairs decoded whole, those with one
+  std::atomic<std::uint64_t> plis_sent{0};       //
+  std::atomic<std::uint64_t> plis_held{0};       // PLIs not sent: one went out less than an RTT ago
   // Repair (VideoReorder): NACKs sent, missing pairs that came in time, missing pairs given up,
   // pairs that waited behind a gap, copies that came too late or twice.
   std::atomic<std::uint64_t> nacks_sent{0};

@@ -69,6 +69,15 @@ class DepthWarp {
   WarpedEye warp(const cv::Mat3b& eye_bgr, const cv::Mat1w& depth_mm, const Intrinsics& k,
                  const RigidTransform& X_DisplayCapture,
                  const glm::dmat3& R_DisplayPrevious = glm::dmat3(1.0));
+  // The same when the video and the depth were captured at different poses (the eye pair and the
+  // depth frame at their own instants while the head turns): the mesh is the depth's, moved by
+  // X_DisplayDepth, and each of its points takes the video's colour where the video's camera saw
+  // it, p_Video = X_VideoDepth * p_Depth. Where the depth has none, the video is turned as if far
+  // away by the rotation between the video's pose and the display's. X_VideoDepth identity is the
+  // overload above.
+  WarpedEye warp(const cv::Mat3b& video_bgr, const cv::Mat1w& depth_mm, const Intrinsics& k,
+                 const RigidTransform& X_DisplayDepth, const RigidTransform& X_VideoDepth,
+                 const glm::dmat3& R_DisplayPrevious);
   // Forgets the previous frame: the next warp's holes are neutral.
   void reset_previous();
 

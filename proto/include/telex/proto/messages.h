@@ -22,8 +22,9 @@ namespace telex::proto {
 inline constexpr std::uint32_t kMagic = 0x31584C54u;
 // 5: message 8 carries an encoded stereo pair (EncodedVideo) instead of one eye's JPEG; messages
 // 13 and 14 (PictureLoss, ReceiverReport) are new. 6: message 15 (VideoNack) asks for lost pairs
-// again.
-inline constexpr std::uint8_t kProtocolVersion = 6;
+// again. 7: an encoded pair's header may carry the robot head's joints at its capture (flag bit 1
+// of video::EncodedFrameHeader), which a version-6 station would refuse as bad flags.
+inline constexpr std::uint8_t kProtocolVersion = 7;
 inline constexpr std::size_t kHeaderSize = 36;
 // Default bound on one message (header + payload). A 640x480 raw frame is 614400 bytes.
 inline constexpr std::size_t kDefaultMaxMessageBytes = 1u << 20;
@@ -204,8 +205,9 @@ struct FrameManifest {
 };
 
 // One encoded stereo pair (remote -> station, fragmented and sealed like depth): the bytes
-// video::EyeEncoder wrote, a video::EncodedFrameHeader (30 bytes) then exactly its payload_bytes
-// of H.264 or MJPEG. decode() checks them with video::parse_frame (geometry, codec, lengths).
+// video::EyeEncoder wrote, a video::EncodedFrameHeader (30 bytes, 42 with the robot head's joints
+// at capture) then exactly its payload_bytes of H.264 or MJPEG. decode() checks them with
+// video::parse_frame (geometry, codec, lengths).
 struct EncodedVideo {
   std::vector<std::uint8_t> frame;
   bool operator==(const EncodedVideo&) const = default;

@@ -159,6 +159,8 @@ class RemoteDaemon {
   // server: PLIs and receiver reports.
   void open_eyes();
   void video_loop();
+  // Puts the robot head's joints at the encoded pair's capture time in its header.
+  void stamp_head_pose(std::vector<std::uint8_t>& encoded) const;
   // Network thread: the station's receiver report sets the eyes' bit rate (EyeRate).
   void on_receiver_report(const proto::ReceiverReport& report, std::int64_t received_ns);
   void head_loop();

@@ -39,6 +39,9 @@ struct OutFrame {
   bool trimmable = true;
   // When set, replaces `items` when the frame is first taken (then cleared): packing late.
   std::function<std::vector<Buffer>()> pack;
+  // What a frame packed late will hold, in bytes (its whole messages; fragment headers and seals
+  // come on top), so resends not yet packed count against the repair bound too.
+  std::size_t unpacked_bytes = 0;
 };
 
 enum class Lane : std::uint8_t { Depth = 0, Video = 1 };
@@ -68,7 +71,8 @@ class SendQueue {
   // `counts` copies the frame's counts_as_frame and `lane` says whose it is.
   Buffer next_item(bool& frame_done, bool& counts, Lane& lane);
 
-  // Bytes of resends (untrimmable depth frames) still waiting.
+  // Bytes of resends (untrimmable frames: depth tiles and video pairs) still waiting; a frame not
+  // packed yet counts its unpacked_bytes.
   std::size_t queued_repair_bytes() const;
   std::size_t depth_frames() const { return depth_.size(); }
   std::size_t video_frames() const { return video_.size(); }
