@@ -43,10 +43,10 @@ class BodyUpsample {
   // Binds the low-resolution target for the eye `k` (cleared: no body, far) and returns its
   // intrinsics; remembers the framebuffer and viewport bound before.
   Intrinsics begin(const Intrinsics& k, int divisor);
-  // Back to the framebuffer bound at begin(), and the body over it within `bounds_px` (eye
-  // pixels, rows top-down). `scene_depth`: the eye's remote window depths (an R32F texture at the
-  // eye's size), 0 for none.
-  void composite(int divisor, const cv::Rect& bounds_px, unsigned scene_depth);
+  // Back to the framebuffer bound at begin(), and the body over it within `areas_px` (eye
+  // pixels, rows top-down, disjoint: each is blended once). `scene_depth`: the eye's remote window
+  // depths (an R32F texture at the eye's size), 0 for none.
+  void composite(int divisor, std::span<const cv::Rect> areas_px, unsigned scene_depth);
 
  private:
   struct Gl;
@@ -57,6 +57,12 @@ class BodyUpsample {
 // times the larger radius around each segment) in front of the near plane, padded by `pad_px`.
 cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
                         std::span<const Capsule> capsules, int pad_px);
+
+// The same pixels as body_bounds_px, each capsule's on its own, as disjoint rectangles of whole
+// `tile_px` tiles (a run of tiles along a row, grown down over the rows with the same run) cut to
+// the image: two hands far apart do not make the rectangle between them shaded.
+std::vector<cv::Rect> body_tiles_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                                    std::span<const Capsule> capsules, int pad_px, int tile_px);
 
 // The window depth (0 near .. 1 far, as the renderer's depth buffer holds it) of a point z_m
 // ahead of the eye, clamped to the near and far planes.

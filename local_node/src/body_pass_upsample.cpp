@@ -10,7 +10,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
+#include <vector>
 
 #include "body_pass.h"
 #include "gl_program.h"
@@ -94,6 +96,50 @@ cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
   return cv::Rect(left, top, right - left, bottom - top) & all;
 }
 
+std::vector<cv::Rect> body_tiles_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                                    std::span<const Capsule> capsules, int pad_px, int tile_px) {
+  std::vector<cv::Rect> out;
+  if (tile_px < 1 || k.width <= 0 || k.height <= 0) return out;
+  const int cols = (k.width + tile_px - 1) / tile_px, rows = (k.height + tile_px - 1) / tile_px;
+  cv::Mat1b covered(rows, cols, std::uint8_t{0});
+  for (const Capsule& c : capsules) {
+    const cv::Rect r = body_bounds_px(k, p_RightEye, std::span<const Capsule>(&c, 1), pad_px);
+    if (r.empty()) continue;
+    covered(cv::Range(r.y / tile_px, (r.br().y - 1) / tile_px + 1),
+            cv::Range(r.x / tile_px, (r.br().x - 1) / tile_px + 1))
+        .setTo(1);
+  }
+  const cv::Rect all(0, 0, k.width, k.height);
+  // Rectangles still growing down: out's indices of those ending on the row above.
+  std::vector<std::size_t> open, next;
+  for (int ty = 0; ty < rows; ++ty) {
+    next.clear();
+    const std::uint8_t* row = covered.ptr<std::uint8_t>(ty);
+    for (int tx = 0; tx < cols;) {
+      if (!row[tx]) {
+        ++tx;
+        continue;
+      }
+      const int start = tx;
+      while (tx < cols && row[tx]) ++tx;
+      const cv::Rect run =
+          cv::Rect(start * tile_px, ty * tile_px, (tx - start) * tile_px, tile_px) & all;
+      const auto same = std::find_if(open.begin(), open.end(), [&](std::size_t i) {
+        return out[i].x == run.x && out[i].width == run.width;
+      });
+      if (same != open.end()) {
+        out[*same].height = run.br().y - out[*same].y;
+        next.push_back(*same);
+      } else {
+        next.push_back(out.size());
+        out.push_back(run);
+      }
+    }
+    open.swap(next);
+  }
+  return out;
+}
+
 struct BodyUpsample::Gl {
   GLuint program = 0, vao = 0, fbo = 0, color = 0, depth = 0;
   int width = 0, height = 0;  // the low-resolution target's
@@ -158,17 +204,14 @@ Intrinsics BodyUpsample::begin(const Intrinsics& k, int divisor) {
   return low;
 }
 
-void BodyUpsample::composite(int divisor, const cv::Rect& bounds_px, unsigned scene_depth) {
+void BodyUpsample::composite(int divisor, std::span<const cv::Rect> areas_px,
+                             unsigned scene_depth) {
   Gl& g = *gl_;
   glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(g.outer_fbo));
   const auto& vp = g.outer_viewport;
   glViewport(vp[0], vp[1], vp[2], vp[3]);
-  const cv::Rect r = bounds_px & cv::Rect(0, 0, vp[2], vp[3]);
-  if (r.empty()) return;
+  if (areas_px.empty()) return;
   glUseProgram(g.program);
-  const auto ndc = [](int px, int size) { return static_cast<float>(2.0 * px / size - 1.0); };
-  glUniform4f(glGetUniformLocation(g.program, "u_rect"), ndc(r.x, vp[2]), ndc(r.y, vp[3]),
-              ndc(r.x + r.width, vp[2]), ndc(r.y + r.height, vp[3]));
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, g.color);
   glActiveTexture(GL_TEXTURE1);
@@ -184,7 +227,15 @@ void BodyUpsample::composite(int divisor, const cv::Rect& bounds_px, unsigned sc
   glDisable(GL_DEPTH_TEST);
   glEnable(GL_BLEND);
   glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-  glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+  const GLint rect = glGetUniformLocation(g.program, "u_rect");
+  const auto ndc = [](int px, int size) { return static_cast<float>(2.0 * px / size - 1.0); };
+  for (const cv::Rect& area : areas_px) {
+    const cv::Rect r = area & cv::Rect(0, 0, vp[2], vp[3]);
+    if (r.empty()) continue;
+    glUniform4f(rect, ndc(r.x, vp[2]), ndc(r.y, vp[3]), ndc(r.x + r.width, vp[2]),
+                ndc(r.y + r.height, vp[3]));
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+  }
   glDisable(GL_BLEND);
   glEnable(GL_DEPTH_TEST);
   glBindVertexArray(0);

@@ -98,6 +98,37 @@ TEST(StereoRenderer, AtHalfTheBodysResolutionTheSceneStillHidesItToThePixel) {
   EXPECT_THROW(r.set_body_divisor(9), std::invalid_argument);
 }
 
+// The composite shades only the tiles each capsule's own bounds cover, not the rectangle around
+// them all: two balls in opposite corners with a diagonal band of wall between them come out as
+// each alone does, pixel for pixel, and the band between them stays the eye's own image.
+TEST(StereoRenderer, AtHalfTheBodysResolutionBallsFarApartAreEachDrawnWhole) {
+  StereoRenderer r(640, 480);
+  r.set_body_divisor(2);
+  cv::Mat1w depth(480, 640, std::uint16_t{2000});
+  const EyeView e = eye(false, depth);
+  const cv::Vec3b skin{150, 170, 230};
+  const glm::dvec3 a{-0.45, -0.3, 1.0}, b{0.45, 0.3, 1.0};
+  const std::vector<Capsule> both{{a, a, 0.05, skin}, {b, b, 0.05, skin}};
+  const cv::Mat3b img = r.render(e, both);
+  const cv::Mat3b only_a = r.render(e, std::vector<Capsule>{both[0]});
+  const cv::Mat3b only_b = r.render(e, std::vector<Capsule>{both[1]});
+  int drawn_a = 0, drawn_b = 0;
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) {
+      const bool in_a = only_a(y, x) != e.background(y, x);
+      const bool in_b = only_b(y, x) != e.background(y, x);
+      ASSERT_FALSE(in_a && in_b) << "the balls overlap at " << x << ", " << y;
+      const cv::Vec3b want = in_a ? only_a(y, x) : in_b ? only_b(y, x) : e.background(y, x);
+      ASSERT_EQ(img(y, x), want) << "at " << x << ", " << y;
+      drawn_a += in_a ? 1 : 0;
+      drawn_b += in_b ? 1 : 0;
+    }
+  // Each ball (some 26 px in radius) is there, and the centre between them is untouched.
+  EXPECT_GT(drawn_a, 2000);
+  EXPECT_GT(drawn_b, 2000);
+  EXPECT_EQ(img(240, 320), e.background(240, 320));
+}
+
 // Centroid of the pixels that differ from the background.
 cv::Point2d centroid(const cv::Mat3b& img, const cv::Vec3b& background) {
   double sx = 0, sy = 0, n = 0;
