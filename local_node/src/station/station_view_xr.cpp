@@ -99,6 +99,8 @@ void StationView::run_openxr(std::stop_token stop) {
     };
     const RigidTransform& X_NatNetStage = cfg_.X_NatNetStage;
     const glm::dquat q_NatNetStage = glm::quat_cast(X_NatNetStage.rotation);
+    const bool record_poses = !cfg_.record_hmd_poses_csv.empty();
+    std::int64_t last_display_ns = 0;
     int exit_steps = 0;
     for (;;) {
       drew = false;
@@ -106,7 +108,12 @@ void StationView::run_openxr(std::stop_token stop) {
       // step() returns right after xrEndFrame: a frame it drew is submitted now.
       if (drew && phase != OpenXrOutput::Phase::Ended) photon_now(drawn_stamps);
       if (phase == OpenXrOutput::Phase::Ended) break;
-      if (const XrHeadPose h = p.xr->head(); h.valid)
+      const XrHeadPose h = p.xr->head();
+      if (h.valid && record_poses && h.display_time_ns != last_display_ns) {
+        last_display_ns = h.display_time_ns;
+        stage_poses_.push({h.display_time_ns, Pose{h.p_StageHead_m, h.q_StageHead}});
+      }
+      if (h.valid)
         hmd_head_.publish(
             {Pose{X_NatNetStage.rotation * h.p_StageHead_m + X_NatNetStage.translation_m,
                   glm::normalize(q_NatNetStage * h.q_StageHead)},
