@@ -166,12 +166,20 @@ TEST(OpenXrView, SessionRunsBothEyesAtPredictedTimesWithoutValidationErrors) {
       EXPECT_EQ(e["width"], 640);
       EXPECT_EQ(e["height"], 720);
       EXPECT_EQ(e["swapchain"], nlohmann::json({640, 720}));
+      // Drawn and submitted with the field of view located for that eye (canted: the eyes'
+      // differ), not the eye camera's.
+      EXPECT_EQ(e["fov"], e["fov_located"]);
       lit = lit && e["centre_rgba"][0].get<int>() + e["centre_rgba"][1].get<int>() > 60;
     }
     drawn += lit;
   }
   EXPECT_GT(with_eyes, 10u);
   EXPECT_GT(drawn, with_eyes / 2) << "the eyes' images are black at their centres";
+  for (const auto& f : rec["frames"])
+    if (f["eyes"].size() == 2) {
+      EXPECT_NE(f["eyes"][0]["fov"], f["eyes"][1]["fov"]);
+      break;
+    }
   const auto j = summary_of(local);
   ASSERT_TRUE(j.contains("openxr")) << j.dump();
   EXPECT_EQ(j["openxr"]["frames_submitted"].get<std::size_t>(), with_eyes);

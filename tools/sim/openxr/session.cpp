@@ -433,10 +433,17 @@ XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
           static_cast<std::uint32_t>(r.offset.y + r.extent.height) > sc->height)
         return XR_ERROR_SWAPCHAIN_RECT_INVALID;
       if (!sc->acquired.empty()) inst.note_error("a layer's swapchain image was not released");
-      frame["eyes"].push_back({{"width", r.extent.width},
-                               {"height", r.extent.height},
-                               {"swapchain", {sc->width, sc->height}},
-                               {"centre_rgba", centre_pixel(*s, *sc, r)}});
+      // The field of view submitted for the eye, beside the one xrLocateViews gave it.
+      const XrFovf& f = p->views[v].fov;
+      const XrFovf located = eye_fovs()[v];
+      frame["eyes"].push_back(
+          {{"width", r.extent.width},
+           {"height", r.extent.height},
+           {"swapchain", {sc->width, sc->height}},
+           {"centre_rgba", centre_pixel(*s, *sc, r)},
+           {"fov", {f.angleLeft, f.angleRight, f.angleUp, f.angleDown}},
+           {"fov_located",
+            {located.angleLeft, located.angleRight, located.angleUp, located.angleDown}}});
     }
     projection = true;
   }

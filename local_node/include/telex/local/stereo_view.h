@@ -48,7 +48,15 @@ struct StereoViewInputs {
   // measured joints), and now (the operator's head, the frame `hand` is in). Both set: each eye's
   // video and depth are reprojected to the operator's pose before the body is drawn over them.
   std::optional<glm::dmat3> R_BaseCapture, R_BaseDisplay;
+  // By Side: the pinhole each eye is drawn in instead of the eye camera's (a headset's field of
+  // view for that eye at its swapchain's size, pinhole_from_fov), both of one size, the eyes' axes
+  // as the cameras'. The video and depth keep their true angular positions in it, resampled, never
+  // stretched; outside the camera's field the eye shows kOutsideCameraBgr and has no depth.
+  std::array<std::optional<Intrinsics>, 2> display_k;
 };
+
+// What an eye shows where its display sees beyond the camera's field (display_k).
+inline const cv::Scalar kOutsideCameraBgr{70, 70, 70};
 
 struct StereoViewImages {
   cv::Mat3b left, right, sbs;
@@ -64,7 +72,7 @@ struct StereoViewImages {
 class EyeRectifier {
  public:
   EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye);
-  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target);
+  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target, const cv::Scalar& border = {});
 
  private:
   CameraModel camera_;
