@@ -13,10 +13,13 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 
 #include "daemons.h"
 #include "process.h"
+#include "telex/common/depth_image.h"
 #include "telex/common/rig.h"
 #include "telex/sim/head_turns.h"
 #include "test_support.h"
@@ -410,6 +413,70 @@ TEST(OpenXrCalibrateHmd, RecordedPosesGiveTheStageBack) {
   const Rig loaded = load_rig(rig);
   EXPECT_LT(glm::length(loaded.X_NatNetStage.translation_m - sim::head_turns_stage_in_natnet().p_m),
             0.002);
+}
+
+// Each eye drawn in the field of view the runtime located for it (its canted pair, wider than the
+// eye camera's), end to end: in the images the runtime received, the eye camera's field (the
+// directions of its image's edges, known from the synthetic source's intrinsics) begins at the
+// pixel the submitted fov puts it, with the runtime's neutral grey beyond it, never the video
+// stretched to the edges.
+TEST(OpenXrView, EyesShowTheVideoAtItsTrueAngleInTheLocatedFov) {
+  const auto dir = scratch_dir("openxr_fov");
+  Env env;
+  constexpr int kW = 480, kH = 540;
+  use_sim_runtime(env, dir,
+                  {{"width", kW}, {"height", kH}, {"period_ms", 16.0}, {"dump_at_frame", 12}},
+                  nullptr);
+  env.set("DISPLAY", "");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir,
+                   {"--hand", "script:press", "--repeat", "--duration", "8", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  const nlohmann::json rec = read_json(dir / "xr_record.json");
+  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
+  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  const Intrinsics cam = kinect_v1_intrinsics(640, 480);  // the synthetic source's field
+  const double cam_left = -(cam.cx + 0.5) / cam.fx, cam_top = (cam.cy + 0.5) / cam.fy;
+  const auto neutral = [](const cv::Vec3b& c) {
+    for (int i = 0; i < 3; ++i)
+      if (std::abs(c[i] - 70) > 3) return false;
+    return true;
+  };
+  for (int eye = 0; eye < 2; ++eye) {
+    SCOPED_TRACE("eye " + std::to_string(eye));
+    const cv::Mat3b img =
+        cv::imread((dir / ("xr_record.json.eye" + std::to_string(eye) + ".ppm")).string());
+    ASSERT_EQ(img.size(), cv::Size(kW, kH)) << "no image dumped at frame 12";
+    // The fov submitted with the dumped frame (the same every frame: the runtime's fixed pair).
+    std::array<double, 4> fov{};
+    for (const auto& f : rec["frames"])
+      if (f["eyes"].size() == 2)
+        for (int i = 0; i < 4; ++i) fov[i] = f["eyes"][eye]["fov"][i].get<double>();
+    const double l = std::tan(fov[0]), r = std::tan(fov[1]), u = std::tan(fov[2]),
+                 d = std::tan(fov[3]);
+    // OpenXR's projection: tangent t right of the axis at column W (t - l) / (r - l) - 0.5.
+    const double want_col = kW * (cam_left - l) / (r - l) - 0.5;
+    const double want_row = kH * (u - cam_top) / (u - d) - 0.5;
+    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - l) / (r - l) - 0.5));
+    const int axis_row = static_cast<int>(std::lround(kH * u / (u - d) - 0.5));
+    // The first pixel of the video from the left along the axis's row (upper half: no hand
+    // there), and from the top down the axis's column.
+    const auto first_video = [&](int n, const std::function<cv::Vec3b(int)>& at) {
+      for (int i = 0; i < n; ++i)
+        if (!neutral(at(i))) return i;
+      return n;
+    };
+    const int row = axis_row - kH / 8;
+    const int got_col = first_video(kW, [&](int i) { return img(row, i); });
+    const int got_row = first_video(kH, [&](int i) { return img(i, axis_col); });
+    std::printf("measured: eye %d video from column %d (fov puts it at %.2f), row %d (%.2f)\n", eye,
+                got_col, want_col, got_row, want_row);
+    EXPECT_TRUE(neutral(img(row, 0))) << img(row, 0);
+    EXPECT_NEAR(got_col, want_col, 1.5);
+    EXPECT_NEAR(got_row, want_row, 1.5);
+  }
 }
 
 TEST(OpenXrView, MissingRuntimeIsAClearErrorNamingIt) {

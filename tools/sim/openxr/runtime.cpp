@@ -348,6 +348,7 @@ bool load_script(Script& s, std::string& error) {
     read_key(j, "refocus_at_frame", s.refocus_at_frame);
     read_key(j, "stop_at_frame", s.stop_at_frame);
     read_key(j, "loss_pending_at_frame", s.loss_pending_at_frame);
+    read_key(j, "dump_at_frame", s.dump_at_frame);
     if (!(period_ms > 0.5 && period_ms < 1000.0) || s.width == 0 || s.height == 0 ||
         s.width > 2048 || s.height > 2048 || !(s.yaw_period_s > 0.0))
       throw std::invalid_argument("period_ms, width, height or yaw_period_s out of range");
