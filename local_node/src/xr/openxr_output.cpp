@@ -77,12 +77,6 @@ std::string openxr_runtime_manifest() {
       "(each makes itself the active runtime), or set XR_RUNTIME_JSON to a runtime's manifest");
 }
 
-XrEyeFov fov_from_pinhole(double fx, double fy, double cx, double cy, int width, int height) {
-  // Pixel centres at integer coordinates: the image's edges are half a pixel beyond them.
-  return {-std::atan((cx + 0.5) / fx), std::atan((width - 0.5 - cx) / fx),
-          std::atan((cy + 0.5) / fy), -std::atan((height - 0.5 - cy) / fy)};
-}
-
 Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height) {
   const double left = std::tan(fov.angle_left_rad), right = std::tan(fov.angle_right_rad);
   const double up = std::tan(fov.angle_up_rad), down = std::tan(fov.angle_down_rad);

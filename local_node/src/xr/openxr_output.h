@@ -104,11 +104,10 @@ class OpenXrOutput {
 // std::runtime_error, saying what to do, when XR_RUNTIME_JSON names no file or none is installed.
 std::string openxr_runtime_manifest();
 
-// The tangent-space field of view of a pinhole camera's image (fx, fy, cx, cy in pixels,
-// OpenCV's convention: y down), as OpenXR's angles.
-XrEyeFov fov_from_pinhole(double fx, double fy, double cx, double cy, int width, int height);
-// Its inverse: the pinhole camera of a `width` x `height` image spanning `fov` (the eye's axis
-// through the image where the angles put it: off centre for a canted fov).
+// The pinhole camera (OpenCV's convention: y down, pixel centres at integers) of a `width` x
+// `height` image spanning `fov`, as OpenXR's projection maps it: the eye's axis through the image
+// where the angles put it, off centre for a canted fov. The image's edges are half a pixel beyond
+// the outer pixels' centres.
 Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height);
 
 }  // namespace telex::local

@@ -50,8 +50,9 @@ struct StereoViewInputs {
   std::optional<glm::dmat3> R_BaseCapture, R_BaseDisplay;
   // By Side: the pinhole each eye is drawn in instead of the eye camera's (a headset's field of
   // view for that eye at its swapchain's size, pinhole_from_fov), both of one size, the eyes' axes
-  // as the cameras'. The video and depth keep their true angular positions in it, resampled, never
-  // stretched; outside the camera's field the eye shows kOutsideCameraBgr and has no depth.
+  // as the cameras' (eye_size is then unused). The video and depth keep their true angular
+  // positions in it, resampled, never stretched; outside the camera's field the eye shows
+  // kOutsideCameraBgr and has no depth.
   std::array<std::optional<Intrinsics>, 2> display_k;
 };
 
