@@ -467,7 +467,8 @@ XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
            {"fov", {f.angleLeft, f.angleRight, f.angleUp, f.angleDown}},
            {"fov_located",
             {located.angleLeft, located.angleRight, located.angleUp, located.angleDown}}});
-      if (s->frames_ended + 1 == inst.script.dump_at_frame && !inst.script.record_path.empty())
+      if (s->frames_with_projection + 1 == inst.script.dump_at_frame &&
+          !inst.script.record_path.empty())
         dump_image(*s, *sc, r, inst.script.record_path + ".eye" + std::to_string(v) + ".ppm");
     }
     projection = true;

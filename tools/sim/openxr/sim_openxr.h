@@ -53,9 +53,9 @@ struct Script {
   bool offer_egl = true;
   std::uint64_t unfocus_at_frame = 0, refocus_at_frame = 0, stop_at_frame = 0,
                 loss_pending_at_frame = 0;
-  // "dump_at_frame": the eyes' images of that frame (ended, counted from 1), if it has a
-  // projection layer, as binary PPMs (top row first) at the record's path + ".eye0.ppm" (left)
-  // and ".eye1.ppm". 0: none.
+  // "dump_at_frame": the eyes' images of the Nth frame ended with a projection layer (counted
+  // from 1) as binary PPMs (top row first) at the record's path + ".eye0.ppm" (left) and
+  // ".eye1.ppm". 0: none.
   std::uint64_t dump_at_frame = 0;
 };
 // Reads the script from TELEX_SIM_OPENXR_CONFIG (unset: the defaults). False with `error` set
