@@ -206,6 +206,10 @@ void add_output_options(CLI::App& app, StationFlags& f) {
                  "CSV of forces, one row per finger per tick");
   app.add_option("--log-tracking", f.cfg.log_tracking_csv,
                  "CSV of every rigid body as the tracker reported it (tracker frame)");
+  app.add_option("--record-hmd-poses", f.cfg.record_hmd_poses_csv,
+                 "with --view openxr and --hand natnet:...: write the headset's view in its STAGE "
+                 "space and the NatNet head body at the same moments, 10 a second, to FILE.csv "
+                 "for `telex calibrate hmd --poses` (docs/RIG.md section 3)");
   app.add_option("--record", f.cfg.record_bag,
                  "record the session to a ROS 1 bag FILE.bag: depth as received, tracked bodies, "
                  "fingertips, forces and display commands (docs/RECORDING.md)");
@@ -337,6 +341,14 @@ void resolve_station_flags(StationFlags& f) {
   if (f.cfg.head_source == "hmd" && f.cfg.view_spec != "openxr")
     throw CLI::ValidationError("--head-source",
                                "hmd takes the head from the headset: it needs --view openxr");
+  if (!f.cfg.record_hmd_poses_csv.empty() && f.cfg.view_spec != "openxr")
+    throw CLI::ValidationError("--record-hmd-poses",
+                               "it records the headset's pose: it needs --view openxr");
+  if (!f.cfg.record_hmd_poses_csv.empty() && f.cfg.hand_spec.rfind("natnet:", 0) != 0)
+    throw CLI::ValidationError("--record-hmd-poses",
+                               "it records the NatNet head body beside the headset: it needs "
+                               "--hand natnet:SERVER, not '" +
+                                   f.cfg.hand_spec + "'");
   if (f.elbow_bodies.empty()) return;
   int left = -2, right = -2;
   char comma = 0, extra = 0;

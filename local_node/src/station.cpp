@@ -74,6 +74,7 @@ class Station::Run {
   void stop_threads();
   void drain();
   void drain_bodies();
+  void drain_stage_poses();
   void print_status();
   // The threads the station does not run itself (network client, tracker and gloves, display
   // writer, recorder): each stops on an exception and keeps it; the main thread polls them here
@@ -290,6 +291,7 @@ void Station::Run::main_loop() {
     }
     drain();
     drain_bodies();
+    drain_stage_poses();
     const std::int64_t now = monotonic_ns();
     head_.send(now, haptic_.head_out(), *client_);
     if (cfg_.view_at_s >= 0.0 && !view_at_written) {
@@ -330,6 +332,7 @@ void Station::Run::stop_threads() {
     stereo_thread_.request_stop();  // after drawing what is pending
     stereo_thread_.join();
   }
+  drain_stage_poses();
   log_.finish();
 }
 
@@ -342,6 +345,11 @@ void Station::Run::drain() {
 void Station::Run::drain_bodies() {
   HandState state{};
   while (haptic_.bodies().pop(state)) log_.add_bodies(state);
+}
+
+void Station::Run::drain_stage_poses() {
+  StationView::StagePose pose;
+  while (view_.take_stage_pose(pose)) log_.add_hmd_pose(pose.display_time_ns, pose.X_StageView);
 }
 
 // Once a second: the status line and the view PNG.
@@ -421,6 +429,7 @@ StationSummary Station::Run::summarize() {
     s.openxr_frames_submitted = x.frames_submitted;
     s.openxr_ticks_gated = haptic_.ticks_gated();
     s.openxr_gate_closed_ns = x.gate_closed_ns;
+    s.hmd_poses_dropped = view_.stage_poses_dropped();
   }
   return s;
 }

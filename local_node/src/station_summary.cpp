@@ -150,6 +150,13 @@ nlohmann::json StationSummary::to_json() const {
                    {"end_reason", openxr_end_reason},
                    {"haptic_ticks_gated", openxr_ticks_gated},
                    {"gate_closed_ns", openxr_gate_closed_ns}};
+  if (!hmd_poses_file.empty())
+    j["hmd_poses"] = {{"file", hmd_poses_file},
+                      {"rows", hmd_poses_rows},
+                      {"hmd_taken", hmd_poses_taken},
+                      {"unpaired", hmd_poses_unpaired},
+                      {"natnet_frames", hmd_poses_natnet_frames},
+                      {"hmd_dropped", hmd_poses_dropped}};
   return j;
 }
 

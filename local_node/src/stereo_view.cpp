@@ -8,6 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "telex/base/demand.h"
 #include "telex/common/colorize.h"
 #include "telex/common/registration.h"
 #include "telex/local/fig7_view.h"
@@ -127,7 +128,8 @@ std::vector<glm::dvec3> view_fingertips(const HandState& hand) {
 EyeRectifier::EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye)
     : camera_(camera), R_TargetEye_(R_TargetEye) {}
 
-cv::Mat3b EyeRectifier::apply(const cv::Mat3b& image, const Intrinsics& target) {
+cv::Mat3b EyeRectifier::apply(const cv::Mat3b& image, const Intrinsics& target,
+                              const cv::Scalar& border) {
   if (image.empty()) return image;
   if (image.size() != for_size_ || !(target == for_target_)) {
     const Intrinsics k = camera_.k.width == image.cols && camera_.k.height == image.rows
@@ -144,7 +146,7 @@ cv::Mat3b EyeRectifier::apply(const cv::Mat3b& image, const Intrinsics& target) 
     for_target_ = target;
   }
   cv::Mat3b out;
-  cv::remap(image, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::remap(image, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT, border);
   return out;
 }
 
@@ -222,7 +224,16 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
     size = video.empty() ? depth_size : video.size();
   }
   k_eye_ = size == depth_size ? in.k : eye_intrinsics(in.k, size);
-  const Intrinsics& k_eye = k_eye_;
+  // Each eye's pinhole, by Side: the display's when given, else the eyes' camera.
+  std::array<Intrinsics, 2> k_drawn{k_eye_, k_eye_};
+  cv::Scalar outside;  // beyond the camera's field: black in its own pinhole
+  if (in.display_k[0] && in.display_k[1]) {
+    k_drawn = {*in.display_k[0], *in.display_k[1]};
+    size = {k_drawn[1].width, k_drawn[1].height};
+    TELEX_DEMAND(k_drawn[0].width == size.width && k_drawn[0].height == size.height);
+    k_eye_ = k_drawn[1];
+    outside = kOutsideCameraBgr;
+  }
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
     for (auto& w : warp_) w.reset();  // their objects live in the old renderer's context
     renderer_.reset();  // before the next one: its end releases the thread's current context
@@ -232,24 +243,29 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
     renderer_size_ = size;
   }
   // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
-  const auto fit = [&](const cv::Mat3b& m) -> cv::Mat3b {
+  const auto fit = [&](const cv::Mat3b& m, const Intrinsics& k) -> cv::Mat3b {
     if (m.empty()) return m;
-    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k_eye, cv::INTER_LINEAR);
+    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k, cv::INTER_LINEAR, outside);
   };
   // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_eye) : fit(in.eye_bgr[i]);
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn[i], outside)
+                         : fit(in.eye_bgr[i], k_drawn[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   const bool one_eye = eye[0].empty() != eye[1].empty();
   warped_ = false;
-  if (eye[0].empty()) eye[0] = eye[1];
-  if (eye[1].empty()) eye[1] = eye[0];
+  // One eye's video serves both, in the other eye's pinhole (the same one unless display_k).
+  if (eye[0].empty())
+    eye[0] = resample_pinhole(eye[1], k_drawn[1], k_drawn[0], cv::INTER_LINEAR, outside);
+  if (eye[1].empty())
+    eye[1] = resample_pinhole(eye[0], k_drawn[0], k_drawn[1], cv::INTER_LINEAR, outside);
 
   capsules = view_capsules(body_, in);
   EyeView& right = views[index_of(Side::Right)];
   EyeView& left = views[index_of(Side::Left)];
-  right.k = left.k = k_eye;
+  right.k = k_drawn[index_of(Side::Right)];
+  left.k = k_drawn[index_of(Side::Left)];
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
   right.fingertips = left.fingertips = view_fingertips(in.hand);
   right.background = eye[index_of(Side::Right)];
@@ -260,8 +276,8 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
     // an edge) at each eye pixel's ray.
     const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
     const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
-    right.depth_mm = resample_pinhole(in.depth_mm, in.k, k_eye, cv::INTER_NEAREST);
-    left.depth_mm = resample_pinhole(left_mm, in.k, k_eye, cv::INTER_NEAREST);
+    right.depth_mm = resample_pinhole(in.depth_mm, in.k, right.k, cv::INTER_NEAREST);
+    left.depth_mm = resample_pinhole(left_mm, in.k, left.k, cv::INTER_NEAREST);
     if (in.R_BaseDepth && in.R_BaseDisplay && !eye[0].empty()) {
       warp_eyes(in, {&left, &right});
       warped_ = true;

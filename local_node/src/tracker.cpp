@@ -143,6 +143,7 @@ class NatNetTracker final : public HandTracker {
                                                                 b.valid};
     }
     cur.bodies_fresh = mocap_fresh;
+    cur.bodies_sampled_ns = sample_.mid_exposure_ns;
     previous_ = cur;
     out = cur;
     out.time_ns = mocap_ns_;

@@ -66,6 +66,10 @@ TEST(StationFlags, OpenXrViewTakesTheHeadsetAsTheHead) {
   EXPECT_EQ(f.cfg.view_spec, "openxr");
   EXPECT_EQ(f.cfg.head_source, "hmd");
   EXPECT_EQ(ViewSpec::parse(f.cfg.view_spec).kind, ViewSpec::Kind::OpenXr);
+  EXPECT_TRUE(f.cfg.record_hmd_poses_csv.empty());
+  const StationFlags r =
+      parse({"--view", "openxr", "--hand", "natnet:127.0.0.1", "--record-hmd-poses", "poses.csv"});
+  EXPECT_EQ(r.cfg.record_hmd_poses_csv, "poses.csv");
 }
 
 TEST(StationFlags, BadValuesNameTheFlag) {
@@ -88,6 +92,8 @@ TEST(StationFlags, BadValuesNameTheFlag) {
       {{"--head-source", "eyes"}, "--head-source"},
       // The headset's pose exists only with the headset's view.
       {{"--head-source", "hmd", "--view", "png:/tmp"}, "--head-source"},
+      {{"--record-hmd-poses", "p.csv", "--hand", "natnet:127.0.0.1"}, "--record-hmd-poses"},
+      {{"--record-hmd-poses", "p.csv", "--view", "openxr"}, "--record-hmd-poses"},
   };
   for (const auto& c : cases) {
     try {

@@ -10,6 +10,8 @@
 #include <functional>
 #include <opencv2/imgproc.hpp>
 
+#include "src/xr/openxr_output.h"
+
 namespace telex::local {
 namespace {
 
@@ -219,6 +221,98 @@ TEST(StereoView, TheRemoteDepthHidesTheBodyWhereItsRaysMeetItAtTheEyesSize) {
   const int row = static_cast<int>(tip_row_depth);
   EXPECT_FALSE(skin(right_at_tip(row + 3))) << "the wall reaches 3 depth rows below the tip";
   EXPECT_TRUE(skin(right_at_tip(row - 3))) << "the wall ends 3 depth rows above the tip";
+}
+
+}  // namespace
+}  // namespace telex::local
+
+namespace telex::local {
+namespace {
+
+// Where OpenXR's projection with `fov` puts a point of the eye's frame (x right, y down, z
+// forward) in a width x height image, pixel centres at integers, top row 0: the compositor's
+// convention, computed from the tangents alone (not through pinhole_from_fov).
+cv::Point2d pixel_from_fov(const XrEyeFov& fov, int width, int height, const glm::dvec3& p) {
+  const double tan_right = p.x / p.z, tan_up = -p.y / p.z;
+  const double l = std::tan(fov.angle_left_rad), r = std::tan(fov.angle_right_rad);
+  const double u = std::tan(fov.angle_up_rad), d = std::tan(fov.angle_down_rad);
+  return {width * (tan_right - l) / (r - l) - 0.5, height * (u - tan_up) / (u - d) - 0.5};
+}
+
+// The centroid of the pixels `pick` takes, within `window` of `near`.
+cv::Point2d centroid(const cv::Mat3b& img, const std::function<bool(const cv::Vec3b&)>& pick,
+                     cv::Point2d near, int window) {
+  double su = 0, sv = 0, n = 0;
+  for (int v = std::max(0, static_cast<int>(near.y) - window);
+       v < std::min(img.rows, static_cast<int>(near.y) + window); ++v)
+    for (int u = std::max(0, static_cast<int>(near.x) - window);
+         u < std::min(img.cols, static_cast<int>(near.x) + window); ++u)
+      if (pick(img(v, u))) {
+        su += u;
+        sv += v;
+        ++n;
+      }
+  return n > 0 ? cv::Point2d(su / n, sv / n) : cv::Point2d(-1e9, -1e9);
+}
+
+// --view openxr draws each eye in the field of view the runtime located for it: here the project's
+// runtime's canted pair (tools/sim/openxr/runtime.cpp eye_fovs), wider than the eye camera. A
+// point of the eye video and the index fingertip of the drawn hand land where that fov (the one
+// submitted) puts them; beyond the camera's field the eye is neutral, not the video stretched.
+TEST(OpenXrEyeFov, AKnownPointLandsWhereTheSubmittedFovPutsIt) {
+  const std::array<XrEyeFov, 2> fov{XrEyeFov{-0.87, 0.75, 0.82, -0.87},
+                                    XrEyeFov{-0.75, 0.87, 0.82, -0.87}};
+  constexpr int kW = 640, kH = 720;
+  StereoView view(kW, kH);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  // The eye video: green, a white dot at camera pixel (470, 130), as both eyes' (uncalibrated:
+  // each seen through the depth camera's pinhole from its own centre).
+  cv::Mat3b video(480, 640, cv::Vec3b(40, 150, 40));
+  const cv::Point2d dot_px(470.0, 130.0);
+  cv::rectangle(video, cv::Rect(468, 128, 5, 5), cv::Scalar(255, 255, 255), cv::FILLED);
+  in.eye_bgr = {video, video};
+  for (std::size_t eye = 0; eye < 2; ++eye) in.display_k[eye] = pinhole_from_fov(fov[eye], kW, kH);
+  const StereoViewImages v = view.render(in);
+  ASSERT_EQ(v.right.size(), cv::Size(kW, kH));
+  ASSERT_EQ(v.left.size(), cv::Size(kW, kH));
+
+  const glm::dvec3 ray_dot{(dot_px.x - in.k.cx) / in.k.fx, (dot_px.y - in.k.cy) / in.k.fy, 1.0};
+  const auto white = [](const cv::Vec3b& c) { return c[0] > 200 && c[1] > 200 && c[2] > 200; };
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  const glm::dvec3 tip_right = in.hand.joints_camera[1][3];
+  for (const Side side : kSides) {
+    SCOPED_TRACE(side == Side::Left ? "left eye" : "right eye");
+    const cv::Mat3b& img = side == Side::Left ? v.left : v.right;
+    const XrEyeFov& f = fov[index_of(side)];
+    const cv::Point2d want_dot = pixel_from_fov(f, kW, kH, ray_dot);
+    const cv::Point2d got_dot = centroid(img, white, want_dot, 12);
+    std::printf("measured: %s eye dot at (%.2f, %.2f), fov puts it at (%.2f, %.2f)\n",
+                side == Side::Left ? "left" : "right", got_dot.x, got_dot.y, want_dot.x,
+                want_dot.y);
+    EXPECT_NEAR(got_dot.x, want_dot.x, 0.75);
+    EXPECT_NEAR(got_dot.y, want_dot.y, 0.75);
+    // The fingertip in this eye's frame (the left eye a baseline to the right eye's left).
+    const glm::dvec3 tip =
+        tip_right + (side == Side::Left ? glm::dvec3(in.baseline_m, 0, 0) : glm::dvec3(0.0));
+    const cv::Point2d want_tip = pixel_from_fov(f, kW, kH, tip);
+    EXPECT_TRUE(skin(
+        img(static_cast<int>(std::lround(want_tip.y)), static_cast<int>(std::lround(want_tip.x)))))
+        << "no skin at the fingertip's pixel " << want_tip;
+    // The camera's field ends at tan 320/525 = 0.61 to the left; the display's at 0.87 or 0.75.
+    const cv::Point2d edge = pixel_from_fov(f, kW, kH, {-320.0 / in.k.fx, -0.2, 1.0});
+    const int row = static_cast<int>(std::lround(edge.y));
+    const auto neutral = [](const cv::Vec3b& c) {
+      return std::abs(c[0] - kOutsideCameraBgr[0]) <= 2 &&
+             std::abs(c[1] - kOutsideCameraBgr[1]) <= 2;
+    };
+    EXPECT_TRUE(neutral(img(row, static_cast<int>(edge.x) - 2)))
+        << img(row, static_cast<int>(edge.x) - 2);
+    EXPECT_FALSE(neutral(img(row, static_cast<int>(edge.x) + 2)))
+        << img(row, static_cast<int>(edge.x) + 2);
+    EXPECT_TRUE(neutral(img(row, 0)));
+  }
 }
 
 }  // namespace

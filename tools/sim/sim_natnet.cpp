@@ -49,8 +49,10 @@ int main(int argc, char** argv) {
   app.add_option("--interface", cfg.multicast_interface, "multicast outbound interface")
       ->capture_default_str();
   app.add_option("--motion", motion,
-                 "'press' (hand pushes toward the scene and back, 4 s period) or a CSV file "
-                 "time_s,body_id,x,y,z,qx,qy,qz,qw")
+                 "'press' (hand pushes toward the scene and back, 4 s period), 'head-turns' "
+                 "(press, the head turning as the OpenXR simulator's \"head_path\": \"turns\", "
+                 "through a fixed stage and headset offset: telex/sim/head_turns.h) or a CSV "
+                 "file time_s,body_id,x,y,z,qx,qy,qz,qw")
       ->capture_default_str();
   app.add_flag("!--no-loop", loop, "play a CSV recording once instead of looping");
   double reach_m = 0.0;
@@ -69,9 +71,10 @@ int main(int argc, char** argv) {
 
   try {
     cfg.version = natnet::parse_version(version);
-    NatNetMotion fn = motion != "press" ? load_natnet_csv(motion, loop)
-                      : reach_m > 0.0   ? natnet_press_toward(reach_m)
-                                        : NatNetMotion(natnet_press_motion);
+    NatNetMotion fn = motion == "head-turns" ? natnet_head_turns(cfg.reported_latency_s)
+                      : motion != "press"    ? load_natnet_csv(motion, loop)
+                      : reach_m > 0.0        ? natnet_press_toward(reach_m)
+                                             : NatNetMotion(natnet_press_motion);
     // Signals are taken synchronously on this thread (sigtimedwait) rather than in a handler,
     // because stopping the server's io_context is not async-signal-safe.
     sigset_t stop_signals;

@@ -50,6 +50,13 @@ SessionLog::SessionLog(const StationConfig& cfg, std::int64_t t_start_ns)
                            "status,x_m,y_m,z_m,surface_frame,surface_capture_ns\n")),
       tracking_csv_(open_csv(cfg.log_tracking_csv, "--log-tracking",
                              "time_s,body_id,x_m,y_m,z_m,qx,qy,qz,qw,valid\n")),
+      hmd_csv_(open_csv(cfg.record_hmd_poses_csv, "--record-hmd-poses",
+                        "# telex-local --record-hmd-poses: for telex calibrate hmd --poses "
+                        "(docs/RIG.md section 3)\n"
+                        "time_s,stage_view_x_m,stage_view_y_m,stage_view_z_m,stage_view_qx,"
+                        "stage_view_qy,stage_view_qz,stage_view_qw,natnet_head_x_m,natnet_head_y_m,"
+                        "natnet_head_z_m,natnet_head_qx,natnet_head_qy,natnet_head_qz,"
+                        "natnet_head_qw\n")),
       recorder_(open_recorder(cfg)) {}
 
 void SessionLog::add_tick(const TickSample& s, std::uint64_t tick_index) {
@@ -85,6 +92,14 @@ void SessionLog::write_forces(const TickSample& s) {
 
 void SessionLog::add_bodies(const HandState& state) {
   if (recorder_) recorder_->add_bodies(state);
+  if (hmd_csv_.is_open() && state.bodies_sampled_ns != 0) {
+    for (int b = 0; b < state.body_count; ++b) {
+      const auto& body = state.bodies[static_cast<std::size_t>(b)];
+      if (body.id == cfg_.tracker.head_body_id && body.valid)
+        hmd_pairer_.add_natnet(state.bodies_sampled_ns, Pose{body.p_m, body.q});
+    }
+    write_hmd_rows();
+  }
   if (!tracking_csv_.is_open()) return;
   const double t = static_cast<double>(state.time_ns - t_start_ns_) / 1e9;
   for (int b = 0; b < state.body_count; ++b) {
@@ -97,12 +112,41 @@ void SessionLog::add_bodies(const HandState& state) {
   }
 }
 
+void SessionLog::add_hmd_pose(std::int64_t t_ns, const Pose& X_StageView) {
+  if (!hmd_csv_.is_open()) return;
+  hmd_pairer_.add_hmd(t_ns, X_StageView);
+  write_hmd_rows();
+}
+
+void SessionLog::write_hmd_rows() {
+  HmdPoseRow r;
+  while (hmd_pairer_.pop(r)) {
+    const Pose& v = r.X_StageView;
+    const Pose& h = r.X_NatNetHead;
+    char row[400];
+    std::snprintf(row, sizeof row,
+                  "%.6f,%.6f,%.6f,%.6f,%.7f,%.7f,%.7f,%.7f,%.6f,%.6f,%.6f,%.7f,%.7f,%.7f,%.7f\n",
+                  static_cast<double>(r.t_ns - t_start_ns_) / 1e9, v.p_m.x, v.p_m.y, v.p_m.z, v.q.x,
+                  v.q.y, v.q.z, v.q.w, h.p_m.x, h.p_m.y, h.p_m.z, h.q.x, h.q.y, h.q.z, h.q.w);
+    hmd_csv_ << row;
+  }
+}
+
 void SessionLog::finish() {
   if (forces_csv_.is_open()) forces_csv_.flush();
+  if (hmd_csv_.is_open()) hmd_csv_.flush();
   if (recorder_) recorder_->finish();  // everything queued is written and the bag closed
 }
 
 void SessionLog::summarize(StationSummary& s) const {
+  if (hmd_csv_.is_open()) {
+    const HmdPosePairerStats h = hmd_pairer_.stats();
+    s.hmd_poses_file = cfg_.record_hmd_poses_csv.string();
+    s.hmd_poses_rows = h.rows;
+    s.hmd_poses_taken = h.hmd_taken;
+    s.hmd_poses_unpaired = h.unpaired;
+    s.hmd_poses_natnet_frames = h.natnet_frames;
+  }
   if (!recorder_) return;
   const RecorderStats r = recorder_->finish();
   s.record_file = cfg_.record_bag.string();

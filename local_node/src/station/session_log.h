@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "messages.h"
+#include "telex/local/hmd_pose_pairer.h"
 #include "telex/local/recorder.h"
 #include "telex/local/station.h"
 #include "telex/local/station_summary.h"
@@ -21,22 +22,29 @@ class SessionLog {
 
   SessionRecorder* recorder() const { return recorder_.get(); }
   // Every tracker frame is wanted (for the tracking CSV or the bag).
-  bool wants_bodies() const { return tracking_csv_.is_open() || recorder_ != nullptr; }
+  bool wants_bodies() const {
+    return tracking_csv_.is_open() || recorder_ != nullptr || hmd_csv_.is_open();
+  }
 
   // Main thread: the haptic thread's tick number `tick_index` (1 = the first).
   void add_tick(const TickSample& s, std::uint64_t tick_index);
   void add_bodies(const HandState& state);
+  // --record-hmd-poses: the headset's view in STAGE at display time `t_ns`.
+  void add_hmd_pose(std::int64_t t_ns, const Pose& X_StageView);
   // Everything written and the bag closed (idempotent).
   void finish();
   void summarize(StationSummary& s) const;
 
  private:
   void write_forces(const TickSample& s);
+  void write_hmd_rows();
 
   const StationConfig& cfg_;
   const std::int64_t t_start_ns_;
   std::ofstream forces_csv_;
   std::ofstream tracking_csv_;
+  std::ofstream hmd_csv_;
+  HmdPosePairer hmd_pairer_;
   std::unique_ptr<SessionRecorder> recorder_;  // --record; finished after the threads stop
 };
 

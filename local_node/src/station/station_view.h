@@ -20,6 +20,7 @@
 #include "faults.h"
 #include "output_gate.h"
 #include "telex/base/latest_slot.h"
+#include "telex/base/spsc_ring.h"
 #include "telex/base/triple_buffer.h"
 #include "telex/local/photon_latency.h"
 #include "telex/local/station.h"
@@ -60,6 +61,14 @@ class StationView {
   // operator.hmd_stage_in_natnet) and when it was located, read by the tracker on the haptic
   // thread; false until the session located the headset.
   std::function<bool(Pose&, std::int64_t&)> hmd_head_source();
+  // --record-hmd-poses, main thread: the headset's view in STAGE at each frame's display time,
+  // oldest first; false when none is waiting. Poses the main thread was too slow for are counted.
+  struct StagePose {
+    std::int64_t display_time_ns = 0;
+    Pose X_StageView;
+  };
+  bool take_stage_pose(StagePose& out) { return stage_poses_.pop(out); }
+  std::uint64_t stage_poses_dropped() const { return stage_poses_.dropped(); }
   // The headset's session ended by itself (the user quit, the runtime went): the station stops.
   bool xr_ended() const { return xr_ended_.load(); }
   struct XrStats {
@@ -172,6 +181,7 @@ class StationView {
     std::int64_t located_ns = 0;  // CLOCK_MONOTONIC
   };
   TripleBuffer<HmdSample> hmd_head_;
+  SpscRing<StagePose> stage_poses_{256};  // view thread -> main thread, with --record-hmd-poses
   mutable std::mutex xr_mu_;
   XrStats xr_stats_;  // guarded by xr_mu_
 };

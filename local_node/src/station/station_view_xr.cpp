@@ -78,8 +78,7 @@ void StationView::run_openxr(std::stop_token stop) {
     p.view->set_eye_cameras(cfg_.eye_camera, cfg_.R_RightEyeLeftEye);
     PhotonStamps drawn_stamps;  // of the frame step() drew, if it drew one
     bool drew = false;
-    const auto draw = [this, &p, &drawn_stamps, &drew](const std::array<XrEyeTarget, 2>& t,
-                                                       std::array<XrEyeFov, 2>& fov) {
+    const auto draw = [this, &p, &drawn_stamps, &drew](const std::array<XrEyeTarget, 2>& t) {
       StereoViewInputs in;
       {
         std::lock_guard lock(stereo_mu_);  // the newest request, drawn at the headset's rate
@@ -88,17 +87,20 @@ void StationView::run_openxr(std::stop_token stop) {
         in.status = stereo_request_.status;
       }
       if (!stereo_inputs(in)) return false;
+      // Each eye drawn in the headset's field of view for it at its swapchain's size, the video
+      // and depth placed in it at their true angles.
+      for (std::size_t eye = 0; eye < 2; ++eye)
+        in.display_k[eye] = pinhole_from_fov(t[eye].fov, t[eye].width, t[eye].height);
       p.view->render_into(in, {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},
                                StereoView::GlTarget{t[1].texture, t[1].width, t[1].height}});
-      const XrEyeFov f =
-          fov_from_pinhole(in.k.fx, in.k.fy, in.k.cx, in.k.cy, in.k.width, in.k.height);
-      fov = {f, f};  // a rectified pair: both eyes drawn with the right eye's intrinsics
       drawn_stamps = photon_stamps(in);
       drew = true;
       return true;
     };
     const RigidTransform& X_NatNetStage = cfg_.X_NatNetStage;
     const glm::dquat q_NatNetStage = glm::quat_cast(X_NatNetStage.rotation);
+    const bool record_poses = !cfg_.record_hmd_poses_csv.empty();
+    std::int64_t last_display_ns = 0;
     int exit_steps = 0;
     for (;;) {
       drew = false;
@@ -106,7 +108,12 @@ void StationView::run_openxr(std::stop_token stop) {
       // step() returns right after xrEndFrame: a frame it drew is submitted now.
       if (drew && phase != OpenXrOutput::Phase::Ended) photon_now(drawn_stamps);
       if (phase == OpenXrOutput::Phase::Ended) break;
-      if (const XrHeadPose h = p.xr->head(); h.valid)
+      const XrHeadPose h = p.xr->head();
+      if (h.valid && record_poses && h.display_time_ns != last_display_ns) {
+        last_display_ns = h.display_time_ns;
+        stage_poses_.push({h.display_time_ns, Pose{h.p_StageHead_m, h.q_StageHead}});
+      }
+      if (h.valid)
         hmd_head_.publish(
             {Pose{X_NatNetStage.rotation * h.p_StageHead_m + X_NatNetStage.translation_m,
                   glm::normalize(q_NatNetStage * h.q_StageHead)},

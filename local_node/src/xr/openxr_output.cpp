@@ -77,10 +77,17 @@ std::string openxr_runtime_manifest() {
       "(each makes itself the active runtime), or set XR_RUNTIME_JSON to a runtime's manifest");
 }
 
-XrEyeFov fov_from_pinhole(double fx, double fy, double cx, double cy, int width, int height) {
-  // Pixel centres at integer coordinates: the image's edges are half a pixel beyond them.
-  return {-std::atan((cx + 0.5) / fx), std::atan((width - 0.5 - cx) / fx),
-          std::atan((cy + 0.5) / fy), -std::atan((height - 0.5 - cy) / fy)};
+Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height) {
+  const double left = std::tan(fov.angle_left_rad), right = std::tan(fov.angle_right_rad);
+  const double up = std::tan(fov.angle_up_rad), down = std::tan(fov.angle_down_rad);
+  Intrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = width / (right - left);
+  k.fy = height / (up - down);
+  k.cx = -left * k.fx - 0.5;  // y down: the top edge is `up`
+  k.cy = up * k.fy - 0.5;
+  return k;
 }
 
 struct OpenXrOutput::Xr {
@@ -385,19 +392,18 @@ void OpenXrOutput::frame(const Draw& draw) {
       auto wait = xr_struct<XrSwapchainImageWaitInfo>(XR_TYPE_SWAPCHAIN_IMAGE_WAIT_INFO);
       wait.timeout = XR_INFINITE_DURATION;
       x.check(xrWaitSwapchainImage(x.swapchains[eye], &wait), "xrWaitSwapchainImage");
-      targets[eye] = {x.images[eye][index].image, recommended_w_, recommended_h_};
+      const XrFovf& f = views[eye].fov;
+      targets[eye] = {x.images[eye][index].image, recommended_w_, recommended_h_,
+                      XrEyeFov{f.angleLeft, f.angleRight, f.angleUp, f.angleDown}};
     }
-    std::array<XrEyeFov, 2> fov{};
-    drawn = draw(targets, fov);
+    drawn = draw(targets);
     for (std::size_t eye = 0; eye < 2; ++eye) {
       auto ri = xr_struct<XrSwapchainImageReleaseInfo>(XR_TYPE_SWAPCHAIN_IMAGE_RELEASE_INFO);
       x.check(xrReleaseSwapchainImage(x.swapchains[eye], &ri), "xrReleaseSwapchainImage");
-      // The pose is where the headset will be; the field of view is the eye camera's, so the
-      // remote picture keeps its true angular size whatever the headset's optics.
+      // Where the headset will be and what each eye will see then, as located: the image was
+      // drawn with this field of view.
       pv[eye].pose = views[eye].pose;
-      pv[eye].fov = {
-          static_cast<float>(fov[eye].angle_left_rad), static_cast<float>(fov[eye].angle_right_rad),
-          static_cast<float>(fov[eye].angle_up_rad), static_cast<float>(fov[eye].angle_down_rad)};
+      pv[eye].fov = views[eye].fov;
       pv[eye].subImage.swapchain = x.swapchains[eye];
       pv[eye].subImage.imageRect = {{0, 0}, {recommended_w_, recommended_h_}};
     }

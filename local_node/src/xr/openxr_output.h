@@ -15,19 +15,22 @@
 #include <vector>
 
 #include "gl_contexts.h"
+#include "telex/common/depth_image.h"
 
 namespace telex::local {
 
-// One eye's swapchain image, a GL texture of the session's context (rows bottom-up, as GL's).
+// An eye image's edges' angles from the eye's axis (OpenXR's XrFovf: left and down negative).
+struct XrEyeFov {
+  double angle_left_rad = 0, angle_right_rad = 0, angle_up_rad = 0, angle_down_rad = 0;
+};
+
+// One eye's swapchain image, a GL texture of the session's context (rows bottom-up, as GL's), and
+// the field of view xrLocateViews gave that eye for the frame's display time: the image is drawn
+// with it (pinhole_from_fov) and submitted with it.
 struct XrEyeTarget {
   unsigned texture = 0;
   int width = 0, height = 0;
-};
-
-// The tangents of an eye image's edges' angles (OpenXR's XrFovf: left and down negative), which
-// the runtime needs to show a picture drawn with the eye camera's intrinsics at its true size.
-struct XrEyeFov {
-  double angle_left_rad = 0, angle_right_rad = 0, angle_up_rad = 0, angle_down_rad = 0;
+  XrEyeFov fov;
 };
 
 // The headset (XR's VIEW space) in the STAGE space (or LOCAL where there is no stage): OpenXR's
@@ -62,9 +65,9 @@ class OpenXrOutput {
   void start(const GlxHandles& glx);
 
   // One pass: the runtime's events, then, while the session runs, one frame. `draw` fills both
-  // eyes' targets and says with what field of view it drew; returning false submits no layer.
-  // Never throws: a failing call ends the session (end_reason says which).
-  using Draw = std::function<bool(const std::array<XrEyeTarget, 2>&, std::array<XrEyeFov, 2>&)>;
+  // eyes' targets, each with its target's field of view (submitted with it); returning false
+  // submits no layer. Never throws: a failing call ends the session (end_reason says which).
+  using Draw = std::function<bool(const std::array<XrEyeTarget, 2>&)>;
   Phase step(const Draw& draw);
   // Asks the runtime to end the session (the station stops); step() until Phase::Ended.
   void request_exit();
@@ -101,8 +104,10 @@ class OpenXrOutput {
 // std::runtime_error, saying what to do, when XR_RUNTIME_JSON names no file or none is installed.
 std::string openxr_runtime_manifest();
 
-// The tangent-space field of view of a pinhole camera's image (fx, fy, cx, cy in pixels,
-// OpenCV's convention: y down), as OpenXR's angles.
-XrEyeFov fov_from_pinhole(double fx, double fy, double cx, double cy, int width, int height);
+// The pinhole camera (OpenCV's convention: y down, pixel centres at integers) of a `width` x
+// `height` image spanning `fov`, as OpenXR's projection maps it: the eye's axis through the image
+// where the angles put it, off centre for a canted fov. The image's edges are half a pixel beyond
+// the outer pixels' centres.
+Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height);
 
 }  // namespace telex::local

@@ -10,6 +10,7 @@
 #include <map>
 
 #include "sim_openxr.h"
+#include "telex/sim/head_turns.h"
 
 namespace telex::sim::xr {
 
@@ -336,11 +337,18 @@ bool load_script(Script& s, std::string& error) {
     read_key(j, "yaw_amplitude_deg", yaw_deg);
     read_key(j, "yaw_period_s", s.yaw_period_s);
     read_key(j, "ipd_m", s.ipd_m);
+    std::string head_path = "yaw";
+    read_key(j, "head_path", head_path);
+    if (head_path != "yaw" && head_path != "turns")
+      throw std::invalid_argument("head_path must be \"yaw\" or \"turns\", not \"" + head_path +
+                                  "\"");
+    s.head_turns = head_path == "turns";
     read_key(j, "offer_egl", s.offer_egl);
     read_key(j, "unfocus_at_frame", s.unfocus_at_frame);
     read_key(j, "refocus_at_frame", s.refocus_at_frame);
     read_key(j, "stop_at_frame", s.stop_at_frame);
     read_key(j, "loss_pending_at_frame", s.loss_pending_at_frame);
+    read_key(j, "dump_at_frame", s.dump_at_frame);
     if (!(period_ms > 0.5 && period_ms < 1000.0) || s.width == 0 || s.height == 0 ||
         s.width > 2048 || s.height > 2048 || !(s.yaw_period_s > 0.0))
       throw std::invalid_argument("period_ms, width, height or yaw_period_s out of range");
@@ -420,6 +428,12 @@ XrPosef inverse(const XrPosef& a) {
 
 XrPosef head_pose(const Session& s, std::int64_t t_ns) {
   const Script& sc = s.instance->script;
+  if (sc.head_turns) {
+    const SimPose X_LocalView = head_turns_view_in_local(static_cast<double>(t_ns) * 1e-9);
+    const glm::dvec3& p = X_LocalView.p_m;
+    return {to_xr(X_LocalView.q),
+            {static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)}};
+  }
   const double t_s = static_cast<double>(t_ns - s.t0_ns) * 1e-9;
   const double yaw = sc.yaw_amplitude_rad * std::sin(2.0 * M_PI * t_s / sc.yaw_period_s);
   return {to_xr(glm::angleAxis(yaw, glm::dvec3(0.0, 1.0, 0.0))), {0.0f, 0.0f, 0.0f}};
@@ -441,8 +455,11 @@ XrPosef reference_in_local(const Session& s, XrReferenceSpaceType type, std::int
   switch (type) {
     case XR_REFERENCE_SPACE_TYPE_VIEW:
       return head_pose(s, t_ns);
-    case XR_REFERENCE_SPACE_TYPE_STAGE:  // the floor, 1.6 m below the head's start
-      return {{0, 0, 0, 1}, {0.0f, -1.6f, 0.0f}};
+    case XR_REFERENCE_SPACE_TYPE_STAGE: {  // the floor, 1.6 m below the head's start
+      const glm::dvec3 p = telex::sim::inverse(head_turns_local_in_stage()).p_m;
+      return {{0, 0, 0, 1},
+              {static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)}};
+    }
     default:
       return {{0, 0, 0, 1}, {0, 0, 0}};
   }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <thread>
 
@@ -402,6 +403,28 @@ std::array<int, 4> centre_pixel(Session& s, const Swapchain& sc, const XrRect2Di
   return {px[0], px[1], px[2], px[3]};
 }
 
+// The image the application released last, within `rect`, as a binary PPM (GL's rows are
+// bottom-up: written top row first).
+void dump_image(Session& s, const Swapchain& sc, const XrRect2Di& rect, const std::string& path) {
+  GLint previous = 0;
+  s.gl.GetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &previous);
+  if (!s.read_fbo) s.gl.GenFramebuffers(1, &s.read_fbo);
+  s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, s.read_fbo);
+  s.gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D,
+                            sc.textures[sc.last_released], 0);
+  const auto w = static_cast<std::size_t>(rect.extent.width);
+  const auto h = static_cast<std::size_t>(rect.extent.height);
+  std::vector<std::uint8_t> rgba(w * h * 4);
+  s.gl.ReadPixels(rect.offset.x, rect.offset.y, rect.extent.width, rect.extent.height, GL_RGBA,
+                  GL_UNSIGNED_BYTE, rgba.data());
+  s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(previous));
+  std::ofstream out(path, std::ios::binary);
+  out << "P6\n" << w << " " << h << "\n255\n";
+  for (std::size_t row = h; row-- > 0;)
+    for (std::size_t col = 0; col < w; ++col)
+      out.write(reinterpret_cast<const char*>(&rgba[(row * w + col) * 4]), 3);
+}
+
 XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
   std::lock_guard lock(runtime_mutex());
   Session* s = live_session(handle);
@@ -433,10 +456,20 @@ XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
           static_cast<std::uint32_t>(r.offset.y + r.extent.height) > sc->height)
         return XR_ERROR_SWAPCHAIN_RECT_INVALID;
       if (!sc->acquired.empty()) inst.note_error("a layer's swapchain image was not released");
-      frame["eyes"].push_back({{"width", r.extent.width},
-                               {"height", r.extent.height},
-                               {"swapchain", {sc->width, sc->height}},
-                               {"centre_rgba", centre_pixel(*s, *sc, r)}});
+      // The field of view submitted for the eye, beside the one xrLocateViews gave it.
+      const XrFovf& f = p->views[v].fov;
+      const XrFovf located = eye_fovs()[v];
+      frame["eyes"].push_back(
+          {{"width", r.extent.width},
+           {"height", r.extent.height},
+           {"swapchain", {sc->width, sc->height}},
+           {"centre_rgba", centre_pixel(*s, *sc, r)},
+           {"fov", {f.angleLeft, f.angleRight, f.angleUp, f.angleDown}},
+           {"fov_located",
+            {located.angleLeft, located.angleRight, located.angleUp, located.angleDown}}});
+      if (s->frames_with_projection + 1 == inst.script.dump_at_frame &&
+          !inst.script.record_path.empty())
+        dump_image(*s, *sc, r, inst.script.record_path + ".eye" + std::to_string(v) + ".ppm");
     }
     projection = true;
   }

@@ -2,9 +2,10 @@
 // telex-sim-openxr: the project's own small OpenXR runtime (loaded through XR_RUNTIME_JSON), for
 // the station's --view openxr tests. Headless: swapchain images are GL textures in the
 // application's own EGL context, frames are paced at a fixed period, the head follows a scripted
-// yaw sine, and session state changes (focus loss, stopping, loss pending) follow a script read
-// from TELEX_SIM_OPENXR_CONFIG (JSON). What the application submitted is written as JSON to the
-// script's "record" path when the instance (or session) is destroyed.
+// yaw sine (or telex/sim/head_turns.h's turns), and session state changes (focus loss, stopping,
+// loss pending) follow a script read from TELEX_SIM_OPENXR_CONFIG (JSON). What the application
+// submitted is written as JSON to the script's "record" path when the instance (or session) is
+// destroyed.
 #pragma once
 
 #define XR_USE_PLATFORM_EGL
@@ -39,6 +40,10 @@ struct Script {
   double yaw_amplitude_rad = 0.35;           // "yaw_amplitude_deg"
   double yaw_period_s = 4.0;                 // "yaw_period_s"
   double ipd_m = 0.064;                      // "ipd_m"
+  // "head_path": "yaw" (the sine above, from the session's creation) or "turns"
+  // (telex/sim/head_turns.h: yaw, pitch, roll and sway on CLOCK_MONOTONIC, the motion
+  // telex-sim-natnet --motion head-turns reports for the head body).
+  bool head_turns = false;
   // Frames ended (counted from 1) at which the state changes: FOCUSED -> VISIBLE at
   // "unfocus_at_frame", back at "refocus_at_frame"; "stop_at_frame": down to STOPPING (the user
   // quit); "loss_pending_at_frame": LOSS_PENDING. 0: never.
@@ -48,6 +53,10 @@ struct Script {
   bool offer_egl = true;
   std::uint64_t unfocus_at_frame = 0, refocus_at_frame = 0, stop_at_frame = 0,
                 loss_pending_at_frame = 0;
+  // "dump_at_frame": the eyes' images of the Nth frame ended with a projection layer (counted
+  // from 1) as binary PPMs (top row first) at the record's path + ".eye0.ppm" (left) and
+  // ".eye1.ppm". 0: none.
+  std::uint64_t dump_at_frame = 0;
 };
 // Reads the script from TELEX_SIM_OPENXR_CONFIG (unset: the defaults). False with `error` set
 // for an unreadable file or a key of the wrong type.

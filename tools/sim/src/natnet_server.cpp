@@ -10,6 +10,7 @@
 #include <array>
 #include <boost/asio.hpp>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -19,6 +20,7 @@
 
 #include "telex/base/byte_cursor.h"
 #include "telex/haptics/hand_kinematics.h"
+#include "telex/sim/head_turns.h"
 
 namespace telex::sim {
 
@@ -88,6 +90,20 @@ NatNetMotion natnet_press_toward(double surface_depth_m) {
                                    (1.0 - std::cos(2.0 * std::numbers::pi * t_s / 4.0));
     // The camera sits kPressEyesAheadOfHeadM in front of the head body (looking along -z).
     press_frame(-(tip_depth_m + kPressEyesAheadOfHeadM) + tip_ahead_m, frame);
+  };
+}
+
+NatNetMotion natnet_head_turns(double reported_latency_s) {
+  return [reported_latency_s](double t_s, natnet::Frame& frame) {
+    natnet_press_motion(t_s, frame);
+    // The frame goes out now; it says its cameras saw it reported_latency_s ago.
+    const double sampled_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count() -
+        reported_latency_s;
+    const SimPose X_NatNetBody = head_turns_body_in_natnet(sampled_s);
+    const glm::dquat& q = X_NatNetBody.q;
+    const glm::dvec3& p = X_NatNetBody.p_m;
+    frame.rigid_bodies.front() = body(kSimHeadId, p.x, p.y, p.z, q.x, q.y, q.z, q.w);
   };
 }
 

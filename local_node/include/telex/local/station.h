@@ -62,6 +62,9 @@ struct StationConfig {
   std::filesystem::path log_forces_csv;    // empty = off
   int log_every = 1;                       // one row per finger every N ticks
   std::filesystem::path log_tracking_csv;  // empty = off
+  // --record-hmd-poses (--view openxr with NatNet): `telex calibrate hmd`'s CSV, the headset's view
+  // in STAGE and the NatNet head body at the same moments, 10 a second (hmd_pose_pairer.h).
+  std::filesystem::path record_hmd_poses_csv;  // empty = off
   // ROS 1 bag of the session (docs/RECORDING.md); empty = off. Forces at record_rate_hz.
   std::filesystem::path record_bag;
   double record_rate_hz = 100.0;

@@ -115,6 +115,11 @@ struct StationSummary {
   int openxr_eye_width = 0, openxr_eye_height = 0;
   std::uint64_t openxr_frames_submitted = 0, openxr_ticks_gated = 0;
   std::vector<std::pair<std::int64_t, std::int64_t>> openxr_gate_closed_ns;
+  // --record-hmd-poses (JSON "hmd_poses", absent otherwise): rows written, the headset poses taken
+  // for a row and those without a NatNet frame near enough, the NatNet head frames seen.
+  std::string hmd_poses_file;
+  std::uint64_t hmd_poses_rows = 0, hmd_poses_taken = 0, hmd_poses_unpaired = 0,
+                hmd_poses_natnet_frames = 0, hmd_poses_dropped = 0;
 
   // The stream's mean rate over the haptic loop's span (0 before the loop ran).
   double stream_mbit_per_s() const;

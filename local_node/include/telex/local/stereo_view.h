@@ -52,7 +52,16 @@ struct StereoViewInputs {
   // turned from there, the depth brought into it from R_BaseDepth. Unset (a pair without a head
   // pose): the video is taken to have been captured at R_BaseDepth.
   std::optional<glm::dmat3> R_BaseVideo;
+  // By Side: the pinhole each eye is drawn in instead of the eye camera's (a headset's field of
+  // view for that eye at its swapchain's size, pinhole_from_fov), both of one size, the eyes' axes
+  // as the cameras' (eye_size is then unused). The video and depth keep their true angular
+  // positions in it, resampled, never stretched; outside the camera's field the eye shows
+  // kOutsideCameraBgr and has no depth.
+  std::array<std::optional<Intrinsics>, 2> display_k;
 };
+
+// What an eye shows where its display sees beyond the camera's field (display_k).
+inline const cv::Scalar kOutsideCameraBgr{70, 70, 70};
 
 struct StereoViewImages {
   cv::Mat3b left, right, sbs;
@@ -68,7 +77,7 @@ struct StereoViewImages {
 class EyeRectifier {
  public:
   EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye);
-  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target);
+  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target, const cv::Scalar& border = {});
 
  private:
   CameraModel camera_;

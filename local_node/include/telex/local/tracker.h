@@ -82,6 +82,9 @@ struct HandState {
   std::array<TrackedBody, kMaxTrackedBodies> bodies{};
   int body_count = 0;
   bool bodies_fresh = false;  // the bodies come from a new tracker frame
+  // When the NatNet frame behind `bodies` was seen (its mid-exposure, CLOCK_MONOTONIC ns), whatever
+  // the head source: --record-hmd-poses pairs the head body with the headset by it. 0: not known.
+  std::int64_t bodies_sampled_ns = 0;
 };
 
 struct TrackerStats {

@@ -56,6 +56,11 @@ NatNetMotion natnet_press_toward(double surface_depth_m);
 // How far ahead of the hand body the straight index fingertip is in the press's hand orientation.
 double press_index_tip_ahead_of_hand_m();
 
+// The press motion with the head body turning as telex/sim/head_turns.h's (on CLOCK_MONOTONIC, at
+// the moment the frame says its cameras saw it: its sending less `reported_latency_s`), for the
+// project's OpenXR runtime reporting the headset on that head.
+NatNetMotion natnet_head_turns(double reported_latency_s);
+
 // A recorded motion: CSV with header "time_s,body_id,x,y,z,qx,qy,qz,qw", one body per line, lines
 // sorted by time; a frame plays every body whose newest line is at or before t (looping when
 // `loop`). Throws std::runtime_error naming the file and line on bad input.
