@@ -93,28 +93,36 @@ TEST(StereoView, EachEyeIsPairedWithTheVideoFrameCapturedNearestToTheDepth) {
   EXPECT_FALSE(nearest_capture({}, 5).has_value());
 }
 
-// With both head poses the eyes' video is reprojected to the operator's: a dot straight ahead of
-// the robot head at capture appears fx tan(a) to the left once the operator has turned a to the
-// right, in both eyes; without them (or --warp off) it stays where the camera saw it.
-TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
-  StereoView view(640, 480);
+// Both eyes see a green dot straight ahead of the camera on grey, over a wall 3 m away.
+StereoViewInputs green_dot_ahead() {
   StereoViewInputs in;
   in.k = kinect_v1_intrinsics(640, 480);
   cv::Mat3b eye(480, 640, cv::Vec3b(60, 60, 60));
   cv::rectangle(eye, cv::Rect(314, 234, 13, 13), cv::Vec3b(0, 220, 0), cv::FILLED);
   in.eye_bgr = {eye, eye};
   in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{3000});
-  const auto green_x = [](const cv::Mat3b& img) {
-    double sum = 0.0;
-    int n = 0;
-    for (int y = 0; y < img.rows; ++y)
-      for (int x = 0; x < img.cols; ++x)
-        if (img(y, x)[1] > 150 && img(y, x)[0] < 80 && img(y, x)[2] < 80) {
-          sum += x;
-          ++n;
-        }
-    return n > 50 ? sum / n : -1.0;
-  };
+  return in;
+}
+
+// The green dot's mean column in an eye image, -1 when hardly any of it shows.
+double green_x(const cv::Mat3b& img) {
+  double sum = 0.0;
+  int n = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      if (img(y, x)[1] > 150 && img(y, x)[0] < 80 && img(y, x)[2] < 80) {
+        sum += x;
+        ++n;
+      }
+  return n > 50 ? sum / n : -1.0;
+}
+
+// With both head poses the eyes' video is reprojected to the operator's: a dot straight ahead of
+// the robot head at capture appears fx tan(a) to the left once the operator has turned a to the
+// right, in both eyes; without them (or --warp off) it stays where the camera saw it.
+TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
+  StereoView view(640, 480);
+  StereoViewInputs in = green_dot_ahead();
   const StereoViewImages still = view.render(in);
   EXPECT_FALSE(still.warped);
   EXPECT_NEAR(green_x(still.right), 320.0, 0.5);
@@ -137,26 +145,10 @@ TEST(StereoView, WithBothHeadPosesTheVideoIsWarpedToTheOperatorsHead) {
 // without a pose) it is fx tan(b) off that.
 TEST(StereoView, ThePairsOwnHeadPoseTurnsTheVideoAndTheDepthIsBroughtToIt) {
   StereoView view(640, 480);
-  StereoViewInputs in;
-  in.k = kinect_v1_intrinsics(640, 480);
-  cv::Mat3b eye(480, 640, cv::Vec3b(60, 60, 60));
-  cv::rectangle(eye, cv::Rect(314, 234, 13, 13), cv::Vec3b(0, 220, 0), cv::FILLED);
-  in.eye_bgr = {eye, eye};
+  StereoViewInputs in = green_dot_ahead();
   // A wall 3 m away across the depth's view, but for a near box on the left: the depth has its
   // own pose, and where the video takes its colours follows the wall, not the box.
-  in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{3000});
   in.depth_mm(cv::Rect(0, 0, 120, 480)).setTo(1000);
-  const auto green_x = [](const cv::Mat3b& img) {
-    double sum = 0.0;
-    int n = 0;
-    for (int y = 0; y < img.rows; ++y)
-      for (int x = 0; x < img.cols; ++x)
-        if (img(y, x)[1] > 150 && img(y, x)[0] < 80 && img(y, x)[2] < 80) {
-          sum += x;
-          ++n;
-        }
-    return n > 50 ? sum / n : -1.0;
-  };
   const auto yaw = [](double rad) {
     return glm::dmat3(glm::dvec3(std::cos(rad), 0.0, -std::sin(rad)), glm::dvec3(0, 1, 0),
                       glm::dvec3(std::sin(rad), 0.0, std::cos(rad)));

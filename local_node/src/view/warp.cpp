@@ -307,25 +307,22 @@ struct DepthWarp::Impl {
                     d.data);
   }
 
+  // A rigid transform's rotation and translation as the uniforms `R_name` and `p_name`.
+  static void set_transform(GLuint program, const char* R_name, const char* p_name,
+                            const RigidTransform& X) {
+    const glm::mat3 R = to_float(X.rotation);
+    glUniformMatrix3fv(glGetUniformLocation(program, R_name), 1, GL_FALSE, glm::value_ptr(R));
+    glUniform3f(glGetUniformLocation(program, p_name), static_cast<float>(X.translation_m.x),
+                static_cast<float>(X.translation_m.y), static_cast<float>(X.translation_m.z));
+  }
+
   // The poses' uniforms, shared by both programs.
   static void set_pose(GLuint program, const Intrinsics& k, const WarpPoses& poses) {
-    const RigidTransform& X = poses.X_DisplayDepth;
     glUniform4f(glGetUniformLocation(program, "u_k"), static_cast<float>(k.fx),
                 static_cast<float>(k.fy), static_cast<float>(k.cx), static_cast<float>(k.cy));
-    const glm::mat3 R = to_float(X.rotation);
-    glUniformMatrix3fv(glGetUniformLocation(program, "u_R_DisplayCapture"), 1, GL_FALSE,
-                       glm::value_ptr(R));
-    glUniform3f(glGetUniformLocation(program, "u_p_DisplayCapture_m"),
-                static_cast<float>(X.translation_m.x), static_cast<float>(X.translation_m.y),
-                static_cast<float>(X.translation_m.z));
-    const RigidTransform& V = poses.X_VideoDepth;
+    set_transform(program, "u_R_DisplayCapture", "u_p_DisplayCapture_m", poses.X_DisplayDepth);
     glUniform1i(glGetUniformLocation(program, "u_video_apart"), poses.video_apart ? 1 : 0);
-    const glm::mat3 R_VideoDepth = to_float(V.rotation);
-    glUniformMatrix3fv(glGetUniformLocation(program, "u_R_VideoDepth"), 1, GL_FALSE,
-                       glm::value_ptr(R_VideoDepth));
-    glUniform3f(glGetUniformLocation(program, "u_p_VideoDepth_m"),
-                static_cast<float>(V.translation_m.x), static_cast<float>(V.translation_m.y),
-                static_cast<float>(V.translation_m.z));
+    set_transform(program, "u_R_VideoDepth", "u_p_VideoDepth_m", poses.X_VideoDepth);
   }
 
   void draw_fill(const WarpOptions& o, const Intrinsics& k, const WarpPoses& poses,

@@ -388,36 +388,36 @@ XrResult begin_frame(XrSession handle, const XrFrameBeginInfo*) {
   return discarded ? XR_FRAME_DISCARDED : XR_SUCCESS;
 }
 
-// The centre pixel of the image the application released last: proof it drew there.
-std::array<int, 4> centre_pixel(Session& s, const Swapchain& sc, const XrRect2Di& rect) {
+// The RGBA pixels of the image the application released last, in the w x h rectangle at (x, y)
+// (GL's rows: bottom-up).
+std::vector<std::uint8_t> read_released(Session& s, const Swapchain& sc, int x, int y, int w,
+                                        int h) {
   GLint previous = 0;
   s.gl.GetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &previous);
   if (!s.read_fbo) s.gl.GenFramebuffers(1, &s.read_fbo);
   s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, s.read_fbo);
   s.gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D,
                             sc.textures[sc.last_released], 0);
-  std::array<std::uint8_t, 4> px{};
-  s.gl.ReadPixels(rect.offset.x + rect.extent.width / 2, rect.offset.y + rect.extent.height / 2, 1,
-                  1, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
+  std::vector<std::uint8_t> rgba(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 4);
+  s.gl.ReadPixels(x, y, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
   s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(previous));
+  return rgba;
+}
+
+// The centre pixel of the image the application released last: proof it drew there.
+std::array<int, 4> centre_pixel(Session& s, const Swapchain& sc, const XrRect2Di& rect) {
+  const auto px = read_released(s, sc, rect.offset.x + rect.extent.width / 2,
+                                rect.offset.y + rect.extent.height / 2, 1, 1);
   return {px[0], px[1], px[2], px[3]};
 }
 
 // The image the application released last, within `rect`, as a binary PPM (GL's rows are
 // bottom-up: written top row first).
 void dump_image(Session& s, const Swapchain& sc, const XrRect2Di& rect, const std::string& path) {
-  GLint previous = 0;
-  s.gl.GetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &previous);
-  if (!s.read_fbo) s.gl.GenFramebuffers(1, &s.read_fbo);
-  s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, s.read_fbo);
-  s.gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D,
-                            sc.textures[sc.last_released], 0);
   const auto w = static_cast<std::size_t>(rect.extent.width);
   const auto h = static_cast<std::size_t>(rect.extent.height);
-  std::vector<std::uint8_t> rgba(w * h * 4);
-  s.gl.ReadPixels(rect.offset.x, rect.offset.y, rect.extent.width, rect.extent.height, GL_RGBA,
-                  GL_UNSIGNED_BYTE, rgba.data());
-  s.gl.BindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(previous));
+  const auto rgba =
+      read_released(s, sc, rect.offset.x, rect.offset.y, rect.extent.width, rect.extent.height);
   std::ofstream out(path, std::ios::binary);
   out << "P6\n" << w << " " << h << "\n255\n";
   for (std::size_t row = h; row-- > 0;)
