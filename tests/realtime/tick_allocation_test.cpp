@@ -5,6 +5,7 @@
 // surfaces arrive. After a warm-up every allocation that thread makes is counted; there must be
 // none. Kept in its own binary so the hook touches no other test.
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <pthread.h>
 #include <sched.h>
 
@@ -207,6 +208,18 @@ TEST(Realtime, LockMemoryReportsWhatItDid) {
     EXPECT_EQ(m.description, "memory locked (mlockall)");
   else
     EXPECT_NE(m.description.find("not locked"), std::string::npos);
+}
+
+// With the memory locked, a frame-sized block comes from the heap, never from a mapping of its
+// own (whose mmap and munmap would take the mmap lock a real-time thread then waits on).
+TEST(Realtime, LockedMemoryMapsNoBlockOfItsOwn) {
+  const MemoryLock m = lock_memory();
+  if (!m.locked) GTEST_SKIP() << "the memory could not be locked here: " << m.description;
+  const std::size_t mapped_before = ::mallinfo2().hblks;
+  void* volatile block = std::malloc(8u << 20);  // 1280x720 BGR is 2.7 MiB; malloc maps >128 KiB
+  ASSERT_NE(block, nullptr);
+  EXPECT_EQ(::mallinfo2().hblks, mapped_before);
+  std::free(block);
 }
 
 }  // namespace

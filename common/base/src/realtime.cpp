@@ -46,6 +46,13 @@ MemoryLock try_lock_memory() {
   // Freed memory stays in the process: trimming would unmap locked pages that the next
   // allocation then faults in again.
   ::mallopt(M_TRIM_THRESHOLD, -1);
+  // And no block gets a mapping of its own: under MCL_FUTURE each such mmap is filled and locked
+  // page by page, and each free unmaps it, both holding the process's mmap lock, which has no
+  // priority inheritance. The view's and the decoders' frame-sized buffers (over malloc's 128 KiB
+  // threshold) then stalled the real-time surface and network threads behind ordinary ones:
+  // capture-to-force p99 in contact 23-28 ms with the eyes against 3 ms with this
+  // (docs/BENCHMARKS.md, "Depth contact latency with and without the eyes").
+  ::mallopt(M_MMAP_MAX, 0);
   return {true, "memory locked (mlockall)"};
 }
 

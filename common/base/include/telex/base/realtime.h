@@ -20,9 +20,11 @@ struct MemoryLock {
 };
 
 // mlockall(MCL_CURRENT | MCL_FUTURE) and malloc told never to give freed memory back (so locked
-// pages stay locked). Only where it cannot fail later: with CAP_IPC_LOCK or an unlimited
-// RLIMIT_MEMLOCK (with a finite one, MCL_FUTURE would make later allocations fail instead). Never
-// in a sanitizer build, whose shadow memory must not be locked. Call once, early in main.
+// pages stay locked) nor to map a large block on its own (mmap and munmap take the process's
+// mmap lock, which a real-time thread then waits on behind any other). Only where it cannot fail
+// later: with CAP_IPC_LOCK or an unlimited RLIMIT_MEMLOCK (with a finite one, MCL_FUTURE would make
+// later allocations fail instead). Never in a sanitizer build, whose shadow memory must not be
+// locked. Call once, early in main.
 MemoryLock lock_memory();
 // What the process's lock_memory() did ("memory not locked: lock_memory was not called" before).
 MemoryLock memory_lock_status();
