@@ -168,6 +168,38 @@ TEST(SyntheticStereo, EyesCarryTheirFrameId) {
   }
 }
 
+// A looping stereo replay decodes each pair once: the second time round it hands over the kept
+// pair (the files are gone by then), each time a copy of its own.
+TEST(FilesStereo, ALoopingReplayDecodesEachPairOnceAndHandsOverCopies) {
+  const auto dir = ::telex::test::scratch_dir("files_stereo");
+  std::vector<cv::Mat3b> left, right;
+  for (int i = 0; i < 2; ++i) {
+    left.emplace_back(48, 64, cv::Vec3b(10 + 40 * i, 20, 30));
+    right.emplace_back(48, 64, cv::Vec3b(200, 20 + 40 * i, 30));
+    ASSERT_TRUE(cv::imwrite((dir / ("l" + std::to_string(i) + ".png")).string(), left.back()));
+    ASSERT_TRUE(cv::imwrite((dir / ("r" + std::to_string(i) + ".png")).string(), right.back()));
+  }
+  auto source = make_stereo_source("files:" + (dir / "l*.png").string() + "," +
+                                   (dir / "r*.png").string() + ",fps=500,loop");
+  source->start();
+  for (int i = 0; i < 2; ++i) {
+    auto r = source->read(1000ms);
+    ASSERT_EQ(r.status, ReadStatus::Frame) << r.error;
+    EXPECT_EQ(cv::norm(r.frame.left_bgr, left[i], cv::NORM_INF), 0.0);
+    r.frame.left_bgr.setTo(cv::Scalar(0, 0, 0));  // the pipeline works in place
+  }
+  std::filesystem::remove_all(dir);
+  for (int round = 0; round < 2; ++round)
+    for (int i = 0; i < 2; ++i) {
+      auto r = source->read(1000ms);
+      ASSERT_EQ(r.status, ReadStatus::Frame)
+          << "round " << round << " pair " << i << ": " << r.error;
+      EXPECT_EQ(cv::norm(r.frame.left_bgr, left[i], cv::NORM_INF), 0.0);
+      EXPECT_EQ(cv::norm(r.frame.right_bgr, right[i], cv::NORM_INF), 0.0);
+      r.frame.right_bgr.setTo(cv::Scalar(0, 0, 0));
+    }
+}
+
 TEST(FilesStereo, MissingImagesAreNamed) {
   EXPECT_THROW(make_stereo_source("files:/only/left*.png"), std::invalid_argument);
   auto s = make_stereo_source("files:/nope/l*.png,/nope/r*.png");
