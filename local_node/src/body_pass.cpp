@@ -61,7 +61,7 @@ double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.r
 
 struct BodyPass::Gl {
   GLuint body = 0, shadow = 0;
-  GLuint vao = 0, tiles_vbo = 0, list_buffer = 0, list_tex = 0, ubo = 0, neighbours_ubo = 0;
+  GLuint vao = 0, tiles_vbo = 0, list_buffer = 0, list_tex = 0, caps_buffer = 0, caps_tex = 0;
   GLuint empty_vao = 0, depth_tex = 0;
   cv::Size depth_size;
   bool has_scene_depth = false;
@@ -75,21 +75,17 @@ struct BodyPass::Gl {
   std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
   BodyTiles tiles;
   std::vector<float> caps;
-  std::vector<std::int32_t> neighbours;
 };
 
 BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   Gl& g = *gl_;
   g.body = link_program(kBodyTilesVs, kBodyTilesFs, "stereo view: body");
   g.shadow = link_program(kRectVertexShader, kShadowFs, "stereo view: body");
-  glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Capsules"), 0);
-  glUniformBlockBinding(g.body, glGetUniformBlockIndex(g.body, "Neighbours"), 1);
   glGenVertexArrays(1, &g.vao);
   glGenVertexArrays(1, &g.empty_vao);
   glGenBuffers(1, &g.tiles_vbo);
   glGenBuffers(1, &g.list_buffer);
-  glGenBuffers(1, &g.ubo);
-  glGenBuffers(1, &g.neighbours_ubo);
+  glGenBuffers(1, &g.caps_buffer);
   glBindVertexArray(g.vao);
   glBindBuffer(GL_ARRAY_BUFFER, g.tiles_vbo);
   glVertexAttribIPointer(0, 4, GL_INT, 4 * sizeof(std::int32_t), nullptr);
@@ -97,14 +93,7 @@ BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   glVertexAttribDivisor(0, 1);
   glBindVertexArray(0);
   glGenTextures(1, &g.list_tex);
-  glBindBuffer(GL_UNIFORM_BUFFER, g.ubo);
-  glBufferData(GL_UNIFORM_BUFFER,
-               static_cast<GLsizeiptr>(kMaxCapsules * kCapsuleFloats * sizeof(float)), nullptr,
-               GL_STREAM_DRAW);
-  glBindBuffer(GL_UNIFORM_BUFFER, g.neighbours_ubo);
-  glBufferData(GL_UNIFORM_BUFFER,
-               static_cast<GLsizeiptr>(kMaxCapsules * kMaxBlendNeighbours * sizeof(std::int32_t)),
-               nullptr, GL_STREAM_DRAW);
+  glGenTextures(1, &g.caps_tex);
   glGenTextures(1, &g.depth_tex);
   glBindTexture(GL_TEXTURE_2D, g.depth_tex);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
@@ -193,7 +182,6 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
   if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
   const auto neighbours = blend_neighbours(capsules);
   g.caps.assign(capsules.size() * kCapsuleFloats, 0.0f);
-  g.neighbours.assign(capsules.size() * kMaxBlendNeighbours, -1);
   for (std::size_t i = 0; i < capsules.size(); ++i) {
     const Capsule& c = capsules[i];
     const glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
@@ -209,8 +197,6 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
     cap[9] = c.bgr[1] / 255.0f;
     cap[10] = c.bgr[0] / 255.0f;
     cap[11] = c.lit ? 1.0f : 0.0f;
-    std::copy(neighbours[i].begin(), neighbours[i].end(),
-              g.neighbours.begin() + static_cast<std::ptrdiff_t>(i * kMaxBlendNeighbours));
   }
   if (capsules.empty()) return;
   if (divisor > 1 && !g.upsample) g.upsample = std::make_unique<BodyUpsample>();
@@ -233,15 +219,13 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
                 static_cast<float>(StereoRenderer::kNear_m));
     glUniform1f(glGetUniformLocation(g.body, "u_far"), static_cast<float>(StereoRenderer::kFar_m));
     glUniform1f(glGetUniformLocation(g.body, "u_exposure"), exposure);
-    glBindBuffer(GL_UNIFORM_BUFFER, g.ubo);
-    glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(g.caps.size() * sizeof(float)),
-                    g.caps.data());
-    glBindBufferBase(GL_UNIFORM_BUFFER, 0, g.ubo);
-    glBindBuffer(GL_UNIFORM_BUFFER, g.neighbours_ubo);
-    glBufferSubData(GL_UNIFORM_BUFFER, 0,
-                    static_cast<GLsizeiptr>(g.neighbours.size() * sizeof(std::int32_t)),
-                    g.neighbours.data());
-    glBindBufferBase(GL_UNIFORM_BUFFER, 1, g.neighbours_ubo);
+    glBindBuffer(GL_TEXTURE_BUFFER, g.caps_buffer);
+    glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(g.caps.size() * sizeof(float)),
+                 g.caps.data(), GL_STREAM_DRAW);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_BUFFER, g.caps_tex);
+    glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, g.caps_buffer);
+    glUniform1i(glGetUniformLocation(g.body, "u_caps"), 1);
     glBindBuffer(GL_TEXTURE_BUFFER, g.list_buffer);
     glBufferData(GL_TEXTURE_BUFFER,
                  static_cast<GLsizeiptr>(g.tiles.list.size() * sizeof(g.tiles.list[0])),
@@ -258,6 +242,9 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(g.tiles.tiles.size()));
     glBindVertexArray(0);
     glBindTexture(GL_TEXTURE_BUFFER, 0);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_BUFFER, 0);
+    glActiveTexture(GL_TEXTURE0);
   }
   if (divisor > 1) {
     if (g.has_scene_depth) g.upload_scene_depth();

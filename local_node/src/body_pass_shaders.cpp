@@ -26,9 +26,9 @@ void main() {
 // is shaded once per pixel instead of once per overlapping capsule box.
 const char* const kBodyTilesFs = R"(#version 330 core
 // Per capsule: a and its radius, b and its radius, rgb and lit (1) or a flat marker (0).
-layout(std140) uniform Capsules { vec4 u_caps[3 * 256]; };
-// Per capsule its blend neighbours, -1 ending the list.
-layout(std140) uniform Neighbours { ivec4 u_neighbours[2 * 256]; };
+// A texture buffer, not a uniform block: llvmpipe fetches a texel's four components per pixel
+// at once, and a uniform block's one by one.
+uniform samplerBuffer u_caps;
 // Per tile entry (each tile's nearest first): its capsule, and as bit k its neighbours' entries
 // in the same tile.
 uniform isamplerBuffer u_list;
@@ -64,16 +64,11 @@ float smin(float a, float b, float k) {
   float h = max(k - abs(a - b), 0.0) / k;
   return min(a, b) - h * h * k * 0.25;
 }
-float capsule(int i, vec3 p) {
-  vec4 a = u_caps[3 * i], b = u_caps[3 * i + 1];
-  return round_cone(p, a.xyz, b.xyz, a.w, b.w);
-}
-float radius(int i) { return max(u_caps[3 * i].w, u_caps[3 * i + 1].w); }
 vec4 g_self_a, g_self_b;  // this capsule
 int g_near_lo, g_near_hi;  // the neighbours near this pixel's ray, a byte each
 int g_count;
 // llvmpipe runs both sides of a branch but leaves a loop once every pixel of a block is done: the
-// neighbours are looped over by their count (the same for the whole box), never skipped by a test.
+// neighbours are looped over by their count, never skipped by a test.
 // g_blend: how deep in a fillet the last point was (0 on a lone capsule, 1 in a crease).
 float g_blend = 0.0;
 float field(vec3 p) {
@@ -82,8 +77,9 @@ float field(vec3 p) {
   g_blend = 0.0;
   for (int k = 0; k < g_count; ++k) {
     int j = ((k < 4 ? g_near_lo : g_near_hi) >> (8 * (k & 3))) & 255;
-    float kj = 0.7 * min(r, radius(j));
-    float dj = capsule(j, p);
+    vec4 a = texelFetch(u_caps, 3 * j), b = texelFetch(u_caps, 3 * j + 1);
+    float kj = 0.7 * min(r, max(a.w, b.w));
+    float dj = round_cone(p, a.xyz, b.xyz, a.w, b.w);
     g_blend = max(g_blend, max(kj - abs(d - dj), 0.0) / kj);
     d = smin(d, dj, kj);
   }
@@ -205,8 +201,8 @@ float trace(int k, vec3 rd, float t_best, out bool exact, out vec3 n) {
   g_self_a = vec4(0.0);
   g_self_b = vec4(0.0);
   ivec2 entry = texelFetch(u_list, v_list.x + k).xy;
-  g_self_a = u_caps[3 * entry.x];
-  g_self_b = u_caps[3 * entry.x + 1];
+  g_self_a = texelFetch(u_caps, 3 * entry.x);
+  g_self_b = texelFetch(u_caps, 3 * entry.x + 1);
   // This capsule grown by the blend's reach bounds what the ray can meet (the eye may be inside).
   vec4 ca = g_self_a, cb = g_self_b;
   float r = max(ca.w, cb.w);
@@ -228,9 +224,9 @@ float trace(int k, vec3 rd, float t_best, out bool exact, out vec3 n) {
     int e = lowest_bit(near_entries);
     near_entries &= near_entries - 1;
     int j = texelFetch(u_list, v_list.x + e).x;
-    float rj = radius(j);
-    vec2 s = capsule_span(rd, u_caps[3 * j].xyz, u_caps[3 * j + 1].xyz,
-                          rj + 0.875 * min(r, rj) + 2e-4);
+    vec4 a = texelFetch(u_caps, 3 * j), b = texelFetch(u_caps, 3 * j + 1);
+    float rj = max(a.w, b.w);
+    vec2 s = capsule_span(rd, a.xyz, b.xyz, rj + 0.875 * min(r, rj) + 2e-4);
     if (s.x <= s.y && s.y > t && s.x < t_exit) {
       if (g_count < 4) g_near_lo |= j << (8 * g_count);
       else g_near_hi |= j << (8 * (g_count - 4));
@@ -272,7 +268,7 @@ void main() {
   int todo = 0;
   for (int k = 0; k < v_list.y; ++k) {
     int j = texelFetch(u_list, v_list.x + k).x;
-    vec4 a = u_caps[3 * j], b = u_caps[3 * j + 1];
+    vec4 a = texelFetch(u_caps, 3 * j), b = texelFetch(u_caps, 3 * j + 1);
     float r = max(a.w, b.w);
     float d2 = ray_segment_distance2(rd, a.xyz, b.xyz);
     float reach = r * 1.875 + 5e-4, own = r * 1.2 + 5e-4;
@@ -299,12 +295,12 @@ void main() {
     }
   }
   if (id < 0) discard;
-  g_self_a = u_caps[3 * id];
-  g_self_b = u_caps[3 * id + 1];
+  g_self_a = texelFetch(u_caps, 3 * id);
+  g_self_b = texelFetch(u_caps, 3 * id + 1);
   g_near_lo = near.x;
   g_near_hi = near.y;
   g_count = near.z;
-  vec4 color = u_caps[3 * id + 2];
+  vec4 color = texelFetch(u_caps, 3 * id + 2);
   vec3 p = rd * t;
   float crease = 0.0;
   if (!exact) {
