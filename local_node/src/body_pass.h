@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The stereo renderer's body pass: the capsules as one smooth body (each capsule's signed distance
-// joined to those it shares an end with by a smooth minimum, sphere-traced inside a box around
-// it), lit to the eye image's brightness, and the contact shadows fingertips cast on the remote
-// scene. Internal to the renderer: it needs the renderer's current GL context.
+// joined to those it shares an end with by a smooth minimum, sphere-traced once per pixel over the
+// capsules binned into that pixel's screen tile), lit to the eye image's brightness, and the
+// contact shadows fingertips cast on the remote scene. Internal to the renderer: it needs the
+// renderer's current GL context.
 #pragma once
 
 #include <array>
@@ -53,7 +54,7 @@ class BodyUpsample {
   std::unique_ptr<Gl> gl_;
 };
 
-// Eye pixels (rows top-down) that hold what the body pass can draw of the capsules' boxes (1.2
+// Eye pixels (rows top-down) that hold what the body pass can draw of the capsules (boxes of 1.2
 // times the larger radius around each segment) in front of the near plane, padded by `pad_px`.
 cv::Rect body_bounds_px(const Intrinsics& k, const glm::dvec3& p_RightEye,
                         std::span<const Capsule> capsules, int pad_px);
@@ -73,6 +74,29 @@ void depth_tiles(const cv::Mat1f& window_depth, cv::Mat2f& tiles);
 // The pixels of `rect_px` in the tiles holding a depth in [lo, hi] (their bounding box); empty
 // if none.
 cv::Rect tiles_within(const cv::Mat2f& tiles, const cv::Rect2d& rect_px, double lo, double hi);
+
+// The body's screen tiles at the target's intrinsics `k` (the eye's, or BodyUpsample's reduced
+// ones): each capsule is listed in the `tile_px` tiles its box's pixels (body_bounds_px, padded
+// by a pixel) touch, each tile's list nearest first (by the capsule's nearest z with the blend's
+// reach) with, per entry, its blend neighbours (`neighbours`, as blend_neighbours gives them) in
+// the same list as a bit mask; only tiles with a capsule are kept. A tile with more than
+// kMaxTileEntries is split in four, down to a pixel; past that the farthest are left out.
+inline constexpr int kMaxTileEntries = 32;
+struct BodyTiles {
+  // x, y (first pixel), offset in list, count | side in pixels << 8
+  std::vector<std::array<std::int32_t, 4>> tiles;
+  std::vector<std::array<std::int32_t, 2>> list;  // capsule, its neighbours' entries (bit k)
+  std::size_t left_out = 0;                       // entries past kMaxTileEntries in a pixel
+};
+void bin_body_tiles(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                    std::span<const Capsule> capsules,
+                    std::span<const std::array<std::int32_t, kMaxBlendNeighbours>> neighbours,
+                    int tile_px, BodyTiles& out);
+
+// The body pass's shaders (body_pass_shaders.cpp): a quad per tile, and the march of each pixel
+// against its tile's capsules.
+extern const char* const kBodyTilesVs;
+extern const char* const kBodyTilesFs;
 
 class BodyPass {
  public:

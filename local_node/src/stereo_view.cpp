@@ -179,11 +179,14 @@ void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> e
   for (const Side side : kSides) {
     EyeView& e = *eyes[index_of(side)];
     auto& w = warp_[index_of(side)];
-    if (!w) w = std::make_unique<DepthWarp>(e.k.width, e.k.height);
+    // The warped picture stays in the renderer's context (the warp is made in it): no read-back.
+    if (!w)
+      w = std::make_unique<DepthWarp>(e.k.width, e.k.height, WarpOptions{.read_back_bgr = false});
     WarpedEye warped = w->warp(
         e.background, e.depth_mm, e.k, eye_display_from_capture(R_DisplayDepth, e.p_RightEye),
         eye_display_from_capture(R_VideoDepth, e.p_RightEye), R_DisplayPrevious);
-    e.background = std::move(warped.bgr);
+    // The captured picture stays as the background's: the skin's exposure is taken from it.
+    e.background_texture = warped.texture;
     e.depth_mm = std::move(warped.depth_mm);
   }
 }

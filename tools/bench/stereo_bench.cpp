@@ -65,7 +65,8 @@ void stereo_pair(benchmark::State& state, int width, int height, int body_diviso
   std::array<std::unique_ptr<DepthWarp>, 2> warps;
   if (warp)
     for (auto& w : warps)
-      w = std::make_unique<DepthWarp>(width, height, WarpOptions{.merge_cells = warp_merge_cells});
+      w = std::make_unique<DepthWarp>(
+          width, height, WarpOptions{.merge_cells = warp_merge_cells, .read_back_bgr = false});
   const glm::dmat3 R_DisplayCapture(
       glm::rotate(glm::dmat4(1.0), 1.0 * 3.14159265358979323846 / 180.0, {0.0, 1.0, 0.0}));
   const BodyState body = reaching_body();
@@ -92,7 +93,8 @@ void stereo_pair(benchmark::State& state, int width, int height, int body_diviso
     if (warp) {
       WarpedEye w = warps[i]->warp(view.background, view.depth_mm, view.k,
                                    eye_display_from_capture(R_DisplayCapture, view.p_RightEye));
-      view.background = w.bgr;
+      // As StereoView: the picture handed over in GL, the captured one kept for the exposure.
+      view.background_texture = w.texture;
       view.depth_mm = w.depth_mm;
     }
     const double t1 = thread_cpu_ms();

@@ -395,12 +395,14 @@ struct DepthWarp::Impl {
   }
 
   // Fresh images each time: the caller keeps them while the next warp runs.
-  void read_back(WarpedEye& out) const {
+  void read_back(WarpedEye& out, bool bgr) const {
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    out.bgr.create(height, width);
     out.depth_mm.create(height, width);
-    glReadBuffer(GL_COLOR_ATTACHMENT0);
-    glReadPixels(0, 0, width, height, GL_BGR, GL_UNSIGNED_BYTE, out.bgr.data);
+    if (bgr) {
+      out.bgr.create(height, width);
+      glReadBuffer(GL_COLOR_ATTACHMENT0);
+      glReadPixels(0, 0, width, height, GL_BGR, GL_UNSIGNED_BYTE, out.bgr.data);
+    }
     glReadBuffer(GL_COLOR_ATTACHMENT1);
     glReadPixels(0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_SHORT, out.depth_mm.data);
   }
@@ -476,7 +478,7 @@ WarpedEye DepthWarp::warp(const cv::Mat3b& video_bgr, const cv::Mat1w& depth_mm,
   g.draw_fill(options_, k, poses, R_DisplayPrevious, previous);
   glBindVertexArray(0);
   WarpedEye out;
-  g.read_back(out);
+  g.read_back(out, options_.read_back_bgr);
   glUseProgram(0);
   g.current = now;
   g.has_previous = true;

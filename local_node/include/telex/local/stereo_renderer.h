@@ -38,7 +38,11 @@ struct EyeView {
   // to its left: (-B, 0, 0)); the eyes' axes are parallel (a rectified pair).
   glm::dvec3 p_RightEye{0.0};
   cv::Mat3b background;  // BGR, k's size; empty: dark grey
-  cv::Mat1w depth_mm;    // the remote depth registered to this eye, k's size; 0 or empty: no data
+  // Non-zero: the eye image is this GL_TEXTURE_2D of the renderer's context instead (RGBA8 with
+  // rgb as uploaded from BGR, rows top-down, k's size; e.g. DepthWarp's WarpedEye::texture),
+  // copied on the GPU; `background` then only sets the skin's exposure (empty: 1).
+  std::uint32_t background_texture = 0;
+  cv::Mat1w depth_mm;  // the remote depth registered to this eye, k's size; 0 or empty: no data
   // Fingertips in the right eye's frame: each darkens the remote surface near it (a soft contact
   // shadow, 5 cm reach).
   std::vector<glm::dvec3> fingertips;

@@ -43,10 +43,13 @@ struct WarpOptions {
   double max_depth_step_ratio = 0.1;
   HoleFill hole_fill = HoleFill::Previous;
   cv::Vec3b neutral_bgr{96, 96, 96};
+  // false: WarpedEye::bgr stays empty and the picture is only in WarpedEye::texture, for a
+  // renderer in the same GL context (EyeView::background_texture): no read-back and no upload.
+  bool read_back_bgr = true;
 };
 
 struct WarpedEye {
-  cv::Mat3b bgr;       // the video at the display pose, holes filled
+  cv::Mat3b bgr;       // the video at the display pose, holes filled; empty: !read_back_bgr
   cv::Mat1w depth_mm;  // the depth at the display pose, registered to it; 0 in holes
   // bgr as a GL texture (RGBA8, rows top-down) in the warp's context, valid until the next warp.
   std::uint32_t texture = 0;
