@@ -142,9 +142,13 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       if (p->head_joint_rad) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
       p->left_bgr = d.out.left_bgr.clone();  // the decoder reuses its images
       p->right_bgr = d.out.right_bgr.clone();
-      std::lock_guard lock(pairs_mu_);
-      pairs_.push_back(std::move(p));
-      if (pairs_.size() > kKeptPairs) pairs_.pop_front();
+      const std::int64_t capture_ns = p->capture_ns;
+      {
+        std::lock_guard lock(pairs_mu_);
+        pairs_.push_back(std::move(p));
+        if (pairs_.size() > kKeptPairs) pairs_.pop_front();
+      }
+      record_delivery(capture_ns);
       return;
     }
     case video::DecodeStatus::MissingReference:
@@ -164,6 +168,23 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       }
       return;
   }
+}
+
+void VideoReceiver::record_delivery(std::int64_t capture_ns) {
+  const std::int64_t now_remote_ns =
+      hooks_.now_ns() + (hooks_.clock_offset_ns ? hooks_.clock_offset_ns() : 0);
+  const std::int64_t previous_ns = last_capture_ns_;
+  last_capture_ns_ = capture_ns;
+  std::lock_guard lock(pairs_mu_);
+  if (ages_.delivered_ms.size() >= kMaxAgeSamples) return;
+  ages_.delivered_ms.push_back(static_cast<double>(now_remote_ns - capture_ns) / 1e6);
+  if (previous_ns != 0)
+    ages_.replaced_ms.push_back(static_cast<double>(now_remote_ns - previous_ns) / 1e6);
+}
+
+VideoReceiver::DeliveryAges VideoReceiver::delivery_ages() const {
+  std::lock_guard lock(pairs_mu_);
+  return ages_;
 }
 
 void VideoReceiver::ask_for_intra(proto::PictureLossReason reason) {

@@ -63,6 +63,16 @@ class VideoReceiver {
     std::function<void(const proto::VideoNack&)> send_nack;  // any thread
     std::function<std::int64_t()> rtt_ns;                    // the link's round trip (0: unknown)
     std::function<std::int64_t()> now_ns;                    // monotonic
+    // The remote's clock minus now_ns()'s (the heartbeat's offset; unset or 0: unknown), so
+    // that a pair's age counts from its capture_ns.
+    std::function<std::int64_t()> clock_offset_ns;
+  };
+  // Capture to delivery of every pair decoded whole, on the remote's clock: `delivered` when it
+  // reached the view (the view shows it from then on), `replaced` the age the pair before it had
+  // reached at that moment: the oldest that pair was while it was the newest, what a display at
+  // any rate showed at worst. Both in ms, in delivery order, at most kMaxAgeSamples.
+  struct DeliveryAges {
+    std::vector<double> delivered_ms, replaced_ms;
   };
   explicit VideoReceiver(Hooks hooks, VideoReorderConfig reorder = {});
   ~VideoReceiver();
@@ -75,9 +85,11 @@ class VideoReceiver {
   // few decoded, or null before the first.
   std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
   const VideoReceiverCounters& counters() const { return counters_; }
+  DeliveryAges delivery_ages() const;
 
   // The shortest time between two PLIs, whatever the round trip.
   static constexpr std::int64_t kMinPliIntervalNs = 100'000'000;
+  static constexpr std::size_t kMaxAgeSamples = 1 << 20;
 
  private:
   void run();
@@ -85,6 +97,8 @@ class VideoReceiver {
   // what it releases.
   void take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived);
   void decode_one(const std::vector<std::uint8_t>& bytes);
+  // Decode thread: the ages of a pair captured at `capture_ns` (remote clock) delivered now.
+  void record_delivery(std::int64_t capture_ns);
   void ask_for_intra(proto::PictureLossReason reason);
 
   Hooks hooks_;
@@ -97,6 +111,8 @@ class VideoReceiver {
   bool stopping_ = false;                        // guarded by mu_
   mutable std::mutex pairs_mu_;
   std::deque<std::shared_ptr<const EyePair>> pairs_;  // the last kKeptPairs, oldest first
+  DeliveryAges ages_;                                 // guarded by pairs_mu_
+  std::int64_t last_capture_ns_ = 0;                  // decode thread: the pair delivered last
   static constexpr std::size_t kKeptPairs = 4;
   static constexpr std::size_t kMaxQueued = 8;
   std::int64_t last_pli_ns_ = 0;     // decode thread
