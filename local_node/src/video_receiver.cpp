@@ -50,6 +50,7 @@ VideoReceiver::~VideoReceiver() {
 
 void VideoReceiver::push(std::vector<std::uint8_t> frame) {
   counters_.received.fetch_add(1, std::memory_order_relaxed);
+  const std::int64_t arrival_ns = hooks_.now_ns();
   {
     std::lock_guard lock(mu_);
     // A decoder behind by kMaxQueued pairs drops the oldest; the gap it leaves asks for an intra.
@@ -57,7 +58,7 @@ void VideoReceiver::push(std::vector<std::uint8_t> frame) {
       queue_.pop_front();
       counters_.queue_dropped.fetch_add(1, std::memory_order_relaxed);
     }
-    queue_.push_back(std::move(frame));
+    queue_.push_back(Arrived{std::move(frame), arrival_ns});
   }
   cv_.notify_one();
 }
@@ -75,7 +76,7 @@ std::shared_ptr<const EyePair> VideoReceiver::pair(std::int64_t want_capture_ns)
 void VideoReceiver::run() {
   // Decoding is the view's work: below the depth path, as the stereo view (nice 5).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
-  std::deque<std::vector<std::uint8_t>> arrived;
+  std::deque<Arrived> arrived;
   for (;;) {
     {
       std::unique_lock lock(mu_);
@@ -96,19 +97,19 @@ void VideoReceiver::run() {
   }
 }
 
-void VideoReceiver::take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived) {
+void VideoReceiver::take_and_decode(std::deque<Arrived>& arrived) {
   const std::int64_t now = hooks_.now_ns();
   const std::int64_t rtt = hooks_.rtt_ns ? hooks_.rtt_ns() : 0;
   std::vector<std::vector<std::uint8_t>> ready;
   std::vector<proto::VideoNack> nacks;
   // One pair at a time, as they came: what is in order is released before the next is taken.
-  for (auto& bytes : arrived) {
-    const video::ParsedFrame parsed = video::parse_frame(bytes);
+  for (auto& a : arrived) {
+    const video::ParsedFrame parsed = video::parse_frame(a.bytes);
     if (parsed.status != video::HeaderStatus::Ok) {
-      ready.push_back(std::move(bytes));  // the decoder counts it as an error
+      ready.push_back(std::move(a.bytes));  // the decoder counts it as an error
       continue;
     }
-    reorder_.push(parsed.header.encode_seq, std::move(bytes), now);
+    reorder_.push(parsed.header.encode_seq, std::move(a.bytes), a.arrival_ns);
     reorder_.poll(now, rtt, ready, nacks);
   }
   reorder_.poll(now, rtt, ready, nacks);  // deadlines and retries, with or without new pairs
@@ -118,6 +119,7 @@ void VideoReceiver::take_and_decode(std::deque<std::vector<std::uint8_t>>& arriv
   counters_.held.store(rc.held, std::memory_order_relaxed);
   counters_.late.store(rc.late, std::memory_order_relaxed);
   counters_.expected.store(rc.in_order + rc.held + rc.given_up, std::memory_order_relaxed);
+  counters_.asked_overdue.store(rc.asked_overdue, std::memory_order_relaxed);
   for (const auto& n : nacks) {
     counters_.nacks_sent.fetch_add(1, std::memory_order_relaxed);
     if (hooks_.send_nack) hooks_.send_nack(n);

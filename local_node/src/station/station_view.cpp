@@ -93,6 +93,7 @@ void StationView::summarize(StationSummary& s) const {
   s.video_pairs_repaired = c.repaired.load();
   s.video_pairs_given_up = c.given_up.load();
   s.video_pairs_expected = c.expected.load();
+  s.video_pairs_asked_overdue = c.asked_overdue.load();
   s.video_eye_width_px = c.eye_width_px.load();
   s.video_eye_height_px = c.eye_height_px.load();
   const VideoReceiver::DeliveryAges ages = video_->delivery_ages();

@@ -69,6 +69,7 @@ struct StationSummary {
   // share of those decoded whole is the share of the remote's pairs a person could see.
   std::uint64_t video_nacks_sent = 0, video_pairs_repaired = 0, video_pairs_given_up = 0;
   std::uint64_t video_pairs_expected = 0;
+  std::uint64_t video_pairs_asked_overdue = 0;  // asked for before a later pair showed the gap
   // Pairs decoded whole that carried the robot head's joints at their capture (the warp turns
   // the video from them; without, from the depth frame's).
   std::uint64_t video_pairs_with_head_pose = 0;

@@ -52,6 +52,7 @@ struct VideoReceiverCounters {
   std::atomic<std::uint64_t> held{0};
   std::atomic<std::uint64_t> late{0};
   std::atomic<std::uint64_t> expected{0};  // pairs the sequence accounts for: arrived or given up
+  std::atomic<std::uint64_t> asked_overdue{0};         // pairs asked for before a later one came
   std::atomic<int> eye_width_px{0}, eye_height_px{0};  // of the newest pair decoded whole
 };
 
@@ -95,7 +96,11 @@ class VideoReceiver {
   void run();
   // Decode thread: moves newly pushed pairs into the reorder buffer, sends its NACKs, decodes
   // what it releases.
-  void take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived);
+  struct Arrived {
+    std::vector<std::uint8_t> bytes;
+    std::int64_t arrival_ns = 0;  // stamped by push(): the decode thread may take it later
+  };
+  void take_and_decode(std::deque<Arrived>& arrived);
   void decode_one(const std::vector<std::uint8_t>& bytes);
   // Decode thread: the ages of a pair captured at `capture_ns` (remote clock) delivered now.
   void record_delivery(std::int64_t capture_ns);
@@ -107,8 +112,8 @@ class VideoReceiver {
   // inheritance, so threads between them cannot keep the network thread waiting.
   PiMutex mu_;
   std::condition_variable_any cv_;
-  std::deque<std::vector<std::uint8_t>> queue_;  // guarded by mu_
-  bool stopping_ = false;                        // guarded by mu_
+  std::deque<Arrived> queue_;  // guarded by mu_
+  bool stopping_ = false;      // guarded by mu_
   mutable std::mutex pairs_mu_;
   std::deque<std::shared_ptr<const EyePair>> pairs_;  // the last kKeptPairs, oldest first
   DeliveryAges ages_;                                 // guarded by pairs_mu_
