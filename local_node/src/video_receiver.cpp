@@ -48,7 +48,7 @@ VideoReceiver::~VideoReceiver() {
   thread_.join();
 }
 
-void VideoReceiver::push(std::vector<std::uint8_t> frame) {
+void VideoReceiver::push(std::vector<std::uint8_t> frame, bool resent) {
   counters_.received.fetch_add(1, std::memory_order_relaxed);
   const std::int64_t arrival_ns = hooks_.now_ns();
   {
@@ -58,7 +58,7 @@ void VideoReceiver::push(std::vector<std::uint8_t> frame) {
       queue_.pop_front();
       counters_.queue_dropped.fetch_add(1, std::memory_order_relaxed);
     }
-    queue_.push_back(Arrived{std::move(frame), arrival_ns});
+    queue_.push_back(Arrived{std::move(frame), arrival_ns, resent});
   }
   cv_.notify_one();
 }
@@ -109,7 +109,7 @@ void VideoReceiver::take_and_decode(std::deque<Arrived>& arrived) {
       ready.push_back(std::move(a.bytes));  // the decoder counts it as an error
       continue;
     }
-    reorder_.push(parsed.header.encode_seq, std::move(a.bytes), a.arrival_ns);
+    reorder_.push(parsed.header.encode_seq, std::move(a.bytes), a.arrival_ns, a.resent);
     reorder_.poll(now, rtt, ready, nacks);
   }
   reorder_.poll(now, rtt, ready, nacks);  // deadlines and retries, with or without new pairs

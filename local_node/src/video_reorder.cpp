@@ -24,7 +24,8 @@ std::int64_t VideoReorder::retry_ns(std::int64_t rtt_ns) const {
                                 2 * std::max<std::int64_t>(rtt_ns, 0) + 2'000'000);
 }
 
-void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std::int64_t now_ns) {
+void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std::int64_t now_ns,
+                        bool resent) {
   if (!started_) {
     started_ = true;
     next_seq_ = seq;
@@ -49,8 +50,9 @@ void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std:
   }
   const auto was_missing = missing_.find(seq);
   if (was_missing != missing_.end()) {
-    // Asked for as overdue and come before any later pair: late, or its copy; not a repair.
-    if (!was_missing->second.overdue) ++counters_.repaired;
+    // Asked for as overdue and come before any later pair: a repair if it is the remote's copy,
+    // else the pair itself, only late.
+    if (!was_missing->second.overdue || resent) ++counters_.repaired;
     missing_.erase(was_missing);
   }
   if (seq == next_seq_)

@@ -18,7 +18,9 @@ struct Stream {
   std::vector<std::uint32_t> out;  // seqs released, in order
   std::vector<proto::VideoNack> nacks;
   explicit Stream(VideoReorderConfig c = {}) : reorder(c) {}
-  void push(std::uint32_t seq, std::int64_t now_ns) { reorder.push(seq, pair_bytes(seq), now_ns); }
+  void push(std::uint32_t seq, std::int64_t now_ns, bool resent = false) {
+    reorder.push(seq, pair_bytes(seq), now_ns, resent);
+  }
   void poll(std::int64_t now_ns, std::int64_t rtt_ns = kMs) {
     std::vector<Bytes> ready;
     reorder.poll(now_ns, rtt_ns, ready, nacks);
@@ -136,6 +138,15 @@ TEST(VideoReorder, AnOverduePairIsAskedForOnceBeforeALaterPairShowsTheGap) {
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7}));
   EXPECT_EQ(r.reorder.counters().repaired, 1u);
   EXPECT_EQ(r.reorder.counters().asked_overdue, 1u);
+  // 8 is lost too; the remote's copy, asked for as overdue, comes before 9: a repair.
+  r.poll(7 * 33 * kMs + 50 * kMs);
+  ASSERT_EQ(r.nacks.size(), 3u);
+  EXPECT_EQ(r.nacks[2], (proto::VideoNack{8, 1}));
+  r.push(8, 7 * 33 * kMs + 51 * kMs, /*resent=*/true);
+  r.poll(7 * 33 * kMs + 51 * kMs);
+  EXPECT_EQ(r.out.back(), 8u);
+  EXPECT_EQ(r.reorder.counters().repaired, 2u);
+  EXPECT_EQ(r.reorder.counters().held, 1u);  // only 7 waited
 }
 
 // A pair that was only late comes after its overdue NACK and goes straight through, neither

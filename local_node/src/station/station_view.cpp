@@ -75,8 +75,8 @@ void StationView::open() {
 
 void StationView::bind(ClientEvents& events) {
   if (!video_) return;
-  events.on_video = [this](const proto::Header&, const proto::EncodedVideo& v) {
-    video_->push(v.frame);
+  events.on_video = [this](const proto::Header& h, const proto::EncodedVideo& v) {
+    video_->push(v.frame, (h.flags & proto::kFlagRepair) != 0);
   };
 }
 

@@ -80,8 +80,9 @@ class VideoReceiver {
   VideoReceiver(const VideoReceiver&) = delete;
   VideoReceiver& operator=(const VideoReceiver&) = delete;
 
-  // Network thread: takes the pair's bytes (never blocks on the decoder).
-  void push(std::vector<std::uint8_t> frame);
+  // Network thread: takes the pair's bytes (never blocks on the decoder); `resent` when the remote
+  // sent it again on a VideoNack (kFlagRepair).
+  void push(std::vector<std::uint8_t> frame, bool resent = false);
   // Any thread: the whole pair captured nearest `want_capture_ns` (0: the newest) among the last
   // few decoded, or null before the first.
   std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
@@ -99,6 +100,7 @@ class VideoReceiver {
   struct Arrived {
     std::vector<std::uint8_t> bytes;
     std::int64_t arrival_ns = 0;  // stamped by push(): the decode thread may take it later
+    bool resent = false;
   };
   void take_and_decode(std::deque<Arrived>& arrived);
   void decode_one(const std::vector<std::uint8_t>& bytes);

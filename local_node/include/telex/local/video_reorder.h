@@ -42,9 +42,11 @@ struct VideoReorderConfig {
 };
 
 struct VideoReorderCounters {
-  std::uint64_t in_order = 0;       // pairs released without waiting
-  std::uint64_t held = 0;           // pairs that waited behind a gap
-  std::uint64_t repaired = 0;       // missing pairs that arrived in time (NACKed or late)
+  std::uint64_t in_order = 0;  // pairs released without waiting
+  std::uint64_t held = 0;      // pairs that waited behind a gap
+  // Missing pairs that arrived in time (NACKed or late; one asked for as overdue only as the
+  // remote's copy).
+  std::uint64_t repaired = 0;
   std::uint64_t given_up = 0;       // missing pairs skipped at their deadline
   std::uint64_t late = 0;           // pairs behind the released sequence, or already held: dropped
   std::uint64_t nacks = 0;          // VideoNack messages made
@@ -56,8 +58,10 @@ class VideoReorder {
  public:
   explicit VideoReorder(VideoReorderConfig config = {}) : cfg_(config) {}
 
-  // Takes a pair with its encode_seq; `now_ns` is when it arrived.
-  void push(std::uint32_t encode_seq, std::vector<std::uint8_t> frame, std::int64_t now_ns);
+  // Takes a pair with its encode_seq; `now_ns` is when it arrived, `resent` whether the remote
+  // sent it again on a NACK (a pair asked for as overdue is a repair only then).
+  void push(std::uint32_t encode_seq, std::vector<std::uint8_t> frame, std::int64_t now_ns,
+            bool resent = false);
 
   // Appends to `ready` the pairs the decoder can have now, in order, and to `nacks` the requests
   // due now (a missing pair is asked for when its gap is seen, then every retry interval, at most
