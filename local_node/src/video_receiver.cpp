@@ -23,9 +23,13 @@ struct VideoReceiver::Decoder {
 
 namespace {
 
-// Without a way to ask again, waiting for a missing pair only delays the ones behind it.
+// Without a way to ask again, waiting for a missing pair only delays the ones behind it, and an
+// overdue pair is not asked for.
 VideoReorderConfig reorder_config(const VideoReceiver::Hooks& hooks, VideoReorderConfig cfg) {
-  if (!hooks.send_nack) cfg.hold_min_ns = cfg.hold_max_ns = 0;
+  if (!hooks.send_nack) {
+    cfg.hold_min_ns = cfg.hold_max_ns = 0;
+    cfg.ask_overdue = false;
+  }
   return cfg;
 }
 

@@ -114,6 +114,31 @@ TEST(VideoReceiver, EveryPairDeliveredLeavesItsAgeAndThePreviousPairsAgeWhenRepl
   EXPECT_NEAR(ages.replaced_ms[0], 117.0, 1e-6);  // pair 1 (33 ms) replaced at 150 ms
 }
 
+// Pairs 33 ms apart, then none for 200 ms: with NACKs the decode thread wakes by itself and asks
+// for the next pair as overdue, once; without (--no-repair) nothing is asked. Then the pair
+// comes, only late.
+TEST(VideoReceiver, AnOverduePairIsAskedForOnlyWhenNacksCanBeSent) {
+  for (const bool with_nacks : {true, false}) {
+    Fixture f(with_nacks);
+    for (int i = 0; i < 6; ++i) {
+      f.receiver->push(f.next_pair());
+      ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == i + 1u; }));
+      f.now_ns += 33'000'000;
+    }
+    f.now_ns += 200'000'000;
+    if (with_nacks)
+      ASSERT_TRUE(eventually([&] { return f.nack_count() == 1; }));
+    else
+      std::this_thread::sleep_for(100ms);  // time to wake, were it waiting for an overdue pair
+    f.receiver->push(f.next_pair());
+    ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 7; }));
+    EXPECT_EQ(f.receiver->counters().nacks_sent.load(), with_nacks ? 1u : 0u) << with_nacks;
+    EXPECT_EQ(f.receiver->counters().asked_overdue.load(), with_nacks ? 1u : 0u);
+    EXPECT_EQ(f.nack_count(), with_nacks ? 1u : 0u);
+    EXPECT_EQ(f.receiver->counters().repaired.load(), 0u);  // it was only late
+  }
+}
+
 // The robot head's joints stamped in a pair's header come out with the decoded pair; a pair
 // without them (no head reading at its capture) comes out without, and is not counted.
 TEST(VideoReceiver, APairKeepsTheHeadPoseItWasCapturedAt) {
