@@ -93,8 +93,21 @@ nlohmann::json StationSummary::to_json() const {
                    {"video_pairs_repaired", video_pairs_repaired},
                    {"video_pairs_given_up", video_pairs_given_up},
                    {"video_pairs_expected", video_pairs_expected},
+                   {"video_pairs_asked_overdue", video_pairs_asked_overdue},
                    {"shown_frame_age_ms_median", shown_frame_age_ms_median},
                    {"shown_frame_age_ms_p99", shown_frame_age_ms_p99},
+                   {"video_frames_drawn", video_frames_drawn},
+                   {"video_drawn_fresh_share", video_frames_drawn > 0
+                                                   ? static_cast<double>(video_pairs_shown) /
+                                                         static_cast<double>(video_frames_drawn)
+                                                   : 0.0},
+                   {"video_delivered_age_samples", video_delivered_age_samples},
+                   {"video_delivered_age_ms_median", video_delivered_age_ms_median},
+                   {"video_delivered_age_ms_p99", video_delivered_age_ms_p99},
+                   {"video_delivered_age_ms_max", video_delivered_age_ms_max},
+                   {"video_replaced_age_ms_p99", video_replaced_age_ms_p99},
+                   {"video_replaced_age_ms_max", video_replaced_age_ms_max},
+                   {"video_replaced_over_100ms", video_replaced_over_100ms},
                    {"glass_to_glass_samples", glass_to_glass_samples},
                    {"glass_to_glass_mismatched", glass_to_glass_mismatched},
                    {"glass_to_glass_ms_median", glass_to_glass_ms_median},

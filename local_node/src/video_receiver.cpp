@@ -23,9 +23,13 @@ struct VideoReceiver::Decoder {
 
 namespace {
 
-// Without a way to ask again, waiting for a missing pair only delays the ones behind it.
+// Without a way to ask again, waiting for a missing pair only delays the ones behind it, and an
+// overdue pair is not asked for.
 VideoReorderConfig reorder_config(const VideoReceiver::Hooks& hooks, VideoReorderConfig cfg) {
-  if (!hooks.send_nack) cfg.hold_min_ns = cfg.hold_max_ns = 0;
+  if (!hooks.send_nack) {
+    cfg.hold_min_ns = cfg.hold_max_ns = 0;
+    cfg.ask_overdue = false;
+  }
   return cfg;
 }
 
@@ -48,8 +52,9 @@ VideoReceiver::~VideoReceiver() {
   thread_.join();
 }
 
-void VideoReceiver::push(std::vector<std::uint8_t> frame) {
+void VideoReceiver::push(std::vector<std::uint8_t> frame, bool resent) {
   counters_.received.fetch_add(1, std::memory_order_relaxed);
+  const std::int64_t arrival_ns = hooks_.now_ns();
   {
     std::lock_guard lock(mu_);
     // A decoder behind by kMaxQueued pairs drops the oldest; the gap it leaves asks for an intra.
@@ -57,7 +62,7 @@ void VideoReceiver::push(std::vector<std::uint8_t> frame) {
       queue_.pop_front();
       counters_.queue_dropped.fetch_add(1, std::memory_order_relaxed);
     }
-    queue_.push_back(std::move(frame));
+    queue_.push_back(Arrived{std::move(frame), arrival_ns, resent});
   }
   cv_.notify_one();
 }
@@ -75,7 +80,7 @@ std::shared_ptr<const EyePair> VideoReceiver::pair(std::int64_t want_capture_ns)
 void VideoReceiver::run() {
   // Decoding is the view's work: below the depth path, as the stereo view (nice 5).
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
-  std::deque<std::vector<std::uint8_t>> arrived;
+  std::deque<Arrived> arrived;
   for (;;) {
     {
       std::unique_lock lock(mu_);
@@ -96,19 +101,19 @@ void VideoReceiver::run() {
   }
 }
 
-void VideoReceiver::take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived) {
+void VideoReceiver::take_and_decode(std::deque<Arrived>& arrived) {
   const std::int64_t now = hooks_.now_ns();
   const std::int64_t rtt = hooks_.rtt_ns ? hooks_.rtt_ns() : 0;
   std::vector<std::vector<std::uint8_t>> ready;
   std::vector<proto::VideoNack> nacks;
   // One pair at a time, as they came: what is in order is released before the next is taken.
-  for (auto& bytes : arrived) {
-    const video::ParsedFrame parsed = video::parse_frame(bytes);
+  for (auto& a : arrived) {
+    const video::ParsedFrame parsed = video::parse_frame(a.bytes);
     if (parsed.status != video::HeaderStatus::Ok) {
-      ready.push_back(std::move(bytes));  // the decoder counts it as an error
+      ready.push_back(std::move(a.bytes));  // the decoder counts it as an error
       continue;
     }
-    reorder_.push(parsed.header.encode_seq, std::move(bytes), now);
+    reorder_.push(parsed.header.encode_seq, std::move(a.bytes), a.arrival_ns, a.resent);
     reorder_.poll(now, rtt, ready, nacks);
   }
   reorder_.poll(now, rtt, ready, nacks);  // deadlines and retries, with or without new pairs
@@ -118,6 +123,7 @@ void VideoReceiver::take_and_decode(std::deque<std::vector<std::uint8_t>>& arriv
   counters_.held.store(rc.held, std::memory_order_relaxed);
   counters_.late.store(rc.late, std::memory_order_relaxed);
   counters_.expected.store(rc.in_order + rc.held + rc.given_up, std::memory_order_relaxed);
+  counters_.asked_overdue.store(rc.asked_overdue, std::memory_order_relaxed);
   for (const auto& n : nacks) {
     counters_.nacks_sent.fetch_add(1, std::memory_order_relaxed);
     if (hooks_.send_nack) hooks_.send_nack(n);
@@ -142,9 +148,13 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       if (p->head_joint_rad) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
       p->left_bgr = d.out.left_bgr.clone();  // the decoder reuses its images
       p->right_bgr = d.out.right_bgr.clone();
-      std::lock_guard lock(pairs_mu_);
-      pairs_.push_back(std::move(p));
-      if (pairs_.size() > kKeptPairs) pairs_.pop_front();
+      const std::int64_t capture_ns = p->capture_ns;
+      {
+        std::lock_guard lock(pairs_mu_);
+        pairs_.push_back(std::move(p));
+        if (pairs_.size() > kKeptPairs) pairs_.pop_front();
+      }
+      record_delivery(capture_ns);
       return;
     }
     case video::DecodeStatus::MissingReference:
@@ -164,6 +174,23 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       }
       return;
   }
+}
+
+void VideoReceiver::record_delivery(std::int64_t capture_ns) {
+  const std::int64_t now_remote_ns =
+      hooks_.now_ns() + (hooks_.clock_offset_ns ? hooks_.clock_offset_ns() : 0);
+  const std::int64_t previous_ns = last_capture_ns_;
+  last_capture_ns_ = capture_ns;
+  std::lock_guard lock(pairs_mu_);
+  if (ages_.delivered_ms.size() >= kMaxAgeSamples) return;
+  ages_.delivered_ms.push_back(static_cast<double>(now_remote_ns - capture_ns) / 1e6);
+  if (previous_ns != 0)
+    ages_.replaced_ms.push_back(static_cast<double>(now_remote_ns - previous_ns) / 1e6);
+}
+
+VideoReceiver::DeliveryAges VideoReceiver::delivery_ages() const {
+  std::lock_guard lock(pairs_mu_);
+  return ages_;
 }
 
 void VideoReceiver::ask_for_intra(proto::PictureLossReason reason) {

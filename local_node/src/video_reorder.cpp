@@ -24,7 +24,8 @@ std::int64_t VideoReorder::retry_ns(std::int64_t rtt_ns) const {
                                 2 * std::max<std::int64_t>(rtt_ns, 0) + 2'000'000);
 }
 
-void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std::int64_t now_ns) {
+void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std::int64_t now_ns,
+                        bool resent) {
   if (!started_) {
     started_ = true;
     next_seq_ = seq;
@@ -40,20 +41,70 @@ void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std:
     held_.clear();
     missing_.clear();
     next_seq_ = seq;
+    have_newest_ = false;
+    interval_count_ = 0;
   }
   if (held_.count(seq) != 0) {
     ++counters_.late;  // a second copy (a resend that crossed the original)
     return;
   }
-  if (missing_.erase(seq) != 0) ++counters_.repaired;
+  const auto was_missing = missing_.find(seq);
+  if (was_missing != missing_.end()) {
+    // Asked for as overdue and come before any later pair: a repair if it is the remote's copy,
+    // else the pair itself, only late.
+    if (!was_missing->second.overdue || resent) ++counters_.repaired;
+    missing_.erase(was_missing);
+  }
   if (seq == next_seq_)
     ++counters_.in_order;
   else
     ++counters_.held;
-  // Every pair between the released ones and this one that is not here is missing from now on.
-  for (std::uint32_t s = next_seq_; s != seq; ++s)
-    if (held_.count(s) == 0 && missing_.count(s) == 0) missing_.emplace(s, Missing{now_ns, 0, 0});
+  // Every pair between the released ones and this one that is not here is missing from now on;
+  // one asked for as overdue is now known to be a gap (its retries count from that NACK).
+  for (std::uint32_t s = next_seq_; s != seq; ++s) {
+    if (held_.count(s) != 0) continue;
+    auto [it, added] = missing_.emplace(s, Missing{now_ns, 0, 0, false});
+    if (!added && it->second.overdue) {
+      it->second.overdue = false;
+      it->second.seen_ns = now_ns;
+    }
+  }
   held_.emplace(seq, std::move(frame));
+  note_arrival(seq, now_ns);
+}
+
+void VideoReorder::note_arrival(std::uint32_t seq, std::int64_t now_ns) {
+  if (have_newest_) {
+    const std::uint32_t ahead = seq - newest_seq_;
+    if (ahead == 0 || ahead >= 0x8000'0000u) return;  // not newer: a repair or a late copy
+    if (ahead == 1) {
+      intervals_ns_[interval_count_ % kIntervals] = now_ns - newest_arrival_ns_;
+      ++interval_count_;
+    }
+  }
+  have_newest_ = true;
+  newest_seq_ = seq;
+  newest_arrival_ns_ = now_ns;
+  overdue_asked_ = false;
+}
+
+std::int64_t VideoReorder::overdue_ns() const {
+  if (!cfg_.ask_overdue || interval_count_ < 4) return 0;
+  const std::size_t n = std::min(interval_count_, kIntervals);
+  std::array<std::int64_t, kIntervals> sorted = intervals_ns_;
+  std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.begin() + n);
+  const std::int64_t interval = std::max<std::int64_t>(sorted[n / 2], 0);
+  return interval + std::max(interval / 2, cfg_.overdue_slack_min_ns);
+}
+
+void VideoReorder::ask_overdue(std::int64_t now_ns) {
+  const std::int64_t overdue = overdue_ns();
+  if (overdue == 0 || overdue_asked_ || now_ns - newest_arrival_ns_ < overdue) return;
+  overdue_asked_ = true;
+  const std::uint32_t next = newest_seq_ + 1;
+  if (held_.count(next) != 0 || missing_.count(next) != 0) return;
+  missing_.emplace(next, Missing{now_ns, 0, 0, true});
+  ++counters_.asked_overdue;
 }
 
 void VideoReorder::release_in_order(std::vector<std::vector<std::uint8_t>>& ready) {
@@ -87,14 +138,16 @@ void VideoReorder::poll(std::int64_t now_ns, std::int64_t rtt_ns,
     if (!due && held_.size() <= cfg_.max_held) break;
     give_up_head(ready);
   }
+  ask_overdue(now_ns);
   // The NACKs due now, consecutive seqs joined into one request of at most kMaxVideoNackPairs.
+  // An overdue pair is asked for once until a later pair shows its gap.
   const std::int64_t retry = retry_ns(rtt_ns);
   std::vector<std::uint32_t> due;
   for (auto& [seq, m] : missing_) {
-    if (m.nacks >= cfg_.max_nacks) continue;
+    if (m.overdue ? m.last_nack_ns != 0 : m.nacks >= cfg_.max_nacks) continue;
     if (m.last_nack_ns != 0 && now_ns - m.last_nack_ns < retry) continue;
     m.last_nack_ns = now_ns;
-    ++m.nacks;
+    if (!m.overdue) ++m.nacks;
     due.push_back(seq);
   }
   std::sort(due.begin(), due.end(),
@@ -115,9 +168,11 @@ std::int64_t VideoReorder::next_wake_ns(std::int64_t rtt_ns) const {
   std::int64_t wake = 0;
   const auto consider = [&wake](std::int64_t t) { wake = wake == 0 ? t : std::min(wake, t); };
   const auto head = missing_.find(next_seq_);
-  if (head != missing_.end()) consider(head->second.seen_ns + hold_ns(rtt_ns));
+  if (head != missing_.end() && !held_.empty()) consider(head->second.seen_ns + hold_ns(rtt_ns));
   for (const auto& [seq, m] : missing_)
-    if (m.nacks < cfg_.max_nacks) consider(m.last_nack_ns + retry_ns(rtt_ns));
+    if (!m.overdue && m.nacks < cfg_.max_nacks) consider(m.last_nack_ns + retry_ns(rtt_ns));
+  if (const std::int64_t overdue = overdue_ns(); overdue != 0 && !overdue_asked_)
+    consider(newest_arrival_ns_ + overdue);
   return wake;
 }
 

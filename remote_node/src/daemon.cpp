@@ -78,7 +78,8 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "in {:.1f} out {:.1f} fps | slot-drop {} queue-drop {} | ms reg {:.2f} fill {:.2f} stab "
       "{:.2f} tile {:.2f} enc {:.2f} total {:.2f} first-part {:.2f} rest-cut {} | "
       "{:.1f} kB/s {:.2f} Mbit/s | tiles sent {} skipped {} | video {} pairs {:.2f} Mbit/s "
-      "(target {:.2f}) depth {:.2f} Mbit/s failed {} plis {} pair-nacks {} resent {} intra {} | "
+      "(target {:.2f}) depth {:.2f} Mbit/s failed {} plis {} pair-nacks {} resent {} "
+      "pair-over-queue {} intra {} | "
       "station "
       "lost {} delay "
       "{:.1f} ms | client {} (accepted {} "
@@ -109,7 +110,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
                           (before.bytes_sent - before.video_bytes_sent)) *
           8.0 / dt / 1e6,
       now.video_failed, now.plis_in, now.video_nacks_in, now.video_pairs_resent,
-      now.video_intra_requests, now.last_report.fragments_lost,
+      now.video_repair_over_queue, now.video_intra_requests, now.last_report.fragments_lost,
       static_cast<double>(now.last_report.delay_mean_us) / 1e3, client_state_name(now.client),
       now.clients_accepted, now.clients_rejected, now.client_timeouts,
       ended.empty() ? std::string(" none") : ended, now.source_errors, now.malformed_in,
@@ -283,6 +284,7 @@ DaemonStats RemoteDaemon::stats() const {
     s.video_nacks_in = c.video_nacks_in;
     s.video_pairs_resent = c.video_pairs_resent;
     s.video_repair_unavailable = c.video_repair_unavailable;
+    s.video_repair_over_queue = c.video_repair_over_queue;
     s.receiver_reports_in = c.receiver_reports_in;
   }
   if (eye_stream_) s.video_bitrate_bps = eye_stream_->bitrate_bps();

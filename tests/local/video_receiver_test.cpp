@@ -30,6 +30,7 @@ struct Fixture {
   std::vector<proto::PictureLoss> plis;
   std::vector<proto::VideoNack> nacks;
   std::atomic<std::int64_t> now_ns{1'000'000'000};
+  std::atomic<std::int64_t> offset_ns{0};  // the remote's clock minus ours
   std::unique_ptr<video::EyeEncoder> encoder;
   std::unique_ptr<VideoReceiver> receiver;
   std::uint32_t frame_id = 0;
@@ -52,6 +53,7 @@ struct Fixture {
       };
     h.rtt_ns = [] { return std::int64_t{20'000'000}; };
     h.now_ns = [this] { return now_ns.load(); };
+    h.clock_offset_ns = [this] { return offset_ns.load(); };
     receiver = std::make_unique<VideoReceiver>(std::move(h));
   }
   std::vector<std::uint8_t> next_pair() {
@@ -88,6 +90,53 @@ TEST(VideoReceiver, DecodesPairsOfTheRightSizeInOrder) {
   EXPECT_LT(p->left_bgr(5, 5)[0], 60);
   EXPECT_EQ(f.receiver->pair(3 * 33'000'000ll)->frame_id, 3u);  // nearest capture among the kept
   EXPECT_EQ(f.pli_count(), 0u);
+}
+
+// Every pair decoded whole leaves its age at delivery (capture to the view, on the remote's
+// clock), and the age the pair before it had reached by then; a damaged pair leaves none.
+TEST(VideoReceiver, EveryPairDeliveredLeavesItsAgeAndThePreviousPairsAgeWhenReplaced) {
+  Fixture f;
+  f.offset_ns = -900'000'000;       // the remote's clock reads 100 ms when ours reads 1 s
+  f.receiver->push(f.next_pair());  // captured at 33 ms, delivered at 100 ms
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 1; }));
+  f.now_ns += 50'000'000;
+  f.receiver->push(f.next_pair());  // captured at 66 ms, delivered at 150 ms
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 2; }));
+  (void)f.next_pair();  // lost: the next pair is damaged, not delivered
+  f.now_ns += 100'000'000;
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().damaged.load() == 1; }));
+  const auto ages = f.receiver->delivery_ages();
+  ASSERT_EQ(ages.delivered_ms.size(), 2u);
+  EXPECT_NEAR(ages.delivered_ms[0], 67.0, 1e-6);
+  EXPECT_NEAR(ages.delivered_ms[1], 84.0, 1e-6);
+  ASSERT_EQ(ages.replaced_ms.size(), 1u);
+  EXPECT_NEAR(ages.replaced_ms[0], 117.0, 1e-6);  // pair 1 (33 ms) replaced at 150 ms
+}
+
+// Pairs 33 ms apart, then none for 200 ms: with NACKs the decode thread wakes by itself and asks
+// for the next pair as overdue, once; without (--no-repair) nothing is asked. Then the pair
+// comes, only late.
+TEST(VideoReceiver, AnOverduePairIsAskedForOnlyWhenNacksCanBeSent) {
+  for (const bool with_nacks : {true, false}) {
+    Fixture f(with_nacks);
+    for (int i = 0; i < 6; ++i) {
+      f.receiver->push(f.next_pair());
+      ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == i + 1u; }));
+      f.now_ns += 33'000'000;
+    }
+    f.now_ns += 200'000'000;
+    if (with_nacks)
+      ASSERT_TRUE(eventually([&] { return f.nack_count() == 1; }));
+    else
+      std::this_thread::sleep_for(100ms);  // time to wake, were it waiting for an overdue pair
+    f.receiver->push(f.next_pair());
+    ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 7; }));
+    EXPECT_EQ(f.receiver->counters().nacks_sent.load(), with_nacks ? 1u : 0u) << with_nacks;
+    EXPECT_EQ(f.receiver->counters().asked_overdue.load(), with_nacks ? 1u : 0u);
+    EXPECT_EQ(f.nack_count(), with_nacks ? 1u : 0u);
+    EXPECT_EQ(f.receiver->counters().repaired.load(), 0u);  // it was only late
+  }
 }
 
 // The robot head's joints stamped in a pair's header come out with the decoded pair; a pair

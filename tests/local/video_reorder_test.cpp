@@ -18,7 +18,9 @@ struct Stream {
   std::vector<std::uint32_t> out;  // seqs released, in order
   std::vector<proto::VideoNack> nacks;
   explicit Stream(VideoReorderConfig c = {}) : reorder(c) {}
-  void push(std::uint32_t seq, std::int64_t now_ns) { reorder.push(seq, pair_bytes(seq), now_ns); }
+  void push(std::uint32_t seq, std::int64_t now_ns, bool resent = false) {
+    reorder.push(seq, pair_bytes(seq), now_ns, resent);
+  }
   void poll(std::int64_t now_ns, std::int64_t rtt_ns = kMs) {
     std::vector<Bytes> ready;
     reorder.poll(now_ns, rtt_ns, ready, nacks);
@@ -35,7 +37,8 @@ TEST(VideoReorder, InOrderPairsPassStraightThrough) {
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{10, 11, 12, 13, 14}));
   EXPECT_TRUE(r.nacks.empty());
   EXPECT_EQ(r.reorder.counters().in_order, 5u);
-  EXPECT_EQ(r.reorder.next_wake_ns(kMs), 0);
+  // Nothing waits but the next pair: overdue 33 ms + 16.5 ms after the newest came.
+  EXPECT_EQ(r.reorder.next_wake_ns(kMs), 14 * 33 * kMs + 49'500'000);
 }
 
 TEST(VideoReorder, AGapHoldsWhatFollowsAsksOnceAndReleasesAllWhenRepaired) {
@@ -73,28 +76,29 @@ TEST(VideoReorder, ConsecutiveLossesAreOneNackAndRetriesStopAtTheLimit) {
   r.poll(10 * kMs, 2 * kMs);
   ASSERT_EQ(r.nacks.size(), 1u);
   EXPECT_EQ(r.nacks[0], (proto::VideoNack{6, 3}));
-  // The retry interval is max(8 ms, 2 RTT + 2 ms): 8 ms at a 2 ms round trip.
-  EXPECT_EQ(r.reorder.next_wake_ns(2 * kMs), 18 * kMs);
-  r.poll(17 * kMs, 2 * kMs);
+  // The retry interval is max(12 ms, 2 RTT + 2 ms): 12 ms at a 2 ms round trip, past the
+  // remote's 10 ms dedup interval.
+  EXPECT_EQ(r.reorder.next_wake_ns(2 * kMs), 22 * kMs);
+  r.poll(21 * kMs, 2 * kMs);
   EXPECT_EQ(r.nacks.size(), 1u);
-  r.poll(18 * kMs, 2 * kMs);
-  r.poll(26 * kMs, 2 * kMs);
-  r.poll(34 * kMs, 2 * kMs);  // the limit: three asks
-  r.poll(60 * kMs, 2 * kMs);
+  r.poll(22 * kMs, 2 * kMs);
+  r.poll(34 * kMs, 2 * kMs);
+  r.poll(46 * kMs, 2 * kMs);  // the limit: three asks
+  r.poll(80 * kMs, 2 * kMs);
   EXPECT_EQ(r.nacks.size(), 3u);
   EXPECT_EQ(r.reorder.counters().nacks, 3u);
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{5}));
 }
 
 TEST(VideoReorder, AGapPastItsDeadlineIsGivenUpAndLateCopiesAreDropped) {
-  Stream r;  // 1 ms round trip: the deadline is max(20 ms, 3 RTT + 10 ms) = 20 ms after the gap
+  Stream r;  // 1 ms round trip: the deadline is max(30 ms, 3 RTT + 10 ms) = 30 ms after the gap
   r.push(1, 0);
   r.push(3, 33 * kMs);
   r.poll(33 * kMs);
-  EXPECT_EQ(r.reorder.next_wake_ns(kMs), 33 * kMs + 8 * kMs);  // the retry comes first
-  r.poll(52 * kMs);
+  EXPECT_EQ(r.reorder.next_wake_ns(kMs), 33 * kMs + 12 * kMs);  // the retry comes first
+  r.poll(62 * kMs);
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{1}));
-  r.poll(53 * kMs);
+  r.poll(63 * kMs);
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{1, 3}));
   EXPECT_EQ(r.reorder.counters().given_up, 1u);
   r.push(2, 60 * kMs);
@@ -102,6 +106,78 @@ TEST(VideoReorder, AGapPastItsDeadlineIsGivenUpAndLateCopiesAreDropped) {
   EXPECT_EQ(r.reorder.counters().late, 1u);
   EXPECT_EQ(r.out.size(), 2u);
   EXPECT_EQ(r.reorder.next_wake_ns(kMs), 0);
+}
+
+// Asking sooner: after pairs every 33 ms, the next one is overdue 49.5 ms after the newest came
+// (the median interval plus half of it) and asked for once, a period before the pair behind it
+// would show the gap. When that pair comes the gap is known: the retries go on from the overdue
+// NACK, and the resend is a repair.
+TEST(VideoReorder, AnOverduePairIsAskedForOnceBeforeALaterPairShowsTheGap) {
+  Stream r;
+  for (std::uint32_t s = 0; s <= 5; ++s) {
+    r.push(s, s * 33 * kMs);
+    r.poll(s * 33 * kMs);
+  }
+  const std::int64_t newest_ns = 5 * 33 * kMs;
+  EXPECT_EQ(r.reorder.overdue_ns(), 49'500'000);
+  r.poll(newest_ns + 49 * kMs);
+  EXPECT_TRUE(r.nacks.empty());
+  r.poll(newest_ns + 50 * kMs);  // 6 is overdue
+  ASSERT_EQ(r.nacks.size(), 1u);
+  EXPECT_EQ(r.nacks[0], (proto::VideoNack{6, 1}));
+  EXPECT_EQ(r.reorder.counters().asked_overdue, 1u);
+  r.poll(newest_ns + 70 * kMs);  // once only while no later pair has come
+  EXPECT_EQ(r.nacks.size(), 1u);
+  r.push(7, 7 * 33 * kMs);  // the gap shows: 7 waits, 6 is asked again at once (12 ms passed)
+  r.poll(7 * 33 * kMs);
+  ASSERT_EQ(r.nacks.size(), 2u);
+  EXPECT_EQ(r.nacks[1], (proto::VideoNack{6, 1}));
+  EXPECT_EQ(r.out.size(), 6u);
+  r.push(6, 7 * 33 * kMs + kMs);  // the resend
+  r.poll(7 * 33 * kMs + kMs);
+  EXPECT_EQ(r.out, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_EQ(r.reorder.counters().repaired, 1u);
+  EXPECT_EQ(r.reorder.counters().asked_overdue, 1u);
+  // 8 is lost too; the remote's copy, asked for as overdue, comes before 9: a repair.
+  r.poll(7 * 33 * kMs + 50 * kMs);
+  ASSERT_EQ(r.nacks.size(), 3u);
+  EXPECT_EQ(r.nacks[2], (proto::VideoNack{8, 1}));
+  r.push(8, 7 * 33 * kMs + 51 * kMs, /*resent=*/true);
+  r.poll(7 * 33 * kMs + 51 * kMs);
+  EXPECT_EQ(r.out.back(), 8u);
+  EXPECT_EQ(r.reorder.counters().repaired, 2u);
+  EXPECT_EQ(r.reorder.counters().held, 1u);  // only 7 waited
+}
+
+// A pair that was only late comes after its overdue NACK and goes straight through, neither
+// held nor counted as a repair; a copy the remote sent on that NACK is dropped as late. Fast
+// pairs are overdue no sooner than 10 ms after their interval; without ask_overdue never.
+TEST(VideoReorder, AnOverduePairThatWasOnlyLateGoesThroughAndTheSlackHasAFloor) {
+  Stream r;
+  for (std::uint32_t s = 0; s <= 4; ++s) {
+    r.push(s, s * 10 * kMs);
+    r.poll(s * 10 * kMs);
+  }
+  EXPECT_EQ(r.reorder.overdue_ns(), 20 * kMs);  // 10 ms + max(5 ms, 10 ms)
+  r.poll(60 * kMs);
+  ASSERT_EQ(r.nacks.size(), 1u);
+  r.push(5, 65 * kMs);
+  r.poll(65 * kMs);
+  EXPECT_EQ(r.out, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5}));
+  EXPECT_EQ(r.reorder.counters().repaired, 0u);
+  EXPECT_EQ(r.reorder.counters().held, 0u);
+  r.push(5, 66 * kMs);  // the remote's copy
+  r.poll(66 * kMs);
+  EXPECT_EQ(r.reorder.counters().late, 1u);
+  EXPECT_EQ(r.nacks.size(), 1u);
+
+  VideoReorderConfig off;
+  off.ask_overdue = false;
+  Stream quiet(off);
+  for (std::uint32_t s = 0; s <= 4; ++s) quiet.push(s, s * 10 * kMs);
+  quiet.poll(500 * kMs);
+  EXPECT_TRUE(quiet.nacks.empty());
+  EXPECT_EQ(quiet.reorder.next_wake_ns(kMs), 0);
 }
 
 TEST(VideoReorder, TheDeadlineFollowsTheRoundTripUpToItsCap) {

@@ -72,6 +72,12 @@ class TestClient {
     return true;
   }
 
+  // Caps the TCP socket's receive buffer (SO_RCVBUF; Linux stops autotuning it): a client that
+  // stops reading then stalls the remote's writes after that much, not after tcp_rmem's maximum.
+  void cap_receive_buffer(int bytes) {
+    tcp_.set_option(boost::asio::socket_base::receive_buffer_size(bytes));
+  }
+
   void close() {
     boost::system::error_code ec;
     tcp_.close(ec);

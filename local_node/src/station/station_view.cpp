@@ -56,6 +56,10 @@ StationView::StationView(const StationConfig& cfg, StationFaults& faults)
     return c ? c->stats().rtt_ns.load() : std::int64_t{0};
   };
   hooks.now_ns = [] { return monotonic_ns(); };
+  hooks.clock_offset_ns = [this] {
+    auto* c = client_.load();
+    return c ? c->stats().clock_offset_ns.load() : std::int64_t{0};
+  };
   video_ = std::make_unique<VideoReceiver>(std::move(hooks));
 }
 
@@ -71,8 +75,8 @@ void StationView::open() {
 
 void StationView::bind(ClientEvents& events) {
   if (!video_) return;
-  events.on_video = [this](const proto::Header&, const proto::EncodedVideo& v) {
-    video_->push(v.frame);
+  events.on_video = [this](const proto::Header& h, const proto::EncodedVideo& v) {
+    video_->push(v.frame, (h.flags & proto::kFlagRepair) != 0);
   };
 }
 
@@ -89,10 +93,21 @@ void StationView::summarize(StationSummary& s) const {
   s.video_pairs_repaired = c.repaired.load();
   s.video_pairs_given_up = c.given_up.load();
   s.video_pairs_expected = c.expected.load();
+  s.video_pairs_asked_overdue = c.asked_overdue.load();
   s.video_eye_width_px = c.eye_width_px.load();
   s.video_eye_height_px = c.eye_height_px.load();
+  const VideoReceiver::DeliveryAges ages = video_->delivery_ages();
+  s.video_delivered_age_samples = ages.delivered_ms.size();
+  s.video_delivered_age_ms_median = percentile(ages.delivered_ms, 0.5);
+  s.video_delivered_age_ms_p99 = percentile(ages.delivered_ms, 0.99);
+  s.video_delivered_age_ms_max = percentile(ages.delivered_ms, 1.0);
+  s.video_replaced_age_ms_p99 = percentile(ages.replaced_ms, 0.99);
+  s.video_replaced_age_ms_max = percentile(ages.replaced_ms, 1.0);
+  s.video_replaced_over_100ms = static_cast<std::uint64_t>(std::count_if(
+      ages.replaced_ms.begin(), ages.replaced_ms.end(), [](double ms) { return ms > 100.0; }));
   std::lock_guard lock(shown_mu_);
   s.video_pairs_shown = pairs_shown_;
+  s.video_frames_drawn = frames_drawn_;
   std::vector<double> age = shown_age_ms_;
   s.shown_frame_age_ms_median = percentile(age, 0.5);
   s.shown_frame_age_ms_p99 = percentile(age, 0.99);
@@ -181,6 +196,7 @@ std::shared_ptr<const EyePair> StationView::show_pair(std::int64_t want_capture_
   // Display time on the remote's clock (the heartbeat's offset), as the capture time.
   const std::int64_t now_remote_ns = monotonic_ns() + (c ? c->stats().clock_offset_ns.load() : 0);
   std::lock_guard lock(shown_mu_);
+  ++frames_drawn_;
   if (pairs_shown_ == 0 || pair->frame_id != last_shown_frame_id_) ++pairs_shown_;
   last_shown_frame_id_ = pair->frame_id;
   if (shown_age_ms_.size() < kMaxAgeSamples)

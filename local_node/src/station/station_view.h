@@ -133,6 +133,7 @@ class StationView {
   mutable std::mutex shown_mu_;
   std::uint32_t last_shown_frame_id_ = 0;  // guarded by shown_mu_, as the two below
   std::uint64_t pairs_shown_ = 0;
+  std::uint64_t frames_drawn_ = 0;    // frames that took a pair (pairs_shown_ of them a fresh one)
   std::vector<double> shown_age_ms_;  // at most kMaxAgeSamples
   // Glass to glass: capture to the rendered eye handed to the display, for the pairs whose frame
   // counter (telex/video/frame_counter.h) reads back from the rendered right eye as their id.

@@ -119,7 +119,7 @@ class RemoteServer::Impl {
   void on_nack(const proto::TileNack& nack);
   void on_video_nack(const proto::VideoNack& nack);
   bool admit_repair(std::size_t& queued, std::uint16_t slot, std::uint32_t id, std::size_t bytes,
-                    std::int64_t now_ns);
+                    std::int64_t now_ns, std::atomic<std::uint64_t>& over_queue);
   void send_control(Buffer buf);
   std::size_t queued_repair_bytes(const Session& s) const;
   void kick_tcp(const std::shared_ptr<Session>& s);

@@ -198,11 +198,13 @@ void RemoteServer::Impl::request_key_frame() {
 
 // Whether a resend of `bytes` may go (issue 27's bounds): under kMaxQueuedRepairBytes with what is
 // `queued` (which it then grows), not sent again within the dedup interval (`slot` and `id` name
-// it), within the byte budget. Each refusal is counted.
+// it), within the byte budget. Each refusal is counted; one over the queue bound in `over_queue`
+// (tiles and pairs apart: a station that stops reading meets it with either).
 bool RemoteServer::Impl::admit_repair(std::size_t& queued, std::uint16_t slot, std::uint32_t id,
-                                      std::size_t bytes, std::int64_t now_ns) {
+                                      std::size_t bytes, std::int64_t now_ns,
+                                      std::atomic<std::uint64_t>& over_queue) {
   if (queued + bytes > kMaxQueuedRepairBytes) {
-    ++counters_.repair_over_queue;
+    ++over_queue;
     return false;
   }
   switch (active_->repair.admit(slot, id, bytes, now_ns)) {
@@ -244,7 +246,9 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   std::vector<std::pair<proto::Header, proto::Message>> msgs;
   msgs.reserve(answer.resend.size());
   for (const auto& c : answer.resend) {
-    if (!admit_repair(queued, c.tile->index, c.frame_id, c.tile->bytes.size(), now)) continue;
+    if (!admit_repair(queued, c.tile->index, c.frame_id, c.tile->bytes.size(), now,
+                      counters_.repair_over_queue))
+      continue;
     msgs.emplace_back(header(l->session_id, c.frame_id, c.capture_ns, false, proto::kFlagRepair),
                       proto::tile_message(*c.tile, c.codec));
   }
@@ -280,7 +284,8 @@ void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
     }
     // Pairs share the limiter with tiles: their dedup slots follow the tiles' index range.
     const auto slot = static_cast<std::uint16_t>(proto::kMaxManifestTiles + seq % 64);
-    if (!admit_repair(queued, slot, seq, p->frame->size(), now)) continue;
+    if (!admit_repair(queued, slot, seq, p->frame->size(), now, counters_.video_repair_over_queue))
+      continue;
     ++counters_.video_pairs_resent;
     std::vector<std::pair<proto::Header, proto::Message>> msgs;
     msgs.emplace_back(

@@ -69,10 +69,20 @@ struct StationSummary {
   // share of those decoded whole is the share of the remote's pairs a person could see.
   std::uint64_t video_nacks_sent = 0, video_pairs_repaired = 0, video_pairs_given_up = 0;
   std::uint64_t video_pairs_expected = 0;
+  std::uint64_t video_pairs_asked_overdue = 0;  // asked for before a later pair showed the gap
   // Pairs decoded whole that carried the robot head's joints at their capture (the warp turns
   // the video from them; without, from the depth frame's).
   std::uint64_t video_pairs_with_head_pose = 0;
   double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
+  // Frames the view drew with a pair: video_pairs_shown of them took one not drawn before.
+  std::uint64_t video_frames_drawn = 0;
+  // Every pair decoded whole, not only the drawn ones (VideoReceiver::DeliveryAges): capture to
+  // delivery to the view, and the age the previous pair had reached when it was replaced (what a
+  // display at any rate showed at worst), with how many of those exceeded 3 periods at 30 Hz.
+  std::uint64_t video_delivered_age_samples = 0, video_replaced_over_100ms = 0;
+  double video_delivered_age_ms_median = 0, video_delivered_age_ms_p99 = 0;
+  double video_delivered_age_ms_max = 0, video_replaced_age_ms_p99 = 0;
+  double video_replaced_age_ms_max = 0;
   // Glass to glass: capture to the rendered eye handed to the display (PNG, window), for pairs
   // whose frame counter read back from that image is their id (synthetic eyes stamp it).
   std::uint64_t glass_to_glass_samples = 0, glass_to_glass_mismatched = 0;

@@ -52,6 +52,7 @@ struct VideoReceiverCounters {
   std::atomic<std::uint64_t> held{0};
   std::atomic<std::uint64_t> late{0};
   std::atomic<std::uint64_t> expected{0};  // pairs the sequence accounts for: arrived or given up
+  std::atomic<std::uint64_t> asked_overdue{0};         // pairs asked for before a later one came
   std::atomic<int> eye_width_px{0}, eye_height_px{0};  // of the newest pair decoded whole
 };
 
@@ -63,28 +64,48 @@ class VideoReceiver {
     std::function<void(const proto::VideoNack&)> send_nack;  // any thread
     std::function<std::int64_t()> rtt_ns;                    // the link's round trip (0: unknown)
     std::function<std::int64_t()> now_ns;                    // monotonic
+    // The remote's clock minus now_ns()'s (the heartbeat's offset; unset or 0: unknown), so
+    // that a pair's age counts from its capture_ns.
+    std::function<std::int64_t()> clock_offset_ns;
+  };
+  // Capture to delivery of every pair decoded whole, on the remote's clock: `delivered` when it
+  // reached the view (the view shows it from then on), `replaced` the age the pair before it had
+  // reached at that moment: the oldest that pair was while it was the newest, what a display at
+  // any rate showed at worst. Both in ms, in delivery order, at most kMaxAgeSamples.
+  struct DeliveryAges {
+    std::vector<double> delivered_ms, replaced_ms;
   };
   explicit VideoReceiver(Hooks hooks, VideoReorderConfig reorder = {});
   ~VideoReceiver();
   VideoReceiver(const VideoReceiver&) = delete;
   VideoReceiver& operator=(const VideoReceiver&) = delete;
 
-  // Network thread: takes the pair's bytes (never blocks on the decoder).
-  void push(std::vector<std::uint8_t> frame);
+  // Network thread: takes the pair's bytes (never blocks on the decoder); `resent` when the remote
+  // sent it again on a VideoNack (kFlagRepair).
+  void push(std::vector<std::uint8_t> frame, bool resent = false);
   // Any thread: the whole pair captured nearest `want_capture_ns` (0: the newest) among the last
   // few decoded, or null before the first.
   std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
   const VideoReceiverCounters& counters() const { return counters_; }
+  DeliveryAges delivery_ages() const;
 
   // The shortest time between two PLIs, whatever the round trip.
   static constexpr std::int64_t kMinPliIntervalNs = 100'000'000;
+  static constexpr std::size_t kMaxAgeSamples = 1 << 20;
 
  private:
   void run();
   // Decode thread: moves newly pushed pairs into the reorder buffer, sends its NACKs, decodes
   // what it releases.
-  void take_and_decode(std::deque<std::vector<std::uint8_t>>& arrived);
+  struct Arrived {
+    std::vector<std::uint8_t> bytes;
+    std::int64_t arrival_ns = 0;  // stamped by push(): the decode thread may take it later
+    bool resent = false;
+  };
+  void take_and_decode(std::deque<Arrived>& arrived);
   void decode_one(const std::vector<std::uint8_t>& bytes);
+  // Decode thread: the ages of a pair captured at `capture_ns` (remote clock) delivered now.
+  void record_delivery(std::int64_t capture_ns);
   void ask_for_intra(proto::PictureLossReason reason);
 
   Hooks hooks_;
@@ -93,10 +114,12 @@ class VideoReceiver {
   // inheritance, so threads between them cannot keep the network thread waiting.
   PiMutex mu_;
   std::condition_variable_any cv_;
-  std::deque<std::vector<std::uint8_t>> queue_;  // guarded by mu_
-  bool stopping_ = false;                        // guarded by mu_
+  std::deque<Arrived> queue_;  // guarded by mu_
+  bool stopping_ = false;      // guarded by mu_
   mutable std::mutex pairs_mu_;
   std::deque<std::shared_ptr<const EyePair>> pairs_;  // the last kKeptPairs, oldest first
+  DeliveryAges ages_;                                 // guarded by pairs_mu_
+  std::int64_t last_capture_ns_ = 0;                  // decode thread: the pair delivered last
   static constexpr std::size_t kKeptPairs = 4;
   static constexpr std::size_t kMaxQueued = 8;
   std::int64_t last_pli_ns_ = 0;     // decode thread

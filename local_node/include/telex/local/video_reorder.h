@@ -6,10 +6,18 @@
 // arrives later is dropped. The deadline follows the round trip but never exceeds `hold_max_ns`,
 // so no pair waits longer than that behind a loss.
 //
+// Asking sooner: a gap is only seen when a pair behind it arrives, one pair interval after the
+// lost one was due, and the view shows the pair before it all that time. So the pair after the
+// newest is also asked for once when it is overdue: when no newer pair has arrived for the
+// usual interval (the median of the last 8 between consecutive pairs) plus half of it, at least
+// `overdue_slack_min_ns`. A pair merely late costs one NACK the remote answers with nothing (it
+// has not sent it yet) or a copy dropped as late here; a lost pair is back a period sooner.
+//
 // Pure (no thread, no clock): time and the round trip come in as arguments. The station's decode
 // thread owns one (VideoReceiver).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -20,29 +28,40 @@
 namespace telex::local {
 
 struct VideoReorderConfig {
-  std::int64_t hold_min_ns = 20'000'000;  // a gap is waited for at least this long ...
+  // A gap is waited for at least this long (three asks, 0, 12 and 24 ms after it is seen, and
+  // a loopback round trip) ...
+  std::int64_t hold_min_ns = 30'000'000;
   std::int64_t hold_max_ns = 60'000'000;  // ... and never longer (two periods at 30 Hz)
-  std::int64_t retry_min_ns = 8'000'000;  // a NACK is repeated after 2 RTT + 2 ms, not sooner
-  int max_nacks = 3;                      // per missing pair
-  std::size_t max_held = 8;               // pairs held behind a gap; one more gives it up
+  // A NACK is repeated after 2 RTT + 2 ms, not sooner than this: the remote answers a pair asked
+  // for again within 10 ms (its RepairLimiter's dedup interval) with nothing.
+  std::int64_t retry_min_ns = 12'000'000;
+  int max_nacks = 3;         // per missing pair
+  std::size_t max_held = 8;  // pairs held behind a gap; one more gives it up
+  bool ask_overdue = true;   // ask for an overdue pair before a later one shows its gap
+  std::int64_t overdue_slack_min_ns = 10'000'000;  // overdue: interval + max(interval / 2, this)
 };
 
 struct VideoReorderCounters {
   std::uint64_t in_order = 0;  // pairs released without waiting
   std::uint64_t held = 0;      // pairs that waited behind a gap
-  std::uint64_t repaired = 0;  // missing pairs that arrived in time (NACKed or late)
-  std::uint64_t given_up = 0;  // missing pairs skipped at their deadline
-  std::uint64_t late = 0;      // pairs behind the released sequence, or already held: dropped
-  std::uint64_t nacks = 0;     // VideoNack messages made
-  std::uint64_t restarts = 0;  // jumps no gap explains (a restarted encoder): started afresh
+  // Missing pairs that arrived in time (NACKed or late; one asked for as overdue only as the
+  // remote's copy).
+  std::uint64_t repaired = 0;
+  std::uint64_t given_up = 0;       // missing pairs skipped at their deadline
+  std::uint64_t late = 0;           // pairs behind the released sequence, or already held: dropped
+  std::uint64_t nacks = 0;          // VideoNack messages made
+  std::uint64_t restarts = 0;       // jumps no gap explains (a restarted encoder): started afresh
+  std::uint64_t asked_overdue = 0;  // pairs asked for because they were overdue (one NACK each)
 };
 
 class VideoReorder {
  public:
   explicit VideoReorder(VideoReorderConfig config = {}) : cfg_(config) {}
 
-  // Takes a pair with its encode_seq.
-  void push(std::uint32_t encode_seq, std::vector<std::uint8_t> frame, std::int64_t now_ns);
+  // Takes a pair with its encode_seq; `now_ns` is when it arrived, `resent` whether the remote
+  // sent it again on a NACK (a pair asked for as overdue is a repair only then).
+  void push(std::uint32_t encode_seq, std::vector<std::uint8_t> frame, std::int64_t now_ns,
+            bool resent = false);
 
   // Appends to `ready` the pairs the decoder can have now, in order, and to `nacks` the requests
   // due now (a missing pair is asked for when its gap is seen, then every retry interval, at most
@@ -50,8 +69,12 @@ class VideoReorder {
   void poll(std::int64_t now_ns, std::int64_t rtt_ns, std::vector<std::vector<std::uint8_t>>& ready,
             std::vector<proto::VideoNack>& nacks);
 
-  // When poll() next has work without a new pair: the earliest retry or deadline (0: none).
+  // When poll() next has work without a new pair: the earliest retry, deadline or overdue pair
+  // (0: none).
   std::int64_t next_wake_ns(std::int64_t rtt_ns) const;
+  // How long after the newest pair's arrival the next one is overdue: the usual interval plus
+  // max(half of it, overdue_slack_min_ns); 0 while fewer than 4 intervals are known.
+  std::int64_t overdue_ns() const;
 
   const VideoReorderCounters& counters() const { return counters_; }
   std::size_t held() const { return held_.size(); }
@@ -61,7 +84,10 @@ class VideoReorder {
     std::int64_t seen_ns = 0;       // when the gap was first seen
     std::int64_t last_nack_ns = 0;  // 0: not asked yet
     int nacks = 0;
+    bool overdue = false;  // asked for as overdue; no later pair has shown the gap yet
   };
+  void note_arrival(std::uint32_t seq, std::int64_t now_ns);
+  void ask_overdue(std::int64_t now_ns);
   std::int64_t hold_ns(std::int64_t rtt_ns) const;
   std::int64_t retry_ns(std::int64_t rtt_ns) const;
   void release_in_order(std::vector<std::vector<std::uint8_t>>& ready);
@@ -73,6 +99,15 @@ class VideoReorder {
   std::uint32_t next_seq_ = 0;                               // the pair the decoder needs next
   std::map<std::uint32_t, std::vector<std::uint8_t>> held_;  // by encode_seq - next_seq_ order
   std::map<std::uint32_t, Missing> missing_;                 // seqs in [next_seq_, newest held)
+  // The newest pair's seq and arrival, the last intervals between consecutive pairs' arrivals
+  // (a ring), and whether the pair after the newest was asked for as overdue.
+  bool have_newest_ = false;
+  std::uint32_t newest_seq_ = 0;
+  std::int64_t newest_arrival_ns_ = 0;
+  static constexpr std::size_t kIntervals = 8;
+  std::array<std::int64_t, kIntervals> intervals_ns_{};
+  std::size_t interval_count_ = 0;
+  bool overdue_asked_ = false;
 };
 
 }  // namespace telex::local

@@ -91,8 +91,10 @@ struct DaemonStats {
   // them too), the encoder's target, the station's newest receiver report.
   std::uint64_t video_failed = 0, video_intra_requests = 0;
   std::uint64_t video_bytes_sent = 0, video_pairs_sent = 0, plis_in = 0, receiver_reports_in = 0;
-  // The eyes' repair (PROTOCOL.md 2.7): VideoNacks in, pairs sent again, pairs no longer cached.
+  // The eyes' repair (PROTOCOL.md 2.7): VideoNacks in, pairs sent again, pairs no longer cached,
+  // pairs refused over the bound of queued resends.
   std::uint64_t video_nacks_in = 0, video_pairs_resent = 0, video_repair_unavailable = 0;
+  std::uint64_t video_repair_over_queue = 0;
   std::int64_t video_bitrate_bps = 0;
   proto::ReceiverReport last_report;
   std::uint64_t malformed_in = 0;

@@ -100,18 +100,21 @@ struct ServerCounters {
   std::atomic<std::uint64_t> nacks_in{0};
   std::atomic<std::uint64_t> repair_tiles_sent{0};
   std::atomic<std::uint64_t> repair_unavailable{0};
-  // What bounds NACK answers (RepairLimiter): tiles asked again within the dedup interval, tiles
-  // beyond the byte budget, tiles refused because the send queue already held kMaxQueuedRepairBytes
-  // of resends (a station that does not read).
+  // What bounds NACK answers (RepairLimiter): resends (tiles and pairs) asked again within the
+  // dedup interval, resends beyond the byte budget, tiles refused because the send queue already
+  // held kMaxQueuedRepairBytes of resends (a station that does not read; pairs refused so are
+  // video_repair_over_queue).
   std::atomic<std::uint64_t> repair_duplicates{0};
   std::atomic<std::uint64_t> repair_over_budget{0};
   std::atomic<std::uint64_t> repair_over_queue{0};
   // The eyes' repair (PROTOCOL.md 2.7): VideoNacks in, pairs sent again (kFlagRepair), pairs asked
-  // for that the cache no longer held (the station's PLI recovers those). The limits above bound
-  // them too (one byte budget for all resends).
+  // for that the cache no longer held (the station's PLI recovers those), pairs refused because
+  // the send queue already held kMaxQueuedRepairBytes of resends. The dedup interval and the byte
+  // budget above bound them too (one budget for all resends).
   std::atomic<std::uint64_t> video_nacks_in{0};
   std::atomic<std::uint64_t> video_pairs_resent{0};
   std::atomic<std::uint64_t> video_repair_unavailable{0};
+  std::atomic<std::uint64_t> video_repair_over_queue{0};
   // Control messages not queued because the station does not read them: heartbeat answers beyond
   // kMaxHeartbeatBacklog, anything beyond kMaxControlQueue.
   std::atomic<std::uint64_t> control_dropped{0};
