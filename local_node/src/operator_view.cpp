@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "telex/common/colorize.h"
 #include "telex/local/status_band.h"
@@ -15,7 +16,46 @@ constexpr std::uint16_t kViewFarMm = 2500;
 // Phalanx lengths (distal first) drawn back along the finger axis when the tracker gives only
 // fingertips (scripted hands).
 constexpr double kPhalanxM[3] = {0.022, 0.025, 0.045};
+const cv::Scalar kWindowOutlineBgr{0, 230, 255};
 }  // namespace
+
+std::vector<cv::Rect> haptic_windows(const Surface* surface, const cv::Mat3f& shown) {
+  if (surface == nullptr || shown.data == surface->normals.data ||
+      shown.size() != surface->normals.size())
+    return {};
+  const cv::Mat3f& normals = surface->normals;
+  cv::Mat1b set(normals.size(), std::uint8_t{0});
+  for (int y = 0; y < normals.rows; ++y)
+    for (int x = 0; x < normals.cols; ++x) {
+      const cv::Vec3f& n = normals(y, x);
+      set(y, x) = (n[0] != 0.0f || n[1] != 0.0f || n[2] != 0.0f) ? 255 : 0;
+    }
+  cv::Mat1i labels, stats;
+  cv::Mat centroids;
+  const int count = cv::connectedComponentsWithStats(set, labels, stats, centroids, 8);
+  std::vector<cv::Rect> out;
+  for (int i = 1; i < count; ++i)
+    out.emplace_back(stats(i, cv::CC_STAT_LEFT), stats(i, cv::CC_STAT_TOP),
+                     stats(i, cv::CC_STAT_WIDTH), stats(i, cv::CC_STAT_HEIGHT));
+  return out;
+}
+
+void draw_normal_inset(cv::Mat3b& img, const cv::Mat3f& normals,
+                       std::span<const cv::Rect> windows) {
+  if (normals.empty()) return;
+  const int w = img.cols / 4, h = w * normals.rows / normals.cols;
+  if (w <= 0 || h <= 0 || h + 5 > img.rows) return;
+  cv::Mat3b small;
+  cv::resize(colorize_normals(normals), small, {w, h}, 0, 0, cv::INTER_AREA);
+  const double s = static_cast<double>(w) / normals.cols;
+  for (const cv::Rect& r : windows)
+    cv::rectangle(small, cv::Point(static_cast<int>(r.x * s), static_cast<int>(r.y * s)),
+                  cv::Point(static_cast<int>(r.br().x * s), static_cast<int>(r.br().y * s)),
+                  kWindowOutlineBgr, 1);
+  const cv::Rect at(img.cols - w - 4, 4, w, h);
+  small.copyTo(img(at));
+  cv::rectangle(img, cv::Rect(at.x - 1, at.y - 1, w + 2, h + 2), {255, 255, 255}, 1);
+}
 
 std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p) {
   if (!(p.z > 1e-3) || !std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;
@@ -42,15 +82,8 @@ cv::Mat3b render_operator_view(const ViewInputs& in) {
   const Intrinsics k = in.surface->intrinsics.scaled(img.cols, img.rows);
   const int thick = std::max(1, img.cols / 320);
 
-  // Normal-map inset, top right, a quarter of the width.
-  if (!in.surface->normals.empty()) {
-    cv::Mat3b inset = colorize_normals(in.surface->normals);
-    const int w = img.cols / 4, h = img.rows / 4;
-    cv::Mat3b small;
-    cv::resize(inset, small, {w, h}, 0, 0, cv::INTER_AREA);
-    small.copyTo(img(cv::Rect(img.cols - w - 4, 4, w, h)));
-    cv::rectangle(img, cv::Rect(img.cols - w - 5, 3, w + 2, h + 2), {255, 255, 255}, 1);
-  }
+  const cv::Mat3f& shown = in.normals.empty() ? in.surface->normals : in.normals;
+  draw_normal_inset(img, shown, haptic_windows(in.surface, shown));
 
   // Virtual hand: segments from wrist through the joints to the fingertips.
   const cv::Scalar bone(230, 230, 230), tip_free(60, 220, 60), tip_contact(40, 40, 255);

@@ -12,6 +12,7 @@
 #include "telex/common/colorize.h"
 #include "telex/common/registration.h"
 #include "telex/local/fig7_view.h"
+#include "telex/local/operator_view.h"
 #include "telex/local/status_band.h"
 
 namespace telex::local {
@@ -30,18 +31,11 @@ cv::Vec3b pressure_bgr(double n) {
           static_cast<unsigned char>(80 + 175 * t)};
 }
 
-// The overlay: the normal-map inset (top right, a quarter of the width; none when empty) and the
-// status text, wrapped to fit the width.
-void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3f& normals) {
-  if (!normals.empty()) {
-    const cv::Mat3b inset = colorize_normals(normals);
-    const int w = img.cols / 4, h = w * inset.rows / std::max(1, inset.cols);
-    if (w > 0 && h > 0 && h < img.rows) {
-      cv::Mat3b small;
-      cv::resize(inset, small, {w, h}, 0, 0, cv::INTER_AREA);
-      small.copyTo(img(cv::Rect(img.cols - w - 4, 4, w, h)));
-    }
-  }
+// The overlay: the normal-map inset with the haptic path's windows outlined (none when empty)
+// and the status text, wrapped to fit the width.
+void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3f& normals,
+             std::span<const cv::Rect> windows) {
+  draw_normal_inset(img, normals, windows);
   draw_status_band(img, in.status, 0.45, 1);
 }
 
@@ -308,13 +302,15 @@ StereoViewImages StereoView::render(const StereoViewInputs& in) {
       !in.depth_mm.empty() && in.depth_mm.size() == cv::Size(in.k.width, in.k.height);
   const cv::Mat3f normals =
       depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
+  out.normals = normals;
   if (in.fig7) {
     cv::Mat3b interaction = out.right.clone();
-    overlay(interaction, in, {});
+    overlay(interaction, in, {}, {});
     out.fig7 = fig7_layout(interaction, k_eye_, normals, in.k, in.forces, in.arrow_m_per_N);
   }
-  overlay(out.left, in, normals);
-  overlay(out.right, in, normals);
+  const std::vector<cv::Rect> windows = haptic_windows(in.surface, normals);
+  overlay(out.left, in, normals, windows);
+  overlay(out.right, in, normals, windows);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// The operator view: eyes' video, the 2D view, the stereo pair on its own thread, the window.
+// The operator view: eyes' video, the stereo pair and the overview on their own thread, the window.
 #include "station_view.h"
 
 #include <spdlog/spdlog.h>
@@ -163,29 +163,7 @@ void StationView::write_files(const std::array<FingertipForce, kFingerCount>& fo
                               const std::string& status, bool at_moment) {
   if (cfg_.view_at_s >= 0.0 && !at_moment) return;
   if (spec_.kind != ViewSpec::Kind::Png) return;
-  const cv::Mat3b img = render_2d(forces, status);
-  const auto path = spec_.dir / "view.png";
-  const auto tmp = spec_.dir / "view.tmp.png";
-  if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, path);
-  request_stereo(forces, status);
-}
-
-cv::Mat3b StationView::render_2d(const std::array<FingertipForce, kFingerCount>& forces,
-                                 const std::string& status) {
-  ViewInputs vi;
-  std::shared_ptr<const Surface> vs;
-  {
-    std::lock_guard lock(surface_mu_);
-    vs = surface_;
-    vi.depth_mm = depth_mm_;
-  }
-  vi.surface = vs.get();
-  hand_in_.take(hand_);
-  vi.hand = hand_;
-  vi.forces = forces;
-  vi.status = status;
-  if (const auto pair = show_pair()) vi.camera_bgr = pair->right_bgr;
-  return render_operator_view(vi);
+  request_stereo(forces, status);  // the view thread writes the pair and view.png
 }
 
 std::shared_ptr<const EyePair> StationView::show_pair(std::int64_t want_capture_ns) {
@@ -273,7 +251,10 @@ void StationView::run_stereo(std::stop_token stop) {
 }
 
 bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
-  if (!stereo_inputs(in)) return false;
+  if (!stereo_inputs(in)) {
+    if (spec_.kind == ViewSpec::Kind::Png) write_overview(in, {});  // waiting for the surface
+    return false;
+  }
   const StereoViewImages v = view.render(in);
   if (v.one_eye && !warned_one_eye_) {
     spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
@@ -284,6 +265,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     sbs_for_window_.put({in.fig7 ? v.fig7 : v.sbs, stamps});  // to photon when the window swaps
   } else {
     write_stereo_files(v);
+    write_overview(in, v.normals);
     photon_now(stamps);
   }
   measure_glass(v.right);
@@ -297,6 +279,7 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
     vs = surface_;
     in.depth_mm = depth_mm_;
   }
+  drawn_surface_ = vs;  // held while the view draws it
   if (!vs) return false;
   in.surface = vs.get();
   in.k = vs->intrinsics;
@@ -349,14 +332,28 @@ void StationView::video_pose(StereoViewInputs& in) {
 }
 
 void StationView::write_stereo_files(const StereoViewImages& v) const {
-  const std::filesystem::path& dir = spec_.dir;
   for (const auto& [name, img] : {std::pair{"left", &v.left}, std::pair{"right", &v.right},
-                                  std::pair{"sbs", &v.sbs}, std::pair{"fig7", &v.fig7}}) {
-    if (img->empty()) continue;
-    const auto tmp = dir / (std::string(name) + ".tmp.png");
-    if (cv::imwrite(tmp.string(), *img))
-      std::filesystem::rename(tmp, dir / (std::string(name) + ".png"));
-  }
+                                  std::pair{"sbs", &v.sbs}, std::pair{"fig7", &v.fig7}})
+    write_png(name, *img);
+}
+
+void StationView::write_overview(const StereoViewInputs& in, const cv::Mat3f& normals) const {
+  ViewInputs vi;
+  if (drawn_) vi.camera_bgr = drawn_->right_bgr;
+  vi.surface = in.surface;
+  vi.depth_mm = in.depth_mm;
+  vi.normals = normals;
+  vi.hand = in.hand;
+  vi.forces = in.forces;
+  vi.status = in.status;
+  vi.arrow_m_per_N = in.arrow_m_per_N;
+  write_png("view", render_operator_view(vi));
+}
+
+void StationView::write_png(const std::string& name, const cv::Mat3b& img) const {
+  if (img.empty()) return;
+  const auto tmp = spec_.dir / (name + ".tmp.png");
+  if (cv::imwrite(tmp.string(), img)) std::filesystem::rename(tmp, spec_.dir / (name + ".png"));
 }
 
 }  // namespace telex::local

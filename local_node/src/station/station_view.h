@@ -91,8 +91,8 @@ class StationView {
   // second for PNGs, at video rate for a window.
   void request_stereo(const std::array<FingertipForce, kFingerCount>& forces,
                       const std::string& status);
-  // --view png:DIR: the 2D view now, the stereo pair on the view thread. With --view-at only the
-  // moment it names is written (`at_moment`).
+  // --view png:DIR: the stereo pair and the overview (view.png), drawn and written on the view
+  // thread. With --view-at only the moment it names is written (`at_moment`).
   void write_files(const std::array<FingertipForce, kFingerCount>& forces,
                    const std::string& status, bool at_moment = false);
   // The window's turn: the newest stereo pair or the window's events. True once the operator
@@ -108,11 +108,14 @@ class StationView {
   // The decoded pair captured nearest to `want_capture_ns` (0: the newest), counted as shown now
   // (its age: display time minus capture time); null before the first.
   std::shared_ptr<const EyePair> show_pair(std::int64_t want_capture_ns = 0);
-  cv::Mat3b render_2d(const std::array<FingertipForce, kFingerCount>& forces,
-                      const std::string& status);
   // The stereo pair for one request, or false when there is no surface to draw yet.
   bool render_stereo(StereoView& view, StereoViewInputs& in);
   void write_stereo_files(const StereoViewImages& v) const;
+  // view.png: the overview of what the pair was drawn from, the right eye's video as captured,
+  // its inset the full-frame `normals` the stereo view computed for display (empty: the
+  // surface's own, or none before the first surface).
+  void write_overview(const StereoViewInputs& in, const cv::Mat3f& normals) const;
+  void write_png(const std::string& name, const cv::Mat3b& img) const;  // DIR/name.png, whole
   // The inputs of one pair (surface, depth, eyes' video, status); false before the first surface.
   bool stereo_inputs(StereoViewInputs& in);
   // in.R_BaseVideo from the drawn pair's own head pose; a pair without one leaves it unset (the
@@ -140,6 +143,7 @@ class StationView {
   std::vector<double> glass_ms_;          // at most kMaxAgeSamples, guarded by shown_mu_
   std::uint64_t glass_mismatched_ = 0;    // a counter read back that is not the pair's id
   std::shared_ptr<const EyePair> drawn_;  // view thread: the pair stereo_inputs gave the view
+  std::shared_ptr<const Surface> drawn_surface_;  // view thread: the surface it gave, held
   static constexpr std::size_t kMaxAgeSamples = 1 << 20;
 
   std::mutex surface_mu_;

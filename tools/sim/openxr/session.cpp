@@ -150,6 +150,8 @@ XrResult request_exit_session(XrSession handle) {
   if (!s) return XR_ERROR_HANDLE_INVALID;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
   s->exit_requested = true;
+  // Who ended the session: the tests tell a run the script stopped from one the station ended.
+  s->instance->record["exit_requested_at_frame"] = s->frames_ended;
   descend_to_stopping(*s->instance, *s);
   return XR_SUCCESS;
 }

@@ -5,7 +5,7 @@
 // yaw sine (or telex/sim/head_turns.h's turns), and session state changes (focus loss, stopping,
 // loss pending) follow a script read from TELEX_SIM_OPENXR_CONFIG (JSON). What the application
 // submitted is written as JSON to the script's "record" path when the instance (or session) is
-// destroyed.
+// destroyed; "exit_requested_at_frame" in it, when the application called xrRequestExitSession.
 #pragma once
 
 #define XR_USE_PLATFORM_EGL

@@ -68,6 +68,9 @@ struct StereoViewImages {
   cv::Mat3b fig7;        // with StereoViewInputs::fig7: the right eye beside the normal map
   bool one_eye = false;  // only one eye's image came: it was used for both
   bool warped = false;   // the eyes were reprojected to the operator's pose
+  // The full-frame normals shown (display_normals, fig7_view.h), the depth's size; empty without a
+  // depth of the surface's size. May view the surface's own buffer: valid while it is held.
+  cv::Mat3f normals;
 };
 
 // One eye's video brought into the view's pinhole camera: undistorted with that eye's intrinsics
