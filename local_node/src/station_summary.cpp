@@ -94,6 +94,7 @@ nlohmann::json StationSummary::to_json() const {
                    {"video_pairs_given_up", video_pairs_given_up},
                    {"video_pairs_expected", video_pairs_expected},
                    {"video_pairs_asked_overdue", video_pairs_asked_overdue},
+                   {"video_pairs_queue_dropped", video_pairs_queue_dropped},
                    {"shown_frame_age_ms_median", shown_frame_age_ms_median},
                    {"shown_frame_age_ms_p99", shown_frame_age_ms_p99},
                    {"video_frames_drawn", video_frames_drawn},

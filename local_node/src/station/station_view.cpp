@@ -94,6 +94,7 @@ void StationView::summarize(StationSummary& s) const {
   s.video_pairs_given_up = c.given_up.load();
   s.video_pairs_expected = c.expected.load();
   s.video_pairs_asked_overdue = c.asked_overdue.load();
+  s.video_pairs_queue_dropped = c.queue_dropped.load();
   s.video_eye_width_px = c.eye_width_px.load();
   s.video_eye_height_px = c.eye_height_px.load();
   const VideoReceiver::DeliveryAges ages = video_->delivery_ages();

@@ -70,6 +70,8 @@ struct StationSummary {
   std::uint64_t video_nacks_sent = 0, video_pairs_repaired = 0, video_pairs_given_up = 0;
   std::uint64_t video_pairs_expected = 0;
   std::uint64_t video_pairs_asked_overdue = 0;  // asked for before a later pair showed the gap
+  // Dropped before decoding: the decode thread (nice 5) fell kMaxQueued pairs behind.
+  std::uint64_t video_pairs_queue_dropped = 0;
   // Pairs decoded whole that carried the robot head's joints at their capture (the warp turns
   // the video from them; without, from the depth frame's).
   std::uint64_t video_pairs_with_head_pose = 0;
