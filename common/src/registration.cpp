@@ -24,6 +24,14 @@ inline void keep_nearest(std::uint16_t& dst, std::uint16_t z) {
   if (dst == kNoDepth || z < dst) dst = z;
 }
 
+// floor(t) for t within int's range, without a call to libm's floor per pixel (x86-64's baseline
+// has no rounding instruction): the truncation, one less where it rounded a negative t up.
+template <typename T>
+inline int floor_int(T t) {
+  const int i = static_cast<int>(t);
+  return i - (t < static_cast<T>(i));
+}
+
 // Target pixel range [first, last) whose centres fall inside [lo, hi), clipped to [0, n). A
 // footprint narrower than a pixel that holds no centre still lands on the pixel nearest its
 // middle, so when minifying every source pixel competes (nearest wins) and thin objects survive.
@@ -103,13 +111,9 @@ DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
   DepthImage out;
   out.intrinsics = target;
   out.depth_mm = cv::Mat1w(target.height, target.width, kNoDepth);
-
-  struct Projected {
-    float u, v;
-    std::uint16_t z_mm;
-  };
-  std::vector<Projected> points;
-  if (fill_cracks) points.reserve(static_cast<std::size_t>(w) * h);
+  // The splats go to a separate buffer, in the same pass, so they never overwrite a direct hit.
+  cv::Mat1w splat;
+  if (fill_cracks) splat = cv::Mat1w(target.height, target.width, kNoDepth);
 
   std::vector<double> xn(w);
   for (int u = 0; u < w; ++u) xn[u] = (u - k.cx) / k.fx;
@@ -127,29 +131,25 @@ DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
       const double inv_z = 1.0 / q.z;
       const double tu = target.fx * q.x * inv_z + target.cx;
       const double tv = target.fy * q.y * inv_z + target.cy;
-      // Nearest pixel; the range test keeps the int conversion defined.
+      // Nearest pixel; the range test keeps the int conversions defined.
       if (!(tu > -1.0 && tv > -1.0 && tu < target.width + 1.0 && tv < target.height + 1.0))
         continue;
-      if (fill_cracks) points.push_back({static_cast<float>(tu), static_cast<float>(tv), z_mm});
-      const int iu = static_cast<int>(std::floor(tu + 0.5));
-      const int iv = static_cast<int>(std::floor(tv + 0.5));
-      if (iu < 0 || iv < 0 || iu >= target.width || iv >= target.height) continue;
-      keep_nearest(out.depth_mm(iv, iu), z_mm);
+      const int iu = floor_int(tu + 0.5);
+      const int iv = floor_int(tv + 0.5);
+      if (iu >= 0 && iv >= 0 && iu < target.width && iv < target.height)
+        keep_nearest(out.depth_mm(iv, iu), z_mm);
+      if (!fill_cracks) continue;
+      // The 2x2 splat: the four pixels around the projected position.
+      const int u0 = floor_int(static_cast<float>(tu));
+      const int v0 = floor_int(static_cast<float>(tv));
+      for (int sv = std::max(v0, 0); sv < std::min(v0 + 2, target.height); ++sv) {
+        std::uint16_t* row = splat[sv];
+        for (int su = std::max(u0, 0); su < std::min(u0 + 2, target.width); ++su)
+          keep_nearest(row[su], z_mm);
+      }
     }
   }
   if (!fill_cracks) return out;
-
-  // Second pass into a separate buffer so splats never overwrite a direct hit.
-  cv::Mat1w splat(target.height, target.width, kNoDepth);
-  for (const Projected& p : points) {
-    const int u0 = static_cast<int>(std::floor(p.u)), v0 = static_cast<int>(std::floor(p.v));
-    for (int dv = 0; dv < 2; ++dv)
-      for (int du = 0; du < 2; ++du) {
-        const int iu = u0 + du, iv = v0 + dv;
-        if (iu < 0 || iv < 0 || iu >= target.width || iv >= target.height) continue;
-        keep_nearest(splat(iv, iu), p.z_mm);
-      }
-  }
   for (int v = 0; v < target.height; ++v) {
     std::uint16_t* d = out.depth_mm[v];
     const std::uint16_t* s = splat[v];
