@@ -276,7 +276,7 @@ void Station::Run::main_loop() {
     faults_.check(StationLoop::Main);
     if (poll_thread_faults()) break;
     if (view_.window()) {
-      if (monotonic_ns() >= next_view) {
+      if (monotonic_ns() >= next_view && view_.stereo_idle()) {
         next_view = monotonic_ns() + kOnScreenViewPeriodNs;
         view_.request_stereo(stats_.last().forces, last_status_);
       }

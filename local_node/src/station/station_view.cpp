@@ -192,6 +192,7 @@ void StationView::request_stereo(const std::array<FingertipForce, kFingerCount>&
     stereo_request_.forces = forces;
     stereo_request_.status = status;
     stereo_request_.pending = true;
+    stereo_busy_.store(true, std::memory_order_release);
   }
   stereo_cv_.notify_one();
 }
@@ -244,7 +245,9 @@ void StationView::run_stereo(std::stop_token stop) {
         in.forces = stereo_request_.forces;
         in.status = stereo_request_.status;
       }
-      if (!render_stereo(view, in)) continue;  // no intrinsics before the first surface
+      render_stereo(view, in);  // false: no intrinsics before the first surface
+      std::lock_guard lock(stereo_mu_);
+      if (!stereo_request_.pending) stereo_busy_.store(false, std::memory_order_release);
     }
   } catch (...) {
     faults_.fail("view (stereo)", std::current_exception());

@@ -91,6 +91,11 @@ class StationView {
   // second for PNGs, at video rate for a window.
   void request_stereo(const std::array<FingertipForce, kFingerCount>& forces,
                       const std::string& status);
+  // No request waits and the view thread is not drawing: a request made now is drawn at once,
+  // with the hand and forces as they are now. On a screen the main thread asks only then, so a
+  // slow renderer (llvmpipe: about 100 ms a frame) draws the newest sample, not one it was handed
+  // a frame ago.
+  bool stereo_idle() const { return !stereo_busy_.load(std::memory_order_acquire); }
   // --view png:DIR: the stereo pair and the overview (view.png), drawn and written on the view
   // thread. With --view-at only the moment it names is written (`at_moment`).
   void write_files(const std::array<FingertipForce, kFingerCount>& forces,
@@ -166,7 +171,9 @@ class StationView {
     std::array<FingertipForce, kFingerCount> forces{};
     std::string status;
     bool pending = false;
-  } stereo_request_;             // guarded by stereo_mu_
+  } stereo_request_;  // guarded by stereo_mu_
+  // From a request made until the view thread has drawn it.
+  std::atomic<bool> stereo_busy_{false};
   bool warned_one_eye_ = false;  // view thread
   // After the rendered eyes went to the display: the glass-to-glass sample of drawn_.
   void measure_glass(const cv::Mat3b& rendered_right);
