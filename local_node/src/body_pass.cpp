@@ -57,6 +57,18 @@ bool finite(const glm::dvec3& v) { return std::isfinite(v.x + v.y + v.z); }
 
 double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.radius_b_m; }
 
+// `bytes` from `data` into `buffer`, read by the shader as the texture buffer `texture` of texel
+// `format` on texture unit `unit` (its sampler uniform at `location`).
+void texture_buffer(GLuint buffer, GLuint texture, const void* data, std::size_t bytes,
+                    GLenum format, int unit, GLint location) {
+  glBindBuffer(GL_TEXTURE_BUFFER, buffer);
+  glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
+  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
+  glBindTexture(GL_TEXTURE_BUFFER, texture);
+  glTexBuffer(GL_TEXTURE_BUFFER, format, buffer);
+  glUniform1i(location, unit);
+}
+
 }  // namespace
 
 struct BodyPass::Gl {
@@ -219,21 +231,11 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
                 static_cast<float>(StereoRenderer::kNear_m));
     glUniform1f(glGetUniformLocation(g.body, "u_far"), static_cast<float>(StereoRenderer::kFar_m));
     glUniform1f(glGetUniformLocation(g.body, "u_exposure"), exposure);
-    glBindBuffer(GL_TEXTURE_BUFFER, g.caps_buffer);
-    glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(g.caps.size() * sizeof(float)),
-                 g.caps.data(), GL_STREAM_DRAW);
-    glActiveTexture(GL_TEXTURE1);
-    glBindTexture(GL_TEXTURE_BUFFER, g.caps_tex);
-    glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, g.caps_buffer);
-    glUniform1i(glGetUniformLocation(g.body, "u_caps"), 1);
-    glBindBuffer(GL_TEXTURE_BUFFER, g.list_buffer);
-    glBufferData(GL_TEXTURE_BUFFER,
-                 static_cast<GLsizeiptr>(g.tiles.list.size() * sizeof(g.tiles.list[0])),
-                 g.tiles.list.data(), GL_STREAM_DRAW);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_BUFFER, g.list_tex);
-    glTexBuffer(GL_TEXTURE_BUFFER, GL_RG32I, g.list_buffer);
-    glUniform1i(glGetUniformLocation(g.body, "u_list"), 0);
+    texture_buffer(g.caps_buffer, g.caps_tex, g.caps.data(), g.caps.size() * sizeof(float),
+                   GL_RGBA32F, 1, glGetUniformLocation(g.body, "u_caps"));
+    texture_buffer(g.list_buffer, g.list_tex, g.tiles.list.data(),
+                   g.tiles.list.size() * sizeof(g.tiles.list[0]), GL_RG32I, 0,
+                   glGetUniformLocation(g.body, "u_list"));
     glBindBuffer(GL_ARRAY_BUFFER, g.tiles_vbo);
     glBufferData(GL_ARRAY_BUFFER,
                  static_cast<GLsizeiptr>(g.tiles.tiles.size() * sizeof(g.tiles.tiles[0])),

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "analytic_depth.h"
 #include "telex/local/stereo_view.h"
 
 namespace telex::local {
@@ -20,15 +21,7 @@ const cv::Rect kWindow(200, 150, 48, 48);  // the fingertip window, depth pixels
 
 // A wall 80 cm away on the left half and a plane turned 27 deg about the vertical on the right.
 cv::Mat1w two_planes(const Intrinsics& k) {
-  const glm::dvec3 n_right = glm::normalize(glm::dvec3{0.5, 0.0, -1.0});
-  cv::Mat1w d(k.height, k.width);
-  for (int v = 0; v < k.height; ++v)
-    for (int u = 0; u < k.width; ++u) {
-      const glm::dvec3 ray{(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
-      const double z = u < k.cx ? 0.8 : n_right.z * 0.8 / glm::dot(n_right, ray);
-      d(v, u) = static_cast<std::uint16_t>(std::lround(z * 1000.0));
-    }
-  return d;
+  return test::two_planes(k, glm::normalize(glm::dvec3{0.5, 0.0, -1.0}));
 }
 
 // The haptic path's surface with the default region of interest: normals in one window only.

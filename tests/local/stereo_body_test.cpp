@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <set>
 
+#include "analytic_depth.h"
 #include "telex/haptics/hand_kinematics.h"
 #include "telex/local/fig7_view.h"
 #include "telex/local/stereo_view.h"
@@ -123,18 +124,7 @@ TEST(StereoBody, AFingertipNearTheSurfaceShadesItAndOneFarFromItDoesNot) {
   EXPECT_GT(r.render(eye, {})(at)[1], 155);
 }
 
-// An analytic scene: a wall 80 cm away facing the camera on the left half of the image, and on the
-// right half a plane turned about the vertical, continuing the wall at the image's centre column.
-cv::Mat1w two_planes(const Intrinsics& k, const glm::dvec3& n_right) {
-  cv::Mat1w d(k.height, k.width);
-  for (int v = 0; v < k.height; ++v)
-    for (int u = 0; u < k.width; ++u) {
-      const glm::dvec3 ray{(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
-      const double z = u < k.cx ? 0.8 : n_right.z * 0.8 / glm::dot(n_right, ray);
-      d(v, u) = static_cast<std::uint16_t>(std::lround(z * 1000.0));
-    }
-  return d;
-}
+using test::two_planes;
 
 TEST(StereoFig7, ThePanelHoldsAFullNormalMapAndATouchVectorAtTheContact) {
   StereoView view(1280, 720);
