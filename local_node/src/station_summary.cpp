@@ -33,6 +33,53 @@ nlohmann::json tracker_json(const TrackerStats& t) {
           {"thread_faults", t.thread_faults}};
 }
 
+// The eyes (issue 28) and what a person sees of them and of the body (issue 29).
+nlohmann::json video_json(const StationSummary& s) {
+  return {// The eyes beside depth (issue 28): message bytes, so the two add up to a
+          // little less than the stream (fragment headers and seals).
+          {"video_mbit_s", s.video_mbit_per_s()},
+          {"depth_mbit_s", s.depth_mbit_per_s()},
+          {"video_pairs_received", s.video_pairs_received},
+          {"video_pairs_decoded", s.video_pairs_decoded},
+          {"video_pairs_with_head_pose", s.video_pairs_with_head_pose},
+          {"video_pairs_damaged", s.video_pairs_damaged},
+          {"video_decode_errors", s.video_decode_errors},
+          {"video_pairs_shown", s.video_pairs_shown},
+          {"video_plis_sent", s.video_plis_sent},
+          {"video_nacks_sent", s.video_nacks_sent},
+          {"video_pairs_repaired", s.video_pairs_repaired},
+          {"video_pairs_given_up", s.video_pairs_given_up},
+          {"video_pairs_expected", s.video_pairs_expected},
+          {"video_pairs_asked_overdue", s.video_pairs_asked_overdue},
+          {"video_pairs_queue_dropped", s.video_pairs_queue_dropped},
+          {"shown_frame_age_ms_median", s.shown_frame_age_ms_median},
+          {"shown_frame_age_ms_p99", s.shown_frame_age_ms_p99},
+          {"video_frames_drawn", s.video_frames_drawn},
+          {"video_drawn_fresh_share", s.video_frames_drawn > 0
+                                          ? static_cast<double>(s.video_pairs_shown) /
+                                                static_cast<double>(s.video_frames_drawn)
+                                          : 0.0},
+          {"video_delivered_age_samples", s.video_delivered_age_samples},
+          {"video_delivered_age_ms_median", s.video_delivered_age_ms_median},
+          {"video_delivered_age_ms_p99", s.video_delivered_age_ms_p99},
+          {"video_delivered_age_ms_max", s.video_delivered_age_ms_max},
+          {"video_replaced_age_ms_p99", s.video_replaced_age_ms_p99},
+          {"video_replaced_age_ms_max", s.video_replaced_age_ms_max},
+          {"video_replaced_over_100ms", s.video_replaced_over_100ms},
+          {"glass_to_glass_samples", s.glass_to_glass_samples},
+          {"glass_to_glass_mismatched", s.glass_to_glass_mismatched},
+          {"glass_to_glass_ms_median", s.glass_to_glass_ms_median},
+          {"glass_to_glass_ms_p99", s.glass_to_glass_ms_p99},
+          {"motion_to_photon_samples", s.motion_to_photon_samples},
+          {"motion_to_photon_ms_median", s.motion_to_photon_ms_median},
+          {"motion_to_photon_ms_p99", s.motion_to_photon_ms_p99},
+          {"capture_to_photon_samples", s.capture_to_photon_samples},
+          {"capture_to_photon_ms_median", s.capture_to_photon_ms_median},
+          {"capture_to_photon_ms_p99", s.capture_to_photon_ms_p99},
+          {"video_eye_width_px", s.video_eye_width_px},
+          {"video_eye_height_px", s.video_eye_height_px}};
+}
+
 }  // namespace
 
 nlohmann::json StationSummary::to_json() const {
@@ -78,49 +125,6 @@ nlohmann::json StationSummary::to_json() const {
                    // The stream's mean rate over the run (the remote's stats line gives each
                    // second's): issue 16's 10 Mbit/s goal.
                    {"stream_mbit_per_s", stream_mbit_per_s()},
-                   // The eyes beside depth (issue 28): message bytes, so the two add up to a
-                   // little less than the stream (fragment headers and seals).
-                   {"video_mbit_s", video_mbit_per_s()},
-                   {"depth_mbit_s", depth_mbit_per_s()},
-                   {"video_pairs_received", video_pairs_received},
-                   {"video_pairs_decoded", video_pairs_decoded},
-                   {"video_pairs_with_head_pose", video_pairs_with_head_pose},
-                   {"video_pairs_damaged", video_pairs_damaged},
-                   {"video_decode_errors", video_decode_errors},
-                   {"video_pairs_shown", video_pairs_shown},
-                   {"video_plis_sent", video_plis_sent},
-                   {"video_nacks_sent", video_nacks_sent},
-                   {"video_pairs_repaired", video_pairs_repaired},
-                   {"video_pairs_given_up", video_pairs_given_up},
-                   {"video_pairs_expected", video_pairs_expected},
-                   {"video_pairs_asked_overdue", video_pairs_asked_overdue},
-                   {"video_pairs_queue_dropped", video_pairs_queue_dropped},
-                   {"shown_frame_age_ms_median", shown_frame_age_ms_median},
-                   {"shown_frame_age_ms_p99", shown_frame_age_ms_p99},
-                   {"video_frames_drawn", video_frames_drawn},
-                   {"video_drawn_fresh_share", video_frames_drawn > 0
-                                                   ? static_cast<double>(video_pairs_shown) /
-                                                         static_cast<double>(video_frames_drawn)
-                                                   : 0.0},
-                   {"video_delivered_age_samples", video_delivered_age_samples},
-                   {"video_delivered_age_ms_median", video_delivered_age_ms_median},
-                   {"video_delivered_age_ms_p99", video_delivered_age_ms_p99},
-                   {"video_delivered_age_ms_max", video_delivered_age_ms_max},
-                   {"video_replaced_age_ms_p99", video_replaced_age_ms_p99},
-                   {"video_replaced_age_ms_max", video_replaced_age_ms_max},
-                   {"video_replaced_over_100ms", video_replaced_over_100ms},
-                   {"glass_to_glass_samples", glass_to_glass_samples},
-                   {"glass_to_glass_mismatched", glass_to_glass_mismatched},
-                   {"glass_to_glass_ms_median", glass_to_glass_ms_median},
-                   {"glass_to_glass_ms_p99", glass_to_glass_ms_p99},
-                   {"motion_to_photon_samples", motion_to_photon_samples},
-                   {"motion_to_photon_ms_median", motion_to_photon_ms_median},
-                   {"motion_to_photon_ms_p99", motion_to_photon_ms_p99},
-                   {"capture_to_photon_samples", capture_to_photon_samples},
-                   {"capture_to_photon_ms_median", capture_to_photon_ms_median},
-                   {"capture_to_photon_ms_p99", capture_to_photon_ms_p99},
-                   {"video_eye_width_px", video_eye_width_px},
-                   {"video_eye_height_px", video_eye_height_px},
                    {"udp_messages_by_fragments", udp_messages_by_fragments},
                    // Repair (docs/PROTOCOL.md 2.5) and tile ages in frame periods (issue 16).
                    {"tiles_missing", tiles_missing},
@@ -147,6 +151,7 @@ nlohmann::json StationSummary::to_json() const {
                    {"head_commands_invalid", head_commands_invalid},
                    // The tracker's frames and what its checks dropped (docs/HARDWARE.md, NatNet).
                    {"tracker", tracker_json(tracker)}};
+  j.update(video_json(*this));
   if (!record_file.empty())
     j["record"] = {{"file", record_file},
                    {"ticks", record_ticks},
