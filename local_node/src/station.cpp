@@ -113,6 +113,12 @@ class Station::Run {
 
   // ---- last: stopped and joined first on destruction ----
   std::unique_ptr<SurfaceClient> client_;
+  // Destroyed before client_: the view's eye decoder (a thread of view_, which outlives client_)
+  // stops using the client before it goes.
+  struct DetachView {
+    StationView& view;
+    ~DetachView() { view.detach(); }
+  } detach_view_{view_};
   std::jthread surface_thread_;
   std::jthread haptic_thread_;
   // The view thread (--view png:DIR | window | hmd), last: it reads the parts above until it is

@@ -43,13 +43,15 @@ VideoReceiver::VideoReceiver(Hooks hooks, VideoReorderConfig reorder)
   name_thread(thread_.native_handle(), "telex-eyes");
 }
 
-VideoReceiver::~VideoReceiver() {
+VideoReceiver::~VideoReceiver() { stop(); }
+
+void VideoReceiver::stop() {
   {
     std::lock_guard lock(mu_);
     stopping_ = true;
   }
   cv_.notify_one();
-  thread_.join();
+  if (thread_.joinable()) thread_.join();
 }
 
 void VideoReceiver::push(std::vector<std::uint8_t> frame, bool resent) {

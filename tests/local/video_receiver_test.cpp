@@ -31,6 +31,7 @@ struct Fixture {
   std::vector<proto::VideoNack> nacks;
   std::atomic<std::int64_t> now_ns{1'000'000'000};
   std::atomic<std::int64_t> offset_ns{0};  // the remote's clock minus ours
+  std::atomic<int> client_calls{0};        // the hooks that reach the client (round trip, offset)
   std::unique_ptr<video::EyeEncoder> encoder;
   std::unique_ptr<VideoReceiver> receiver;
   std::uint32_t frame_id = 0;
@@ -51,9 +52,15 @@ struct Fixture {
         std::lock_guard lock(mu);
         nacks.push_back(n);
       };
-    h.rtt_ns = [] { return std::int64_t{20'000'000}; };
+    h.rtt_ns = [this] {
+      ++client_calls;
+      return std::int64_t{20'000'000};
+    };
     h.now_ns = [this] { return now_ns.load(); };
-    h.clock_offset_ns = [this] { return offset_ns.load(); };
+    h.clock_offset_ns = [this] {
+      ++client_calls;
+      return offset_ns.load();
+    };
     receiver = std::make_unique<VideoReceiver>(std::move(h));
   }
   std::vector<std::uint8_t> next_pair() {
@@ -90,6 +97,25 @@ TEST(VideoReceiver, DecodesPairsOfTheRightSizeInOrder) {
   EXPECT_LT(p->left_bgr(5, 5)[0], 60);
   EXPECT_EQ(f.receiver->pair(3 * 33'000'000ll)->frame_id, 3u);  // nearest capture among the kept
   EXPECT_EQ(f.pli_count(), 0u);
+}
+
+// The station stops the receiver before its client goes: from then on no hook that reaches the
+// client (round trip, clock offset, NACKs, PLIs) is called, later pairs wait undecoded, the last
+// pair stays.
+TEST(VideoReceiver, StoppedItCallsNoHookAndLaterPairsWaitUndecoded) {
+  Fixture f;
+  f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 1; }));
+  f.receiver->stop();
+  const int calls = f.client_calls.load();
+  for (int i = 0; i < 3; ++i) f.receiver->push(f.next_pair());
+  std::this_thread::sleep_for(100ms);  // time a running decode thread would take them in
+  EXPECT_EQ(f.client_calls.load(), calls);
+  EXPECT_EQ(f.receiver->counters().decoded.load(), 1u);
+  EXPECT_EQ(f.receiver->counters().received.load(), 4u);
+  ASSERT_NE(f.receiver->pair(), nullptr);
+  EXPECT_EQ(f.receiver->pair()->frame_id, 1u);
+  f.receiver->stop();  // again, as the destructor does
 }
 
 // Every pair decoded whole leaves its age at delivery (capture to the view, on the remote's

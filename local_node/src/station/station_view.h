@@ -43,6 +43,12 @@ class StationView {
   void bind(ClientEvents& events);
   // The client the eyes' Picture Loss Indications go to (and its round trip and clock offset).
   void attach(SurfaceClient& client) { client_ = &client; }
+  // Before the client goes: the eyes' decode thread, which asks the client for its round trip
+  // and clock offset and sends it NACKs and PLIs, is stopped and joined.
+  void detach() {
+    if (video_) video_->stop();
+    client_ = nullptr;
+  }
   bool stereo() const { return spec_.stereo(); }
   bool window() const { return window_ != nullptr; }
   // Encoded pairs received so far: the status line's eye rate.

@@ -76,13 +76,17 @@ class VideoReceiver {
     std::vector<double> delivered_ms, replaced_ms;
   };
   explicit VideoReceiver(Hooks hooks, VideoReorderConfig reorder = {});
-  ~VideoReceiver();
+  ~VideoReceiver();  // stop()
   VideoReceiver(const VideoReceiver&) = delete;
   VideoReceiver& operator=(const VideoReceiver&) = delete;
 
   // Network thread: takes the pair's bytes (never blocks on the decoder); `resent` when the remote
   // sent it again on a VideoNack (kFlagRepair).
   void push(std::vector<std::uint8_t> frame, bool resent = false);
+  // Stops and joins the decode thread: after it returns no hook but now_ns (push's arrival stamp)
+  // is called, so the client the others reach may go. Pairs pushed later wait undecoded; pair()
+  // keeps the last ones. Idempotent.
+  void stop();
   // Any thread: the whole pair captured nearest `want_capture_ns` (0: the newest) among the last
   // few decoded, or null before the first.
   std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
