@@ -265,7 +265,7 @@ void main() {
   // reach), and only those met are traced, nearest first, for as many rounds as the block's pixel
   // that meets the most needs; their neighbours come from the same tests.
   g_met = 0;
-  int todo = 0;
+  int to_trace = 0;  // a bit per tile entry whose own bound the ray meets, not yet traced
   for (int k = 0; k < v_list.y; ++k) {
     int j = texelFetch(u_list, v_list.x + k).x;
     vec4 a = texelFetch(u_caps, 3 * j), b = texelFetch(u_caps, 3 * j + 1);
@@ -273,16 +273,16 @@ void main() {
     float d2 = ray_segment_distance2(rd, a.xyz, b.xyz);
     float reach = r * 1.875 + 5e-4, own = r * 1.2 + 5e-4;
     if (d2 <= reach * reach) g_met |= 1 << k;
-    if (d2 <= own * own) todo |= 1 << k;
+    if (d2 <= own * own) to_trace |= 1 << k;
   }
   float t = 1e30;
   int id = -1;
   bool exact = false;
   vec3 n = vec3(0.0);
   ivec3 near = ivec3(0);  // the hit's near neighbours: g_near_lo, g_near_hi, g_count
-  while (todo != 0) {
-    int k = lowest_bit(todo);
-    todo &= todo - 1;
+  while (to_trace != 0) {
+    int k = lowest_bit(to_trace);
+    to_trace &= to_trace - 1;
     bool exact_k;
     vec3 n_k;
     float t_k = trace(k, rd, t, exact_k, n_k);
