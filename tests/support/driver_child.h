@@ -35,7 +35,7 @@ ChildRun run_in_child(const std::function<void()>& body, const std::string& driv
 // the driver fails the test at once; a crash inside OpenNI2 (its library or its drivers) is
 // recorded as the test property driver_crash_N (what, where) and printed, and the body is run
 // again, up to kMaxDriverRetries times, after which the test fails.
-inline constexpr int kMaxDriverRetries = 1;
+inline constexpr int kMaxDriverRetries = 2;
 void run_driver_test(const std::function<void()>& body);
 
 }  // namespace telex::test
