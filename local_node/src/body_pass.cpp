@@ -84,7 +84,13 @@ struct BodyPass::Gl {
   bool tiles_valid = false;
   bool depth_uploaded = false;  // scene_depth in depth_tex
   void upload_scene_depth();
-  std::unique_ptr<BodyUpsample> upsample;  // made on the first draw at a reduced resolution
+  // Per slot (eye): its target, made on its first march, and what composite_body needs of it.
+  struct Slot {
+    std::unique_ptr<BodyUpsample> target;
+    std::vector<cv::Rect> areas_px;  // empty: nothing to composite
+    int divisor = 1;
+  };
+  std::array<Slot, kSlots> slots;
   BodyTiles tiles;
   std::vector<float> caps;
 };
@@ -188,9 +194,14 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glBindVertexArray(0);
 }
 
-void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                         std::span<const Capsule> capsules, float exposure, int divisor) {
+void BodyPass::march_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
+                          std::span<const Capsule> capsules, float exposure, int divisor) {
   Gl& g = *gl_;
+  if (slot < 0 || slot >= kSlots)
+    throw std::invalid_argument("stereo view: body slot out of range");
+  Gl::Slot& s = g.slots[static_cast<std::size_t>(slot)];
+  s.areas_px.clear();
+  s.divisor = std::max(1, divisor);
   if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
   const auto neighbours = blend_neighbours(capsules);
   g.caps.assign(capsules.size() * kCapsuleFloats, 0.0f);
@@ -211,8 +222,8 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
     cap[11] = c.lit ? 1.0f : 0.0f;
   }
   if (capsules.empty()) return;
-  if (divisor > 1 && !g.upsample) g.upsample = std::make_unique<BodyUpsample>();
-  const Intrinsics k_body = divisor > 1 ? g.upsample->begin(k, divisor) : k;
+  if (!s.target) s.target = std::make_unique<BodyUpsample>();
+  const Intrinsics k_body = s.target->begin(k, s.divisor);
   // Tiles of 16 target pixels: smaller tiles have shorter lists but llvmpipe pays per quad; 8 and
   // 32 measured slower (4 much slower).
   constexpr int kTilePx = 16;
@@ -247,14 +258,27 @@ void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
     glActiveTexture(GL_TEXTURE1);
     glBindTexture(GL_TEXTURE_BUFFER, 0);
     glActiveTexture(GL_TEXTURE0);
-  }
-  if (divisor > 1) {
-    if (g.has_scene_depth) g.upload_scene_depth();
     // Tiles of 32 eye pixels: most of the bounding rectangle of two arms reaching in holds no
     // body, and the composite costs llvmpipe some 20 ns per pixel it covers.
-    g.upsample->composite(divisor, body_tiles_px(k, p_RightEye, capsules, divisor + 1, 32),
-                          g.has_scene_depth ? g.depth_tex : 0);
+    s.areas_px = body_tiles_px(k, p_RightEye, capsules, s.divisor + 1, 32);
   }
+  s.target->end();
+}
+
+void BodyPass::composite_body(int slot) {
+  Gl& g = *gl_;
+  if (slot < 0 || slot >= kSlots)
+    throw std::invalid_argument("stereo view: body slot out of range");
+  Gl::Slot& s = g.slots[static_cast<std::size_t>(slot)];
+  if (s.areas_px.empty()) return;
+  if (g.has_scene_depth) g.upload_scene_depth();
+  s.target->composite(s.divisor, s.areas_px, g.has_scene_depth ? g.depth_tex : 0);
+}
+
+void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure, int divisor) {
+  march_body(0, k, p_RightEye, capsules, exposure, divisor);
+  composite_body(0);
 }
 
 }  // namespace telex::local

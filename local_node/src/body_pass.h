@@ -26,10 +26,6 @@ inline constexpr std::size_t kMaxBlendNeighbours = 8;
 std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
     std::span<const Capsule> capsules);
 
-// The eye image's brightness as a gain for the skin: its mean luma over 118 (a mid-grey
-// picture lights the skin as designed), clamped to [0.3, 1.5]; 1 with no image.
-float exposure_from_image(const cv::Mat3b& bgr);
-
 // The body marched at 1/divisor of the eye's resolution into an offscreen target (colour with
 // coverage, depth) and composited over the eye: each of the four low-resolution samples around an
 // eye pixel counts only where it is nearer than the remote depth at that pixel, and the kept ones
@@ -44,9 +40,11 @@ class BodyUpsample {
   // Binds the low-resolution target for the eye `k` (cleared: no body, far) and returns its
   // intrinsics; remembers the framebuffer and viewport bound before.
   Intrinsics begin(const Intrinsics& k, int divisor);
-  // Back to the framebuffer bound at begin(), and the body over it within `areas_px` (eye
-  // pixels, rows top-down, disjoint: each is blended once). `scene_depth`: the eye's remote window
-  // depths (an R32F texture at the eye's size), 0 for none.
+  // Back to the framebuffer and viewport bound at begin(); the target keeps the body.
+  void end();
+  // The body over the bound framebuffer (the eye's, its viewport) within `areas_px` (eye pixels,
+  // rows top-down, disjoint: each is blended once). `scene_depth`: the eye's remote window depths
+  // (an R32F texture at the eye's size), 0 for none.
   void composite(int divisor, std::span<const cv::Rect> areas_px, unsigned scene_depth);
 
  private:
@@ -111,11 +109,18 @@ class BodyPass {
   // Darkens the framebuffer's colour where the remote surface lies near a fingertip.
   void draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
                             std::span<const glm::dvec3> fingertips);
-  // The body into the bound framebuffer, hidden where the remote depth is nearer. `divisor` > 1
-  // marches it at 1/divisor of the eye's resolution (BodyUpsample); 1 draws it straight in,
-  // depth-tested against the bound depth buffer.
+  // The body in two steps, so that the eye's picture can be taken after the body is drawn (the
+  // video late-latched): march_body draws it into `slot`'s own offscreen target (one per eye, 0
+  // or 1) at 1/divisor of the eye's resolution; composite_body puts that slot's body over the
+  // bound framebuffer, each sample hidden where the remote depth (set_scene_depth's, at
+  // composite time) is nearer. The bound framebuffer and viewport are kept by march_body.
+  void march_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
+                  std::span<const Capsule> capsules, float exposure, int divisor = 1);
+  void composite_body(int slot);
+  // Both at once, into the bound framebuffer (slot 0).
   void draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
                  std::span<const Capsule> capsules, float exposure, int divisor = 1);
+  static constexpr int kSlots = 2;
 
   static constexpr std::size_t kMaxCapsules = 256;  // more are not drawn
 

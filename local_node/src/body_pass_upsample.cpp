@@ -33,6 +33,15 @@ uniform float u_divisor;
 out vec4 o_color;
 void main() {
   ivec2 size = textureSize(u_body_color, 0);
+  if (u_divisor == 1.0) {  // one sample per pixel: the body's own, no blend
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec4 c = texelFetch(u_body_color, p, 0);
+    if (c.a < 0.5) discard;
+    float scene = u_has_scene ? texelFetch(u_scene_depth, p, 0).r : 1.0;
+    if (texelFetch(u_body_depth, p, 0).r >= scene) discard;
+    o_color = vec4(c.rgb, 1.0);
+    return;
+  }
   vec4 any = texture(u_body_color, gl_FragCoord.xy / (u_divisor * vec2(size)));
   if (any.a < 0.5 / 255.0) discard;
   float scene = u_has_scene ? texelFetch(u_scene_depth, ivec2(gl_FragCoord.xy), 0).r : 1.0;
@@ -204,13 +213,19 @@ Intrinsics BodyUpsample::begin(const Intrinsics& k, int divisor) {
   return low;
 }
 
-void BodyUpsample::composite(int divisor, std::span<const cv::Rect> areas_px,
-                             unsigned scene_depth) {
+void BodyUpsample::end() {
   Gl& g = *gl_;
   glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(g.outer_fbo));
   const auto& vp = g.outer_viewport;
   glViewport(vp[0], vp[1], vp[2], vp[3]);
-  if (areas_px.empty()) return;
+}
+
+void BodyUpsample::composite(int divisor, std::span<const cv::Rect> areas_px,
+                             unsigned scene_depth) {
+  Gl& g = *gl_;
+  if (areas_px.empty() || g.color == 0) return;
+  std::array<GLint, 4> vp{};
+  glGetIntegerv(GL_VIEWPORT, vp.data());
   glUseProgram(g.program);
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, g.color);

@@ -105,6 +105,10 @@ struct StereoRenderer::Impl {
     }
   }
 
+  // The context current and the eye's framebuffer bound; throws on an eye of another size.
+  void begin(const Intrinsics& k);
+  void make_current();
+
   void init_gl() {
     const auto texture = [](GLuint& t) {
       glGenTextures(1, &t);
@@ -209,24 +213,51 @@ std::string StereoRenderer::gl_renderer() const {
   return s ? s : "";
 }
 
-cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> capsules) {
-  Impl& g = *impl_;
-  if (eye.k.width != g.width || eye.k.height != g.height)
-    throw std::invalid_argument("stereo view: eye intrinsics are " + std::to_string(eye.k.width) +
-                                "x" + std::to_string(eye.k.height) + ", the renderer " +
-                                std::to_string(g.width) + "x" + std::to_string(g.height));
-  const cv::Size size(g.width, g.height);
+void StereoRenderer::Impl::make_current() {
   // With two renderers on a thread, the one drawing needs its own context current.
-  if (g.own_context && eglGetCurrentContext() != g.context &&
-      !eglMakeCurrent(g.display, g.surface, g.surface, g.context))
+  if (own_context && eglGetCurrentContext() != context &&
+      !eglMakeCurrent(display, surface, surface, context))
     throw std::runtime_error(egl_error("cannot make the OpenGL context current"));
+}
+
+void StereoRenderer::Impl::begin(const Intrinsics& k) {
+  if (k.width != width || k.height != height)
+    throw std::invalid_argument("stereo view: eye intrinsics are " + std::to_string(k.width) + "x" +
+                                std::to_string(k.height) + ", the renderer " +
+                                std::to_string(width) + "x" + std::to_string(height));
+  make_current();
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, width, height);
+}
+
+cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> capsules) {
+  const bool has_color = !eye.background.empty();
+  draw_body_layer(0, eye, capsules, exposure_from_image(has_color ? eye.background : cv::Mat3b()));
+  return compose(0, eye);
+}
+
+void StereoRenderer::draw_body_layer(int slot, const EyeView& eye,
+                                     std::span<const Capsule> capsules, float exposure) {
+  Impl& g = *impl_;
+  g.begin(eye.k);
+  g.body->march_body(slot, eye.k, eye.p_RightEye, capsules, exposure,
+                     g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
+}
+
+void StereoRenderer::finish() {
+  impl_->make_current();
+  glFinish();
+}
+
+cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
+  Impl& g = *impl_;
+  g.begin(eye.k);
+  const cv::Size size(g.width, g.height);
   const bool has_color = !eye.background.empty();
   const bool has_depth = !eye.depth_mm.empty();
   if ((has_color && eye.background.size() != size) || (has_depth && eye.depth_mm.size() != size))
     throw std::invalid_argument("stereo view: the eye's image or depth is not the eye's size");
 
-  glBindFramebuffer(GL_FRAMEBUFFER, g.fbo);
-  glViewport(0, 0, g.width, g.height);
   // The eye's image and the remote depth straight into the framebuffer's textures.
   if (eye.background_texture != 0) {
     // Already in this context (the warp's output): copied on the GPU, no read-back and upload.
@@ -268,9 +299,7 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
   g.body->set_scene_depth(has_depth ? g.depth_upload : cv::Mat1f());
   g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips);
   // The body, hidden where the remote scene is nearer.
-  g.body->draw_body(eye.k, eye.p_RightEye, capsules,
-                    exposure_from_image(has_color ? eye.background : cv::Mat3b()),
-                    g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
+  g.body->composite_body(slot);
 
   if (!eye.read_back) return {};
   // Read as BGRA and dropped to BGR by OpenCV: reading GL_BGR straight is slower on llvmpipe.

@@ -212,8 +212,8 @@ cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Int
   return out;
 }
 
-bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& views,
-                         std::vector<Capsule>& capsules) {
+void StereoView::prepare_geometry(const StereoViewInputs& in, std::array<EyeView, 2>& views,
+                                  std::vector<Capsule>& capsules) {
   const cv::Size depth_size(in.k.width, in.k.height);
   cv::Size size = in.eye_size;
   if (size.empty()) {
@@ -222,14 +222,14 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
   }
   k_eye_ = size == depth_size ? in.k : eye_intrinsics(in.k, size);
   // Each eye's pinhole, by Side: the display's when given, else the eyes' camera.
-  std::array<Intrinsics, 2> k_drawn{k_eye_, k_eye_};
-  cv::Scalar outside;  // beyond the camera's field: black in its own pinhole
+  k_drawn_ = {k_eye_, k_eye_};
+  outside_ = cv::Scalar();  // beyond the camera's field: black in its own pinhole
   if (in.display_k[0] && in.display_k[1]) {
-    k_drawn = {*in.display_k[0], *in.display_k[1]};
-    size = {k_drawn[1].width, k_drawn[1].height};
-    TELEX_DEMAND(k_drawn[0].width == size.width && k_drawn[0].height == size.height);
-    k_eye_ = k_drawn[1];
-    outside = kOutsideCameraBgr;
+    k_drawn_ = {*in.display_k[0], *in.display_k[1]};
+    size = {k_drawn_[1].width, k_drawn_[1].height};
+    TELEX_DEMAND(k_drawn_[0].width == size.width && k_drawn_[0].height == size.height);
+    k_eye_ = k_drawn_[1];
+    outside_ = kOutsideCameraBgr;
   }
   if (!renderer_ || size != cv::Size(renderer_size_.width, renderer_size_.height)) {
     for (auto& w : warp_) w.reset();  // their objects live in the old renderer's context
@@ -239,46 +239,54 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
                                  : std::make_unique<StereoRenderer>(size.width, size.height);
     renderer_size_ = size;
   }
+  capsules = view_capsules(body_, in);
+  EyeView& right = views[index_of(Side::Right)];
+  EyeView& left = views[index_of(Side::Left)];
+  right.k = k_drawn_[index_of(Side::Right)];
+  left.k = k_drawn_[index_of(Side::Left)];
+  left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
+  right.fingertips = left.fingertips = view_fingertips(in.hand);
+}
+
+void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2>& views) {
+  if (in.depth_mm.empty() || in.depth_mm.size() != cv::Size(in.k.width, in.k.height)) return;
+  EyeView& right = views[index_of(Side::Right)];
+  EyeView& left = views[index_of(Side::Left)];
+  // The remote depth is registered to the right eye; the left eye sees it from B to the left.
+  // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
+  // an edge) at each eye pixel's ray.
+  const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
+  const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+  right.depth_mm = resample_pinhole(in.depth_mm, in.k, right.k, cv::INTER_NEAREST);
+  left.depth_mm = resample_pinhole(left_mm, in.k, left.k, cv::INTER_NEAREST);
+}
+
+bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2>& views) {
   // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
   const auto fit = [&](const cv::Mat3b& m, const Intrinsics& k) -> cv::Mat3b {
     if (m.empty()) return m;
-    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k, cv::INTER_LINEAR, outside);
+    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k, cv::INTER_LINEAR, outside_);
   };
   // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn[i], outside)
-                         : fit(in.eye_bgr[i], k_drawn[i]);
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn_[i], outside_)
+                         : fit(in.eye_bgr[i], k_drawn_[i]);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   const bool one_eye = eye[0].empty() != eye[1].empty();
   warped_ = false;
   // One eye's video serves both, in the other eye's pinhole (the same one unless display_k).
   if (eye[0].empty())
-    eye[0] = resample_pinhole(eye[1], k_drawn[1], k_drawn[0], cv::INTER_LINEAR, outside);
+    eye[0] = resample_pinhole(eye[1], k_drawn_[1], k_drawn_[0], cv::INTER_LINEAR, outside_);
   if (eye[1].empty())
-    eye[1] = resample_pinhole(eye[0], k_drawn[0], k_drawn[1], cv::INTER_LINEAR, outside);
-
-  capsules = view_capsules(body_, in);
+    eye[1] = resample_pinhole(eye[0], k_drawn_[0], k_drawn_[1], cv::INTER_LINEAR, outside_);
   EyeView& right = views[index_of(Side::Right)];
   EyeView& left = views[index_of(Side::Left)];
-  right.k = k_drawn[index_of(Side::Right)];
-  left.k = k_drawn[index_of(Side::Left)];
-  left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
-  right.fingertips = left.fingertips = view_fingertips(in.hand);
   right.background = eye[index_of(Side::Right)];
   left.background = eye[index_of(Side::Left)];
-  if (!in.depth_mm.empty() && in.depth_mm.size() == depth_size) {
-    // The remote depth is registered to the right eye; the left eye sees it from B to the left.
-    // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
-    // an edge) at each eye pixel's ray.
-    const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
-    const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
-    right.depth_mm = resample_pinhole(in.depth_mm, in.k, right.k, cv::INTER_NEAREST);
-    left.depth_mm = resample_pinhole(left_mm, in.k, left.k, cv::INTER_NEAREST);
-    if (in.R_BaseDepth && in.R_BaseDisplay && !eye[0].empty()) {
-      warp_eyes(in, {&left, &right});
-      warped_ = true;
-    }
+  if (!right.depth_mm.empty() && in.R_BaseDepth && in.R_BaseDisplay && !eye[0].empty()) {
+    warp_eyes(in, {&left, &right});
+    warped_ = true;
   }
   if (!warped_) {  // the next warp's holes must not take a picture from another pose
     for (auto& w : warp_)
@@ -288,41 +296,74 @@ bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& vie
   return one_eye;
 }
 
-StereoViewImages StereoView::render(const StereoViewInputs& in) {
-  StereoViewImages out;
-  std::array<EyeView, 2> views;
+bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& views,
+                         std::vector<Capsule>& capsules) {
+  prepare_geometry(in, views, capsules);
+  prepare_depth(in, views);
+  return prepare_video(in, views);
+}
+
+bool StereoView::draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
+                             StereoViewInputs& late, std::array<EyeView, 2>& views) {
   std::vector<Capsule> capsules;
-  out.one_eye = prepare(in, views, capsules);
-  out.warped = warped_;
-  out.right = renderer_->render(views[index_of(Side::Right)], capsules);
-  out.left = renderer_->render(views[index_of(Side::Left)], capsules);
+  if (!late_video) {
+    const bool one_eye = prepare(early, views, capsules);
+    for (const Side side : kSides) {
+      const EyeView& v = views[index_of(side)];
+      renderer_->draw_body_layer(index_of(side), v, capsules, exposure_from_image(v.background));
+    }
+    late = early;
+    return one_eye;
+  }
+  // The body first, lit by the video at hand, then the newest video composed under it: the pair
+  // shown is as young as the body's drawing allows.
+  prepare_geometry(early, views, capsules);
+  prepare_depth(early, views);
+  for (const Side side : kSides) {
+    const std::size_t i = index_of(side);
+    const cv::Mat3b& video = early.eye_bgr[i].empty() ? early.eye_bgr[1 - i] : early.eye_bgr[i];
+    renderer_->draw_body_layer(static_cast<int>(i), views[i], capsules, exposure_from_image(video));
+  }
+  renderer_->finish();
+  late = early;
+  late_video(late);
+  return prepare_video(late, views);
+}
+
+StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVideo& late_video) {
+  StereoViewImages out;
   // The normal map the view shows: full-frame, computed here when the haptic path built only
-  // fingertip windows.
+  // fingertip windows. From the depth alone: before any video is taken.
   const bool depth_fits =
-      !in.depth_mm.empty() && in.depth_mm.size() == cv::Size(in.k.width, in.k.height);
-  const cv::Mat3f normals =
-      depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
-  out.normals = normals;
+      !early.depth_mm.empty() && early.depth_mm.size() == cv::Size(early.k.width, early.k.height);
+  if (depth_fits) out.normals = display_normals(early.depth_mm, early.k, early.surface);
+  std::array<EyeView, 2> views;
+  StereoViewInputs in;
+  out.one_eye = draw_bodies(early, late_video, in, views);
+  out.warped = warped_;
+  out.right = renderer_->compose(index_of(Side::Right), views[index_of(Side::Right)]);
+  out.left = renderer_->compose(index_of(Side::Left), views[index_of(Side::Left)]);
   if (in.fig7) {
     cv::Mat3b interaction = out.right.clone();
     overlay(interaction, in, {}, {});
-    out.fig7 = fig7_layout(interaction, k_eye_, normals, in.k, in.forces, in.arrow_m_per_N);
+    out.fig7 = fig7_layout(interaction, k_eye_, out.normals, in.k, in.forces, in.arrow_m_per_N);
   }
-  const std::vector<cv::Rect> windows = haptic_windows(in.surface, normals);
-  overlay(out.left, in, normals, windows);
-  overlay(out.right, in, normals, windows);
+  const std::vector<cv::Rect> windows = haptic_windows(in.surface, out.normals);
+  overlay(out.left, in, out.normals, windows);
+  overlay(out.right, in, out.normals, windows);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }
 
-void StereoView::render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets) {
+void StereoView::render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets,
+                             const LateVideo& late_video) {
   std::array<EyeView, 2> views;
-  std::vector<Capsule> capsules;
-  prepare(in, views, capsules);
+  StereoViewInputs late;
+  draw_bodies(in, late_video, late, views);
   for (const Side side : kSides) {
     EyeView& v = views[index_of(side)];
     v.read_back = false;
-    renderer_->render(v, capsules);
+    renderer_->compose(index_of(side), v);
     const GlTarget& t = targets[index_of(side)];
     renderer_->blit_to(t.texture, t.width, t.height);
   }

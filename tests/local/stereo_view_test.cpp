@@ -215,6 +215,62 @@ TEST(StereoView, TheRemoteDepthHidesTheBodyWhereItsRaysMeetItAtTheEyesSize) {
   EXPECT_TRUE(skin(right_at_tip(row - 3))) << "the wall ends 3 depth rows above the tip";
 }
 
+// A hand half behind a wall: its upper rows hide the fingertips, with a grey video that has
+// structure (the skin's exposure and the composite both read it).
+StereoViewInputs hand_at_a_wall() {
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  in.depth_mm = cv::Mat1w(480, 640, std::uint16_t{3000});
+  in.depth_mm(cv::Rect(0, 0, 640, 300)).setTo(500);
+  cv::Mat3b eye(480, 640, cv::Vec3b(60, 60, 60));
+  cv::rectangle(eye, cv::Rect(100, 50, 200, 120), cv::Scalar(150, 140, 30), cv::FILLED);
+  in.eye_bgr = {eye, eye.clone()};
+  return in;
+}
+
+TEST(StereoView, AlateVideoThatChangesNothingGivesTheSameImagesAsTheOneShot) {
+  const StereoViewInputs in = hand_at_a_wall();
+  StereoView one_shot(640, 480), latched(640, 480);
+  const StereoViewImages a = one_shot.render(in);
+  int calls = 0;
+  const StereoViewImages b = latched.render(in, [&](StereoViewInputs&) { ++calls; });
+  EXPECT_EQ(calls, 1);
+  ASSERT_EQ(a.sbs.size(), b.sbs.size());
+  EXPECT_EQ(cv::norm(a.sbs, b.sbs, cv::NORM_INF), 0.0);
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  EXPECT_GT(count(b.right, skin), 1000) << "the body is drawn";
+}
+
+TEST(StereoView, TheLateVideoIsShownUnderTheBodyDrawnBeforeIt) {
+  const StereoViewInputs in = hand_at_a_wall();
+  StereoView view(640, 480);
+  const cv::Vec3b blue(250, 120, 120);
+  const StereoViewImages v = view.render(in, [&](StereoViewInputs& late) {
+    late.eye_bgr = {cv::Mat3b(480, 640, blue), cv::Mat3b(480, 640, blue)};
+    late.status = "late";
+  });
+  // Away from the body and the contact shadows the eyes show the late video, not the early one.
+  for (const cv::Mat3b* eye : {&v.left, &v.right}) {
+    EXPECT_EQ((*eye)(100, 200), blue) << "where the early video had its teal rectangle";
+    EXPECT_EQ((*eye)(400, 40), blue);
+  }
+  // The body is over it, still hidden by the wall: the same skin pixels as a one-shot render of
+  // the early inputs (the skin lit by the early video, as drawn before the late one came).
+  StereoView one_shot(640, 480);
+  const StereoViewImages early = one_shot.render(in);
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  int same = 0, skin_px = 0;
+  for (int y = 0; y < 470; ++y)
+    for (int x = 0; x < 640; ++x) {
+      if (!skin(early.right(y, x))) continue;
+      ++skin_px;
+      same += early.right(y, x) == v.right(y, x);
+    }
+  EXPECT_GT(skin_px, 1000);
+  EXPECT_GT(same, skin_px * 9 / 10);
+}
+
 }  // namespace
 }  // namespace telex::local
 

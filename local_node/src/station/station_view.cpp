@@ -255,11 +255,16 @@ void StationView::run_stereo(std::stop_token stop) {
 }
 
 bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
-  if (!stereo_inputs(in)) {
+  if (!stereo_inputs(in, spec_.on_screen())) {
     if (spec_.kind == ViewSpec::Kind::Png) write_overview(in, {});  // waiting for the surface
     return false;
   }
-  const StereoViewImages v = view.render(in);
+  // On screen the video is late-latched: the body is drawn first, then the newest pair is taken
+  // and composed under it, so a pair waits for the composition only, not for the body's march.
+  // The pictures keep the pair captured nearest the depth.
+  const bool late = spec_.on_screen();  // stereo_inputs only looked at the newest pair
+  const StereoViewImages v =
+      late ? view.render(in, [this](StereoViewInputs& l) { take_pair(l, 0); }) : view.render(in);
   if (v.one_eye && !warned_one_eye_) {
     spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
     warned_one_eye_ = true;
@@ -276,7 +281,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
   return true;
 }
 
-bool StationView::stereo_inputs(StereoViewInputs& in) {
+bool StationView::stereo_inputs(StereoViewInputs& in, bool late_pair) {
   std::shared_ptr<const Surface> vs;
   {
     std::lock_guard lock(surface_mu_);
@@ -291,15 +296,9 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
   in.fig7 = cfg_.view_layout == "fig7";
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
-  // The pair (one instant for both eyes) captured nearest to the depth drawn over it.
   drawn_.reset();
-  if (const auto pair = show_pair(vs->capture_ns)) {
-    drawn_ = pair;
-    in.eye_bgr = {pair->left_bgr, pair->right_bgr};
-    const double gap_ms = static_cast<double>(std::abs(pair->capture_ns - vs->capture_ns)) / 1e6;
-    char pairing[48];
-    std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms", gap_ms);
-    in.status += pairing;
+  if (late_pair && video_) {
+    if (const auto pair = video_->pair(0)) in.eye_bgr = {pair->left_bgr, pair->right_bgr};
   }
   // The warp: the robot head's pose when the depth drawn was captured, as the remote measured it
   // with that frame, the pose when the eye pair was captured (its own instant: at 60 deg/s a 16 ms
@@ -308,7 +307,6 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
   if (warp) {
     in.R_BaseDepth = head_rotation(cfg_.robot_head, vs->head_joint_rad);
     in.R_BaseDisplay = in.hand.R_BaseCamera;
-    video_pose(in);
   } else if (cfg_.view_warp && !warned_no_warp_) {
     spdlog::info(
         "view: no warp until both head poses are known ({}): the video is shown as "
@@ -317,7 +315,24 @@ bool StationView::stereo_inputs(StereoViewInputs& in) {
                         : "no head body is tracked");
     warned_no_warp_ = true;
   }
+  // The pair (one instant for both eyes) captured nearest to the depth drawn over it.
+  if (!late_pair) take_pair(in, vs->capture_ns);
   return true;
+}
+
+void StationView::take_pair(StereoViewInputs& in, std::int64_t want_capture_ns) {
+  const auto pair = show_pair(want_capture_ns);
+  if (!pair) return;
+  drawn_ = pair;
+  in.eye_bgr = {pair->left_bgr, pair->right_bgr};
+  if (drawn_surface_) {
+    const std::int64_t gap_ns = std::abs(pair->capture_ns - drawn_surface_->capture_ns);
+    char pairing[48];
+    std::snprintf(pairing, sizeof pairing, " | eyes paired within %.1f ms",
+                  static_cast<double>(gap_ns) / 1e6);
+    in.status += pairing;
+  }
+  if (in.R_BaseDepth) video_pose(in);  // the warp is engaged
 }
 
 void StationView::video_pose(StereoViewInputs& in) {

@@ -128,7 +128,12 @@ class StationView {
   void write_overview(const StereoViewInputs& in, const cv::Mat3f& normals) const;
   void write_png(const std::string& name, const cv::Mat3b& img) const;  // DIR/name.png, whole
   // The inputs of one pair (surface, depth, eyes' video, status); false before the first surface.
-  bool stereo_inputs(StereoViewInputs& in);
+  // The pair is the one captured nearest the depth drawn; with `late_pair` only a look at the
+  // newest (its pictures light the body), taken later by take_pair.
+  bool stereo_inputs(StereoViewInputs& in, bool late_pair = false);
+  // The pair captured nearest `want_capture_ns` (0: the newest) into `in`, shown (show_pair), with
+  // its pairing to the depth in the status and its head pose for the warp.
+  void take_pair(StereoViewInputs& in, std::int64_t want_capture_ns);
   // in.R_BaseVideo from the drawn pair's own head pose; a pair without one leaves it unset (the
   // video is turned from the depth's pose, as before the pairs carried one), said once.
   void video_pose(StereoViewInputs& in);

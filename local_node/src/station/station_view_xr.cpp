@@ -86,13 +86,16 @@ void StationView::run_openxr(std::stop_token stop) {
         in.forces = stereo_request_.forces;
         in.status = stereo_request_.status;
       }
-      if (!stereo_inputs(in)) return false;
+      if (!stereo_inputs(in, /*late_pair=*/true)) return false;
       // Each eye drawn in the headset's field of view for it at its swapchain's size, the video
       // and depth placed in it at their true angles.
       for (std::size_t eye = 0; eye < 2; ++eye)
         in.display_k[eye] = pinhole_from_fov(t[eye].fov, t[eye].width, t[eye].height);
-      p.view->render_into(in, {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},
-                               StereoView::GlTarget{t[1].texture, t[1].width, t[1].height}});
+      // The video late-latched, as in the window: the newest pair, taken once the body is drawn.
+      p.view->render_into(in,
+                          {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},
+                           StereoView::GlTarget{t[1].texture, t[1].width, t[1].height}},
+                          [this](StereoViewInputs& l) { take_pair(l, 0); });
       drawn_stamps = photon_stamps(in);
       drew = true;
       return true;

@@ -69,6 +69,19 @@ class StereoRenderer {
   // calling thread must be the one that constructed the renderer (the context is current there).
   cv::Mat3b render(const EyeView& eye, std::span<const Capsule> capsules);
 
+  // render() in two steps, so that an eye's picture can be taken after the body is drawn (the
+  // video late-latched, StereoView::render's `late_video`): draw_body_layer marches the body for
+  // `eye`'s pinhole and centre (its k and p_RightEye; the images are not read) into `slot`'s own
+  // target (0 or 1, one per eye), lit with `exposure` (exposure_from_image of the eye's picture);
+  // compose then draws `eye` as render() does, with that slot's body. The same eye's k and
+  // p_RightEye in both.
+  void draw_body_layer(int slot, const EyeView& eye, std::span<const Capsule> capsules,
+                       float exposure);
+  cv::Mat3b compose(int slot, const EyeView& eye);
+  // Waits until the GL work asked for so far is done (llvmpipe draws only when something is
+  // read or waited for): the body layers are drawn before the video is taken.
+  void finish();
+
   // The last eye drawn, copied on the GPU into `texture` (a GL_TEXTURE_2D of this context, e.g.
   // an OpenXR swapchain image), scaled to width x height and flipped to GL's bottom-up rows.
   void blit_to(unsigned texture, int width, int height);
@@ -94,6 +107,10 @@ class StereoRenderer {
 std::vector<Capsule> body_capsules(const BodyState& body,
                                    const std::function<glm::dvec3(const glm::dvec3&)>& to_right_eye,
                                    cv::Vec3b skin_bgr = {150, 175, 225});
+
+// The eye image's brightness as a gain for the skin: its mean luma over 118 (a mid-grey
+// picture lights the skin as designed), clamped to [0.3, 1.5]; 1 with no image.
+float exposure_from_image(const cv::Mat3b& bgr);
 
 // Clip-space projection of a pinhole camera (x right, y down, z forward) so that a point lands
 // on the pixel centre OpenCV's convention gives it, u = fx x/z + cx, v = fy y/z + cy, with GL's

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -100,7 +101,12 @@ class StereoView {
   // one): a machine without EGL fails here with the renderer's error.
   StereoView(int width, int height, const BodyDims& dims = {});
   ~StereoView();
-  StereoViewImages render(const StereoViewInputs& in);
+  // Both eyes, composed with the overlay. With `late_video` the video is late-latched: the body
+  // is drawn first (lit by in.eye_bgr), then `late_video` may replace the inputs' video (eye_bgr,
+  // R_BaseVideo, status) with a newer pair, and the eyes are composed from that: the video shown
+  // waits for no body. The same images as without it when it changes nothing.
+  using LateVideo = std::function<void(StereoViewInputs&)>;
+  StereoViewImages render(const StereoViewInputs& in, const LateVideo& late_video = {});
   // Renderers are made in the OpenGL context current on this thread from now on (an OpenXR
   // session's), not in one of their own.
   void use_current_context() { current_context_ = true; }
@@ -111,7 +117,8 @@ class StereoView {
     unsigned texture = 0;
     int width = 0, height = 0;
   };
-  void render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets);
+  void render_into(const StereoViewInputs& in, const std::array<GlTarget, 2>& targets,
+                   const LateVideo& late_video = {});
   // The eyes' calibration (the rig's eyes.*; absent = drawn as they come) and the left eye's
   // rotation into the right's (p_right = R p_left).
   void set_eye_cameras(const std::array<std::optional<CameraModel>, 2>& eyes,
@@ -124,6 +131,17 @@ class StereoView {
   // returns whether only one eye's video came.
   bool prepare(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
                std::vector<Capsule>& capsules);
+  // prepare()'s steps: the eyes' pinholes, centres, fingertips and the capsules (and the
+  // renderer); the remote depth in each eye; the video in each eye (and the warp), returning
+  // whether only one eye's video came.
+  // prepare() and both eyes' body layers drawn, the video late-latched with `late_video` (see
+  // render); `late`: the inputs the eyes are then composed from. Returns prepare()'s one_eye.
+  bool draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
+                   StereoViewInputs& late, std::array<EyeView, 2>& views);
+  void prepare_geometry(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
+                        std::vector<Capsule>& capsules);
+  void prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2>& eyes);
+  bool prepare_video(const StereoViewInputs& in, std::array<EyeView, 2>& eyes);
 
   std::array<std::optional<EyeRectifier>, 2> rectifier_;
   bool current_context_ = false;
@@ -133,6 +151,8 @@ class StereoView {
   std::optional<glm::dmat3> R_BasePreviousDisplay_;
   // What the last prepare() chose: the eyes' pinhole camera, and whether it warped.
   Intrinsics k_eye_;
+  std::array<Intrinsics, 2> k_drawn_;  // each eye's pinhole, by Side
+  cv::Scalar outside_;                 // what an eye shows beyond the camera's field
   bool warped_ = false;
   cv::Size renderer_size_;
   Body body_;
