@@ -89,6 +89,9 @@ struct StereoRenderer::Impl {
   std::unique_ptr<BodyPass> body;
   int body_divisor = 0;  // 0: by the eye's width
   cv::Mat4b readback;
+  // A turned eye's capsules and fingertips in its own frame (EyeView::R_EyeRight), kept for reuse.
+  std::vector<Capsule> turned_capsules;
+  std::vector<glm::dvec3> turned_tips;
 
   void init_egl() {
     const HeadlessEgl egl = create_headless_egl("stereo view");
@@ -266,9 +269,25 @@ cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> ca
   glDisable(GL_CULL_FACE);
 
   g.body->set_scene_depth(has_depth ? g.depth_upload : cv::Mat1f());
-  g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips);
+  // A turned eye: the capsules and fingertips re-expressed in its frame (its centre the origin).
+  glm::dvec3 p_RightEye = eye.p_RightEye;
+  std::span<const glm::dvec3> fingertips = eye.fingertips;
+  if (eye.R_EyeRight != glm::dmat3(1.0)) {
+    const auto to_eye = [&](const glm::dvec3& p) { return eye.R_EyeRight * (p - p_RightEye); };
+    g.turned_capsules.assign(capsules.begin(), capsules.end());
+    for (Capsule& c : g.turned_capsules) {
+      c.a = to_eye(c.a);
+      c.b = to_eye(c.b);
+    }
+    g.turned_tips.clear();
+    for (const glm::dvec3& p : eye.fingertips) g.turned_tips.push_back(to_eye(p));
+    capsules = g.turned_capsules;
+    fingertips = g.turned_tips;
+    p_RightEye = glm::dvec3(0.0);
+  }
+  g.body->draw_contact_shadows(eye.k, p_RightEye, fingertips);
   // The body, hidden where the remote scene is nearer.
-  g.body->draw_body(eye.k, eye.p_RightEye, capsules,
+  g.body->draw_body(eye.k, p_RightEye, capsules,
                     exposure_from_image(has_color ? eye.background : cv::Mat3b()),
                     g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
 
