@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <functional>
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -460,6 +461,47 @@ TEST(StereoView, TurnedDepthIsAlongTheTurnedAxis) {
   EXPECT_GT(checked, 500);
   // The turned eye's right edge sees beyond the camera's field (tan 0.8 + 10 deg): no depth.
   EXPECT_EQ(d(v, to.width - 1), 0);
+}
+
+// With the warp engaged the canted eyes still see the world where it is: the robot head captured
+// the green dot (3 m ahead, on a wall) and the operator's head has since rolled 10 degrees; each
+// eye, turned 8 degrees outward, shows the dot where that roll and its turn put it. (The roll
+// about the camera's axis is, in a turned eye, a turn about another axis: warped about the
+// camera's axes instead, the dot lands 12 px off.)
+TEST(StereoView, WarpedCantedEyesShowTheWorldWhereTheHeadAndTheTurnPutIt) {
+  StereoView view(640, 480);
+  StereoViewInputs in = green_dot_ahead();
+  constexpr double kCant_rad = 8.0 * M_PI / 180.0, kRoll_rad = 10.0 * M_PI / 180.0;
+  in.display_k = {in.k, in.k};
+  in.R_CameraDisplay = {
+      camera_rotation_from_openxr(glm::angleAxis(kCant_rad, glm::dvec3(0, 1, 0))),
+      camera_rotation_from_openxr(glm::angleAxis(-kCant_rad, glm::dvec3(0, 1, 0)))};
+  in.R_BaseDepth = glm::dmat3(1.0);
+  in.R_BaseDisplay = glm::dmat3(glm::rotate(glm::dmat4(1.0), kRoll_rad, glm::dvec3(0, 0, 1)));
+  const StereoViewImages v = view.render(in);
+  ASSERT_TRUE(v.warped);
+  // The dot straight ahead of each eye's camera at capture (both eyes' videos are the one
+  // picture), 3 m away; the head turns about the right eye's centre, the left eye at p_RightEye.
+  const glm::dvec3 p_CaptureEye =
+      3.0 * glm::dvec3((320.0 - in.k.cx) / in.k.fx, (240.0 - in.k.cy) / in.k.fy, 1.0);
+  const glm::dmat3 R_DisplayCapture = glm::transpose(*in.R_BaseDisplay);
+  const auto green = [](const cv::Vec3b& c) { return c[1] > 150 && c[0] < 80 && c[2] < 80; };
+  for (const Side side : kSides) {
+    SCOPED_TRACE(side == Side::Left ? "left eye" : "right eye");
+    const std::size_t i = index_of(side);
+    const glm::dvec3 p_RightEye =
+        side == Side::Left ? glm::dvec3(-in.baseline_m, 0, 0) : glm::dvec3(0.0);
+    // In the display's eye with the camera's axes, then in the turned eye.
+    const glm::dvec3 p_DisplayEye = R_DisplayCapture * (p_CaptureEye + p_RightEye) - p_RightEye;
+    const glm::dvec3 p_Eye = glm::transpose(in.R_CameraDisplay[i]) * p_DisplayEye;
+    const cv::Point2d want(in.k.fx * p_Eye.x / p_Eye.z + in.k.cx,
+                           in.k.fy * p_Eye.y / p_Eye.z + in.k.cy);
+    const cv::Point2d got = centroid(side == Side::Left ? v.left : v.right, green, want, 20);
+    std::printf("measured: warped canted %s eye dot at (%.2f, %.2f), want (%.2f, %.2f)\n",
+                side == Side::Left ? "left" : "right", got.x, got.y, want.x, want.y);
+    EXPECT_NEAR(got.x, want.x, 1.0);
+    EXPECT_NEAR(got.y, want.y, 1.0);
+  }
 }
 
 }  // namespace
