@@ -89,6 +89,9 @@ struct StereoRenderer::Impl {
   std::unique_ptr<BodyPass> body;
   int body_divisor = 0;  // 0: by the eye's width
   cv::Mat4b readback;
+  // A turned eye's capsules and fingertips in its own frame (EyeView::R_EyeRight), kept for reuse.
+  std::vector<Capsule> turned_capsules;
+  std::vector<glm::dvec3> turned_tips;
 
   void init_egl() {
     const HeadlessEgl egl = create_headless_egl("stereo view");
@@ -240,7 +243,18 @@ void StereoRenderer::draw_body_layer(int slot, const EyeView& eye,
                                      std::span<const Capsule> capsules, float exposure) {
   Impl& g = *impl_;
   g.begin(eye.k);
-  g.body->march_body(slot, eye.k, eye.p_RightEye, capsules, exposure,
+  // A turned eye: the capsules re-expressed in its frame (its centre the origin).
+  glm::dvec3 p_RightEye = eye.p_RightEye;
+  if (eye.R_EyeRight != glm::dmat3(1.0)) {
+    g.turned_capsules.assign(capsules.begin(), capsules.end());
+    for (Capsule& c : g.turned_capsules) {
+      c.a = eye.R_EyeRight * (c.a - eye.p_RightEye);
+      c.b = eye.R_EyeRight * (c.b - eye.p_RightEye);
+    }
+    capsules = g.turned_capsules;
+    p_RightEye = glm::dvec3(0.0);
+  }
+  g.body->march_body(slot, eye.k, p_RightEye, capsules, exposure,
                      g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
 }
 
@@ -297,7 +311,17 @@ cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
   glDisable(GL_CULL_FACE);
 
   g.body->set_scene_depth(has_depth ? g.depth_upload : cv::Mat1f());
-  g.body->draw_contact_shadows(eye.k, eye.p_RightEye, eye.fingertips);
+  // A turned eye: its fingertips re-expressed in its frame (its centre the origin).
+  glm::dvec3 p_RightEye = eye.p_RightEye;
+  std::span<const glm::dvec3> fingertips = eye.fingertips;
+  if (eye.R_EyeRight != glm::dmat3(1.0)) {
+    g.turned_tips.clear();
+    for (const glm::dvec3& p : eye.fingertips)
+      g.turned_tips.push_back(eye.R_EyeRight * (p - eye.p_RightEye));
+    fingertips = g.turned_tips;
+    p_RightEye = glm::dvec3(0.0);
+  }
+  g.body->draw_contact_shadows(eye.k, p_RightEye, fingertips);
   // The body, hidden where the remote scene is nearer.
   g.body->composite_body(slot);
 

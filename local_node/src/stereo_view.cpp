@@ -123,21 +123,25 @@ EyeRectifier::EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye)
     : camera_(camera), R_TargetEye_(R_TargetEye) {}
 
 cv::Mat3b EyeRectifier::apply(const cv::Mat3b& image, const Intrinsics& target,
-                              const cv::Scalar& border) {
+                              const cv::Scalar& border, const glm::dmat3& R_DisplayTarget) {
   if (image.empty()) return image;
-  if (image.size() != for_size_ || !(target == for_target_)) {
+  if (image.size() != for_size_ || !(target == for_target_) ||
+      R_DisplayTarget != for_R_DisplayTarget_) {
     const Intrinsics k = camera_.k.width == image.cols && camera_.k.height == image.rows
                              ? camera_.k
                              : camera_.k.scaled(image.cols, image.rows);
     const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
     const cv::Matx33d P(target.fx, 0, target.cx, 0, target.fy, target.cy, 0, 0, 1);
+    // OpenCV's rectification: p_Display = R p_Eye.
+    const glm::dmat3 R_DisplayEye = R_DisplayTarget * R_TargetEye_;
     cv::Matx33d R;
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) R(r, c) = R_TargetEye_[c][r];  // glm is column-major
+      for (int c = 0; c < 3; ++c) R(r, c) = R_DisplayEye[c][r];  // glm is column-major
     cv::initUndistortRectifyMap(K, camera_.distortion, R, P, {target.width, target.height},
                                 CV_16SC2, map1_, map2_);
     for_size_ = image.size();
     for_target_ = target;
+    for_R_DisplayTarget_ = R_DisplayTarget;
   }
   cv::Mat3b out;
   cv::remap(image, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT, border);
@@ -176,9 +180,16 @@ void StereoView::warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> e
     // The warped picture stays in the renderer's context (the warp is made in it): no read-back.
     if (!w)
       w = std::make_unique<DepthWarp>(e.k.width, e.k.height, WarpOptions{.read_back_bgr = false});
-    WarpedEye warped = w->warp(
-        e.background, e.depth_mm, e.k, eye_display_from_capture(R_DisplayDepth, e.p_RightEye),
-        eye_display_from_capture(R_VideoDepth, e.p_RightEye), R_DisplayPrevious);
+    // The eye's images are in its own (turned) frame, which the head carries as it does the
+    // camera's: each motion of the camera-aligned eye, re-expressed in the turned one.
+    const glm::dmat3& R = e.R_EyeRight;
+    const auto turned = [&R](const RigidTransform& X) {
+      return RigidTransform{R * X.rotation * glm::transpose(R), R * X.translation_m};
+    };
+    WarpedEye warped = w->warp(e.background, e.depth_mm, e.k,
+                               turned(eye_display_from_capture(R_DisplayDepth, e.p_RightEye)),
+                               turned(eye_display_from_capture(R_VideoDepth, e.p_RightEye)),
+                               R * R_DisplayPrevious * glm::transpose(R));
     // The captured picture stays as the background's: the skin's exposure is taken from it.
     e.background_texture = warped.texture;
     e.depth_mm = std::move(warped.depth_mm);
@@ -209,6 +220,50 @@ cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Int
   cv::Mat out;
   cv::warpAffine(image, out, M, {to.width, to.height}, interpolation | cv::WARP_INVERSE_MAP,
                  cv::BORDER_CONSTANT, border);
+  return out;
+}
+
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         const glm::dmat3& R_FromTo, int interpolation, const cv::Scalar& border) {
+  if (R_FromTo == glm::dmat3(1.0) || image.empty())
+    return resample_pinhole(image, from, to, interpolation, border);
+  // Output pixel (u, v) sees the ray K_to^-1 (u, v, 1) of `to`, R_FromTo times it in `from`.
+  const cv::Matx33d K_from(from.fx, 0.0, from.cx, 0.0, from.fy, from.cy, 0.0, 0.0, 1.0);
+  const cv::Matx33d K_to_inv(1.0 / to.fx, 0.0, -to.cx / to.fx, 0.0, 1.0 / to.fy, -to.cy / to.fy,
+                             0.0, 0.0, 1.0);
+  cv::Matx33d R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = R_FromTo[c][r];  // glm is column-major
+  cv::Mat out;
+  cv::warpPerspective(image, out, cv::Mat(K_from * R * K_to_inv), {to.width, to.height},
+                      interpolation | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, border);
+  return out;
+}
+
+cv::Mat1w resample_depth_turned(const cv::Mat1w& depth_mm, const Intrinsics& from,
+                                const Intrinsics& to, const glm::dmat3& R_FromTo) {
+  if (R_FromTo == glm::dmat3(1.0) || depth_mm.empty())
+    return resample_pinhole(depth_mm, from, to, cv::INTER_NEAREST);
+  cv::Mat1w out(to.height, to.width, std::uint16_t{0});
+  // A point of `from` seen along d_To has z_To = (R_FromTo^T p_From).z: R_FromTo's third column.
+  const glm::dvec3 z_axis_From = R_FromTo[2];
+  for (int v = 0; v < to.height; ++v) {
+    std::uint16_t* row = out.ptr<std::uint16_t>(v);
+    for (int u = 0; u < to.width; ++u) {
+      const glm::dvec3 d_From =
+          R_FromTo * glm::dvec3((u - to.cx) / to.fx, (v - to.cy) / to.fy, 1.0);
+      if (!(d_From.z > 0.0)) continue;
+      const double x = std::floor(from.fx * d_From.x / d_From.z + from.cx + 0.5);
+      const double y = std::floor(from.fy * d_From.y / d_From.z + from.cy + 0.5);
+      if (!(x >= 0.0 && y >= 0.0 && x < depth_mm.cols && y < depth_mm.rows)) continue;
+      const std::uint16_t z_mm = depth_mm(static_cast<int>(y), static_cast<int>(x));
+      if (z_mm == 0) continue;
+      // The sampled pixel's own point, exact: its ray times its depth.
+      const glm::dvec3 p_From((x - from.cx) / from.fx, (y - from.cy) / from.fy, 1.0);
+      const double z_to = glm::dot(z_axis_From, p_From) * z_mm;
+      if (z_to > 0.5 && z_to < 65535.5) row[u] = static_cast<std::uint16_t>(std::lround(z_to));
+    }
+  }
   return out;
 }
 
@@ -245,6 +300,9 @@ void StereoView::prepare_geometry(const StereoViewInputs& in, std::array<EyeView
   right.k = k_drawn_[index_of(Side::Right)];
   left.k = k_drawn_[index_of(Side::Left)];
   left.p_RightEye = {-in.baseline_m, 0.0, 0.0};
+  // Each eye's display turned from its camera (identity but for a canted headset).
+  right.R_EyeRight = glm::transpose(in.R_CameraDisplay[index_of(Side::Right)]);
+  left.R_EyeRight = glm::transpose(in.R_CameraDisplay[index_of(Side::Left)]);
   right.fingertips = left.fingertips = view_fingertips(in.hand);
 }
 
@@ -257,29 +315,38 @@ void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2
   // an edge) at each eye pixel's ray.
   const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
   const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
-  right.depth_mm = resample_pinhole(in.depth_mm, in.k, right.k, cv::INTER_NEAREST);
-  left.depth_mm = resample_pinhole(left_mm, in.k, left.k, cv::INTER_NEAREST);
+  right.depth_mm =
+      resample_depth_turned(in.depth_mm, in.k, right.k, in.R_CameraDisplay[index_of(Side::Right)]);
+  left.depth_mm =
+      resample_depth_turned(left_mm, in.k, left.k, in.R_CameraDisplay[index_of(Side::Left)]);
 }
 
 bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2>& views) {
+  // Each eye's display turned from its camera (identity but for a canted headset), by Side.
+  const std::array<glm::dmat3, 2>& R_CameraDisplay = in.R_CameraDisplay;
   // An uncalibrated eye is taken to see what the depth camera sees, scaled to its image's size.
-  const auto fit = [&](const cv::Mat3b& m, const Intrinsics& k) -> cv::Mat3b {
+  const auto fit = [&](const cv::Mat3b& m, std::size_t i) -> cv::Mat3b {
     if (m.empty()) return m;
-    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k, cv::INTER_LINEAR, outside_);
+    return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k_drawn_[i], R_CameraDisplay[i],
+                            cv::INTER_LINEAR, outside_);
   };
   // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn_[i], outside_)
-                         : fit(in.eye_bgr[i], k_drawn_[i]);
+    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn_[i], outside_,
+                                                glm::transpose(R_CameraDisplay[i]))
+                         : fit(in.eye_bgr[i], i);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   const bool one_eye = eye[0].empty() != eye[1].empty();
   warped_ = false;
   // One eye's video serves both, in the other eye's pinhole (the same one unless display_k).
-  if (eye[0].empty())
-    eye[0] = resample_pinhole(eye[1], k_drawn_[1], k_drawn_[0], cv::INTER_LINEAR, outside_);
-  if (eye[1].empty())
-    eye[1] = resample_pinhole(eye[0], k_drawn_[0], k_drawn_[1], cv::INTER_LINEAR, outside_);
+  const auto other = [&](std::size_t from, std::size_t to) {
+    return resample_pinhole(eye[from], k_drawn_[from], k_drawn_[to],
+                            glm::transpose(R_CameraDisplay[from]) * R_CameraDisplay[to],
+                            cv::INTER_LINEAR, outside_);
+  };
+  if (eye[0].empty()) eye[0] = other(1, 0);
+  if (eye[1].empty()) eye[1] = other(0, 1);
   EyeView& right = views[index_of(Side::Right)];
   EyeView& left = views[index_of(Side::Left)];
   right.background = eye[index_of(Side::Right)];

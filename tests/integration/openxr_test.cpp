@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <glm/gtc/quaternion.hpp>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
@@ -554,6 +555,99 @@ TEST(OpenXrView, EyesShowTheVideoAtItsTrueAngleInTheLocatedFov) {
     std::printf("measured: eye %d video from column %d (fov puts it at %.2f), row %d (%.2f)\n", eye,
                 got_col, want_col, got_row, want_row);
     EXPECT_TRUE(neutral(img(row, 0))) << img(row, 0);
+    EXPECT_NEAR(got_col, want_col, 1.5);
+    EXPECT_NEAR(got_row, want_row, 1.5);
+  }
+}
+
+// A headset with canted displays (the runtime's "view_cant_deg": each eye's view turned 10 deg
+// outward in the head), end to end: each eye submits the orientation it was located at, and in
+// the images the runtime received the eye camera's field begins where OpenXR's projection with
+// that orientation and the fov puts its edges (the left edge a column of the turned eye, the top
+// edge met on the eye's axis column). Drawn as parallel eyes, the left edge is some 50 px off.
+TEST(OpenXrView, CantedEyesShowTheVideoTurnedAsTheirLocatedPoses) {
+  const auto dir = scratch_dir("openxr_cant");
+  Env env;
+  constexpr int kW = 480, kH = 540;
+  constexpr double kCant_deg = 10.0;
+  use_sim_runtime(env, dir,
+                  {{"width", kW},
+                   {"height", kH},
+                   {"period_ms", 16.0},
+                   {"dump_at_frame", 3},
+                   {"view_cant_deg", kCant_deg}},
+                  nullptr);
+  env.set("DISPLAY", "");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir, {"--hand", "script:press", "--repeat", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  const auto dumped = dir / "xr_record.json.eye1.ppm";
+  ASSERT_TRUE(eventually(120s, [&] { return std::filesystem::exists(dumped); }))
+      << "no frame dumped; " << local.stderr_text();
+  local.signal(SIGINT);
+  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  const nlohmann::json rec = read_json(dir / "xr_record.json");
+  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
+  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  int layers = 0;
+  for (const auto& f : rec["frames"]) {
+    if (f["eyes"].size() != 2) continue;
+    ++layers;
+    for (int eye = 0; eye < 2; ++eye) {
+      const auto& e = f["eyes"][eye];
+      // q and -q are one rotation: |q . q_located| = 1.
+      double dot = 0.0;
+      for (int i = 0; i < 4; ++i)
+        dot += e["orientation"][i].get<double>() * e["orientation_located"][i].get<double>();
+      EXPECT_NEAR(std::abs(dot), 1.0, 1e-5) << e.dump();
+    }
+  }
+  EXPECT_GE(layers, 3);
+  const Intrinsics cam = kinect_v1_intrinsics(640, 480);  // the synthetic source's field
+  const double cam_left = -(cam.cx + 0.5) / cam.fx, cam_top = (cam.cy + 0.5) / cam.fy;
+  const auto neutral = [](const cv::Vec3b& c) {
+    for (int i = 0; i < 3; ++i)
+      if (std::abs(c[i] - 70) > 3) return false;
+    return true;
+  };
+  const double cant_rad = kCant_deg * M_PI / 180.0;
+  for (int eye = 0; eye < 2; ++eye) {
+    SCOPED_TRACE("eye " + std::to_string(eye));
+    const cv::Mat3b img =
+        cv::imread((dir / ("xr_record.json.eye" + std::to_string(eye) + ".ppm")).string());
+    ASSERT_EQ(img.size(), cv::Size(kW, kH)) << "no image dumped";
+    std::array<double, 4> fov{};
+    for (const auto& f : rec["frames"])
+      if (f["eyes"].size() == 2)
+        for (int i = 0; i < 4; ++i) fov[i] = f["eyes"][eye]["fov"][i].get<double>();
+    const double l = std::tan(fov[0]), r = std::tan(fov[1]), u = std::tan(fov[2]),
+                 d = std::tan(fov[3]);
+    // The eye in the head (OpenXR's axes): outward, the left one about +y.
+    const glm::dquat q_HeadEye =
+        glm::angleAxis(eye == 0 ? cant_rad : -cant_rad, glm::dvec3(0.0, 1.0, 0.0));
+    // The camera field's left edge, a direction of the head, in the eye: its column.
+    const glm::dvec3 edge_Eye = glm::conjugate(q_HeadEye) * glm::dvec3(cam_left, 0.0, -1.0);
+    const double want_col = kW * (edge_Eye.x / -edge_Eye.z - l) / (r - l) - 0.5;
+    // On the eye's axis column a ray (0, t, -1) of the eye meets the top edge where the head sees
+    // it at tangent cam_top up: the turn about y leaves y and shortens the head's -z.
+    const double axis_z_Head = -(q_HeadEye * glm::dvec3(0.0, 0.0, -1.0)).z;
+    const double t_top = cam_top * axis_z_Head;
+    const double want_row = kH * (u - t_top) / (u - d) - 0.5;
+    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - l) / (r - l) - 0.5));
+    const int axis_row = static_cast<int>(std::lround(kH * u / (u - d) - 0.5));
+    const auto first_video = [&](int n, const std::function<cv::Vec3b(int)>& at) {
+      for (int i = 0; i < n; ++i)
+        if (!neutral(at(i))) return i;
+      return n;
+    };
+    const int row = axis_row - kH / 8;
+    const int got_col = first_video(kW, [&](int i) { return img(row, i); });
+    const int got_row = first_video(kH, [&](int i) { return img(i, axis_col); });
+    std::printf(
+        "measured: canted eye %d video from column %d (pose and fov put it at %.2f), row %d "
+        "(%.2f)\n",
+        eye, got_col, want_col, got_row, want_row);
     EXPECT_NEAR(got_col, want_col, 1.5);
     EXPECT_NEAR(got_row, want_row, 1.5);
   }

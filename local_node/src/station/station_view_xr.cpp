@@ -87,10 +87,13 @@ void StationView::run_openxr(std::stop_token stop) {
         in.status = stereo_request_.status;
       }
       if (!stereo_inputs(in, /*late_pair=*/true)) return false;
-      // Each eye drawn in the headset's field of view for it at its swapchain's size, the video
-      // and depth placed in it at their true angles.
-      for (std::size_t eye = 0; eye < 2; ++eye)
+      // Each eye drawn in the headset's field of view for it at its swapchain's size and turned
+      // as it is in the head (the head's axes the camera's), the video and depth placed in it at
+      // their true angles.
+      for (std::size_t eye = 0; eye < 2; ++eye) {
         in.display_k[eye] = pinhole_from_fov(t[eye].fov, t[eye].width, t[eye].height);
+        in.R_CameraDisplay[eye] = t[eye].R_HeadEye;
+      }
       // The video late-latched, as in the window: the newest pair, taken once the body is drawn.
       p.view->render_into(in,
                           {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},

@@ -90,6 +90,11 @@ Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height) {
   return k;
 }
 
+glm::dmat3 camera_rotation_from_openxr(const glm::dquat& q_AB) {
+  const glm::dmat3 C(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+  return C * glm::mat3_cast(glm::normalize(q_AB)) * C;
+}
+
 struct OpenXrOutput::Xr {
   XrInstance instance = XR_NULL_HANDLE;
   XrSystemId system = XR_NULL_SYSTEM_ID;
@@ -378,6 +383,16 @@ void OpenXrOutput::frame(const Draw& draw) {
   constexpr XrViewStateFlags kViews =
       XR_VIEW_STATE_ORIENTATION_VALID_BIT | XR_VIEW_STATE_POSITION_VALID_BIT;
   const bool located = (vs.viewStateFlags & kViews) == kViews && n == 2;
+  // The same views in the head (VIEW space): each eye's orientation there, whether the head is
+  // tracked or not (a canted display's eyes are turned in the head, not in the room).
+  vli.space = x.view;
+  auto vs_head = xr_struct<XrViewState>(XR_TYPE_VIEW_STATE);
+  std::array<XrView, 2> views_head{view, view};
+  std::uint32_t n_head = 0;
+  x.check(xrLocateViews(x.session, &vli, &vs_head, 2, &n_head, views_head.data()),
+          "xrLocateViews (VIEW space)");
+  const bool in_head =
+      (vs_head.viewStateFlags & XR_VIEW_STATE_ORIENTATION_VALID_BIT) != 0 && n_head == 2;
 
   const auto pv0 =
       xr_struct<XrCompositionLayerProjectionView>(XR_TYPE_COMPOSITION_LAYER_PROJECTION_VIEW);
@@ -393,8 +408,12 @@ void OpenXrOutput::frame(const Draw& draw) {
       wait.timeout = XR_INFINITE_DURATION;
       x.check(xrWaitSwapchainImage(x.swapchains[eye], &wait), "xrWaitSwapchainImage");
       const XrFovf& f = views[eye].fov;
+      const XrQuaternionf& q_HeadEye = views_head[eye].pose.orientation;
       targets[eye] = {x.images[eye][index].image, recommended_w_, recommended_h_,
-                      XrEyeFov{f.angleLeft, f.angleRight, f.angleUp, f.angleDown}};
+                      XrEyeFov{f.angleLeft, f.angleRight, f.angleUp, f.angleDown},
+                      in_head ? camera_rotation_from_openxr(
+                                    glm::dquat(q_HeadEye.w, q_HeadEye.x, q_HeadEye.y, q_HeadEye.z))
+                              : glm::dmat3(1.0)};
     }
     drawn = draw(targets);
     for (std::size_t eye = 0; eye < 2; ++eye) {

@@ -25,12 +25,16 @@ struct XrEyeFov {
 };
 
 // One eye's swapchain image, a GL texture of the session's context (rows bottom-up, as GL's), and
-// the field of view xrLocateViews gave that eye for the frame's display time: the image is drawn
-// with it (pinhole_from_fov) and submitted with it.
+// the field of view and pose xrLocateViews gave that eye for the frame's display time: the image
+// is drawn with them (pinhole_from_fov, R_HeadEye) and submitted with them.
 struct XrEyeTarget {
   unsigned texture = 0;
   int width = 0, height = 0;
   XrEyeFov fov;
+  // The eye's orientation in the head (XR's VIEW space), in the camera convention (x right, y
+  // down, z forward) for both: a direction d_Eye of the eye is R_HeadEye d_Eye in the head.
+  // Identity for parallel eyes; a canted display (Pimax, Index, Varjo) turns each eye outward.
+  glm::dmat3 R_HeadEye{1.0};
 };
 
 // The headset (XR's VIEW space) in the STAGE space (or LOCAL where there is no stage): OpenXR's
@@ -109,5 +113,10 @@ std::string openxr_runtime_manifest();
 // where the angles put it, off centre for a canted fov. The image's edges are half a pixel beyond
 // the outer pixels' centres.
 Intrinsics pinhole_from_fov(const XrEyeFov& fov, int width, int height);
+
+// The rotation q_AB between two frames of OpenXR's axes (x right, y up, z backwards) as the same
+// rotation between the frames of the camera convention (x right, y down, z forward) on each:
+// C R(q_AB) C with C = diag(1, -1, -1).
+glm::dmat3 camera_rotation_from_openxr(const glm::dquat& q_AB);
 
 }  // namespace telex::local

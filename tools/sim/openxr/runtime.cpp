@@ -330,6 +330,7 @@ bool load_script(Script& s, std::string& error) {
     const nlohmann::json j = nlohmann::json::parse(in);
     double period_ms = static_cast<double>(s.period_ns) / 1e6;
     double yaw_deg = s.yaw_amplitude_rad * 180.0 / M_PI;
+    double cant_deg = s.view_cant_rad * 180.0 / M_PI;
     read_key(j, "record", s.record_path);
     read_key(j, "period_ms", period_ms);
     read_key(j, "width", s.width);
@@ -337,6 +338,10 @@ bool load_script(Script& s, std::string& error) {
     read_key(j, "yaw_amplitude_deg", yaw_deg);
     read_key(j, "yaw_period_s", s.yaw_period_s);
     read_key(j, "ipd_m", s.ipd_m);
+    read_key(j, "view_cant_deg", cant_deg);
+    if (!(cant_deg >= 0.0 && cant_deg <= 30.0))
+      throw std::invalid_argument("view_cant_deg must be in 0..30, not " +
+                                  std::to_string(cant_deg));
     std::string head_path = "yaw";
     read_key(j, "head_path", head_path);
     if (head_path != "yaw" && head_path != "turns")
@@ -354,6 +359,7 @@ bool load_script(Script& s, std::string& error) {
       throw std::invalid_argument("period_ms, width, height or yaw_period_s out of range");
     s.period_ns = static_cast<std::int64_t>(period_ms * 1e6);
     s.yaw_amplitude_rad = yaw_deg * M_PI / 180.0;
+    s.view_cant_rad = cant_deg * M_PI / 180.0;
   } catch (const std::exception& e) {
     error = std::string("TELEX_SIM_OPENXR_CONFIG ") + path + ": " + e.what();
     return false;
@@ -442,8 +448,11 @@ XrPosef head_pose(const Session& s, std::int64_t t_ns) {
 std::array<XrPosef, 2> eye_poses(const Session& s, std::int64_t t_ns) {
   const XrPosef head = head_pose(s, t_ns);
   const float half = static_cast<float>(s.instance->script.ipd_m / 2.0);
-  return {compose(head, {{0, 0, 0, 1}, {-half, 0, 0}}),
-          compose(head, {{0, 0, 0, 1}, {half, 0, 0}})};
+  // Outward: the left eye turned about +y (its -z axis towards -x), the right one about -y.
+  const double cant = s.instance->script.view_cant_rad;
+  const XrQuaternionf left = to_xr(glm::angleAxis(cant, glm::dvec3(0.0, 1.0, 0.0)));
+  const XrQuaternionf right = to_xr(glm::angleAxis(-cant, glm::dvec3(0.0, 1.0, 0.0)));
+  return {compose(head, {left, {-half, 0, 0}}), compose(head, {right, {half, 0, 0}})};
 }
 
 std::array<XrFovf, 2> eye_fovs() {

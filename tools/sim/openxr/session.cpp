@@ -461,6 +461,12 @@ XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
       // The field of view submitted for the eye, beside the one xrLocateViews gave it.
       const XrFovf& f = p->views[v].fov;
       const XrFovf located = eye_fovs()[v];
+      // And its orientation (x, y, z, w in the layer's space), beside the located one.
+      const XrQuaternionf& q = p->views[v].pose.orientation;
+      const XrQuaternionf q_located =
+          compose(inverse(space_in_local(*live_space(p->space), info->displayTime)),
+                  eye_poses(*s, info->displayTime)[v])
+              .orientation;
       frame["eyes"].push_back(
           {{"width", r.extent.width},
            {"height", r.extent.height},
@@ -468,7 +474,9 @@ XrResult end_frame(XrSession handle, const XrFrameEndInfo* info) {
            {"centre_rgba", centre_pixel(*s, *sc, r)},
            {"fov", {f.angleLeft, f.angleRight, f.angleUp, f.angleDown}},
            {"fov_located",
-            {located.angleLeft, located.angleRight, located.angleUp, located.angleDown}}});
+            {located.angleLeft, located.angleRight, located.angleUp, located.angleDown}},
+           {"orientation", {q.x, q.y, q.z, q.w}},
+           {"orientation_located", {q_located.x, q_located.y, q_located.z, q_located.w}}});
       if (s->frames_with_projection + 1 == inst.script.dump_at_frame &&
           !inst.script.record_path.empty())
         dump_image(*s, *sc, r, inst.script.record_path + ".eye" + std::to_string(v) + ".ppm");

@@ -40,6 +40,10 @@ struct Script {
   double yaw_amplitude_rad = 0.35;           // "yaw_amplitude_deg"
   double yaw_period_s = 4.0;                 // "yaw_period_s"
   double ipd_m = 0.064;                      // "ipd_m"
+  // "view_cant_deg": each eye's view turned outward about the head's y by this angle (0..30), as
+  // a canted display's (Pimax, Valve Index, Varjo): the left eye's axis to the left, the right's to
+  // the right. 0: parallel eyes.
+  double view_cant_rad = 0.0;
   // "head_path": "yaw" (the sine above, from the session's creation) or "turns"
   // (telex/sim/head_turns.h: yaw, pitch, roll and sway on CLOCK_MONOTONIC, the motion
   // telex-sim-natnet --motion head-turns reports for the head body).
@@ -135,7 +139,7 @@ Instance* current_instance();  // the one instance, or null
 Session* live_session(XrSession handle);
 
 // The head's pose (LOCAL space: the head starts at the origin looking down -z) at `t_ns`, and the
-// eyes' poses and fields of view.
+// eyes' poses (each turned outward by the script's view_cant_rad) and fields of view.
 XrPosef head_pose(const Session& s, std::int64_t t_ns);
 std::array<XrPosef, 2> eye_poses(const Session& s, std::int64_t t_ns);
 std::array<XrFovf, 2> eye_fovs();

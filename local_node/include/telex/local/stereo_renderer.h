@@ -35,8 +35,13 @@ struct Capsule {
 struct EyeView {
   Intrinsics k;
   // This eye's centre in the right eye's camera frame (the right eye: 0; a left eye a baseline B
-  // to its left: (-B, 0, 0)); the eyes' axes are parallel (a rectified pair).
+  // to its left: (-B, 0, 0)).
   glm::dvec3 p_RightEye{0.0};
+  // This eye's orientation: a point p_Right of the right eye's frame is p_Eye = R_EyeRight
+  // (p_Right - p_RightEye) in the frame `k`, `background` and `depth_mm` are in. Identity: the
+  // eyes' axes are the cameras' (a rectified pair); a headset's canted display eye turns them.
+  // The skin's key light stays fixed in the eye's frame.
+  glm::dmat3 R_EyeRight{1.0};
   cv::Mat3b background;  // BGR, k's size; empty: dark grey
   // Non-zero: the eye image is this GL_TEXTURE_2D of the renderer's context instead (RGBA8 with
   // rgb as uploaded from BGR, rows top-down, k's size; e.g. DepthWarp's WarpedEye::texture),

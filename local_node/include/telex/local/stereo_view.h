@@ -54,11 +54,18 @@ struct StereoViewInputs {
   // pose): the video is taken to have been captured at R_BaseDepth.
   std::optional<glm::dmat3> R_BaseVideo;
   // By Side: the pinhole each eye is drawn in instead of the eye camera's (a headset's field of
-  // view for that eye at its swapchain's size, pinhole_from_fov), both of one size, the eyes' axes
-  // as the cameras' (eye_size is then unused). The video and depth keep their true angular
-  // positions in it, resampled, never stretched; outside the camera's field the eye shows
+  // view for that eye at its swapchain's size, pinhole_from_fov), both of one size, the eyes'
+  // axes turned by R_CameraDisplay (eye_size is then unused). The video and depth keep their true
+  // angular positions in it, resampled, never stretched; outside the camera's field the eye shows
   // kOutsideCameraBgr and has no depth.
   std::array<std::optional<Intrinsics>, 2> display_k;
+  // By Side: each eye's display orientation in the camera (right eye) frame, a direction d_Display
+  // of that eye being R_CameraDisplay d_Display: a headset's located view in its head, the head's
+  // axes the camera's (a canted display, Pimax, Index, Varjo, turns each eye outward about y). The
+  // video and depth are resampled through it (a homography; the depth's z along the turned axis)
+  // and the body is drawn in the turned eye, so the remote world and the body stay where they are.
+  // Identity (the default): the eyes' axes are the cameras', the images exactly as without it.
+  std::array<glm::dmat3, 2> R_CameraDisplay{glm::dmat3(1.0), glm::dmat3(1.0)};
 };
 
 // What an eye shows where its display sees beyond the camera's field (display_k).
@@ -81,13 +88,17 @@ struct StereoViewImages {
 class EyeRectifier {
  public:
   EyeRectifier(CameraModel camera, const glm::dmat3& R_TargetEye);
-  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target, const cv::Scalar& border = {});
+  // R_DisplayTarget: `target`'s camera turned from the rectified eye's (p_Display =
+  // R_DisplayTarget p_Target; a canted display eye), folded into the same map.
+  cv::Mat3b apply(const cv::Mat3b& image, const Intrinsics& target, const cv::Scalar& border = {},
+                  const glm::dmat3& R_DisplayTarget = glm::dmat3(1.0));
 
  private:
   CameraModel camera_;
   glm::dmat3 R_TargetEye_;
   cv::Size for_size_;
   Intrinsics for_target_;
+  glm::dmat3 for_R_DisplayTarget_{1.0};
   cv::Mat map1_, map2_;
 };
 
@@ -167,6 +178,18 @@ Intrinsics eye_intrinsics(const Intrinsics& k, cv::Size size);
 // orientation), `to`'s size; outside `image`: `border`. Nearest keeps depth edges unblended.
 cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
                          int interpolation, const cv::Scalar& border = {});
+// The same with `to`'s camera turned from `from`'s (same centre): a direction d_To of `to`'s frame
+// is R_FromTo d_To in `from`'s. A homography K_from R_FromTo K_to^-1; R_FromTo identity: the
+// affine map above, bit for bit.
+cv::Mat resample_pinhole(const cv::Mat& image, const Intrinsics& from, const Intrinsics& to,
+                         const glm::dmat3& R_FromTo, int interpolation,
+                         const cv::Scalar& border = {});
+// A depth image (mm, 0: none) taken with `from` seen from `to`, turned as above: each `to` pixel
+// takes the nearest `from` pixel along its ray, that pixel's point re-expressed as its z in `to`'s
+// frame (the depth the eye's occlusion test needs); outside `from`, behind `to` or beyond 65535
+// mm: 0. R_FromTo identity: resample_pinhole with nearest sampling, bit for bit.
+cv::Mat1w resample_depth_turned(const cv::Mat1w& depth_mm, const Intrinsics& from,
+                                const Intrinsics& to, const glm::dmat3& R_FromTo);
 
 // Index of the capture time in `captures` nearest to `want_ns` (the first of equals); nullopt
 // for none. The view pairs each eye's video with the depth frame it draws over this way.
