@@ -40,11 +40,11 @@ std::vector<cv::Rect> haptic_windows(const Surface* surface, const cv::Mat3f& sh
   return out;
 }
 
-void draw_normal_inset(cv::Mat3b& img, const cv::Mat3f& normals,
-                       std::span<const cv::Rect> windows) {
-  if (normals.empty()) return;
-  const int w = img.cols / 4, h = w * normals.rows / normals.cols;
-  if (w <= 0 || h <= 0 || h + 5 > img.rows) return;
+cv::Mat3b normal_inset(const cv::Mat3f& normals, std::span<const cv::Rect> windows, int image_cols,
+                       int image_rows) {
+  if (normals.empty()) return {};
+  const int w = image_cols / 4, h = w * normals.rows / normals.cols;
+  if (w <= 0 || h <= 0 || h + 5 > image_rows) return {};
   cv::Mat3b small;
   cv::resize(colorize_normals(normals), small, {w, h}, 0, 0, cv::INTER_AREA);
   const double s = static_cast<double>(w) / normals.cols;
@@ -52,9 +52,19 @@ void draw_normal_inset(cv::Mat3b& img, const cv::Mat3f& normals,
     cv::rectangle(small, cv::Point(static_cast<int>(r.x * s), static_cast<int>(r.y * s)),
                   cv::Point(static_cast<int>(r.br().x * s), static_cast<int>(r.br().y * s)),
                   kWindowOutlineBgr, 1);
-  const cv::Rect at(img.cols - w - 4, 4, w, h);
-  small.copyTo(img(at));
-  cv::rectangle(img, cv::Rect(at.x - 1, at.y - 1, w + 2, h + 2), {255, 255, 255}, 1);
+  return small;
+}
+
+void paste_normal_inset(cv::Mat3b& img, const cv::Mat3b& inset) {
+  if (inset.empty() || inset.cols + 5 > img.cols || inset.rows + 5 > img.rows) return;
+  const cv::Rect at(img.cols - inset.cols - 4, 4, inset.cols, inset.rows);
+  inset.copyTo(img(at));
+  cv::rectangle(img, cv::Rect(at.x - 1, at.y - 1, at.width + 2, at.height + 2), {255, 255, 255}, 1);
+}
+
+void draw_normal_inset(cv::Mat3b& img, const cv::Mat3f& normals,
+                       std::span<const cv::Rect> windows) {
+  paste_normal_inset(img, normal_inset(normals, windows, img.cols, img.rows));
 }
 
 std::optional<cv::Point2d> project(const Intrinsics& k, const glm::dvec3& p) {

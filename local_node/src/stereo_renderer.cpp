@@ -83,7 +83,7 @@ struct StereoRenderer::Impl {
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
   EGLSurface surface = EGL_NO_SURFACE;
-  GLuint fbo = 0, color_tex = 0, depth_tex = 0;
+  GLuint fbo = 0, color_tex = 0;    // the eye's picture; the body has its own depth (BodyPass)
   std::vector<float> window_depth;  // by depth in mm
   cv::Mat1f depth_upload;
   std::unique_ptr<BodyPass> body;
@@ -121,13 +121,9 @@ struct StereoRenderer::Impl {
     };
     texture(color_tex);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, width, height, 0, GL_BGRA, GL_UNSIGNED_BYTE, nullptr);
-    texture(depth_tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, width, height, 0, GL_DEPTH_COMPONENT,
-                 GL_FLOAT, nullptr);
     glGenFramebuffers(1, &fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color_tex, 0);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex, 0);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       throw std::runtime_error("stereo view: the offscreen framebuffer is incomplete");
     // Window depth of each depth value in mm (0: no data, the far plane).
@@ -188,8 +184,7 @@ void StereoRenderer::blit_to(unsigned texture, int width, int height) {
 StereoRenderer::~StereoRenderer() {
   if (!impl_->own_context) {  // the context stays: only this renderer's objects go
     Impl& g = *impl_;
-    const GLuint textures[] = {g.color_tex, g.depth_tex};
-    glDeleteTextures(2, textures);
+    glDeleteTextures(1, &g.color_tex);
     const GLuint fbos[] = {g.fbo, g.blit_fbo, g.source_fbo};
     glDeleteFramebuffers(3, fbos);
     g.body.reset();  // the body pass's programs and buffers
@@ -272,7 +267,7 @@ cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
   if ((has_color && eye.background.size() != size) || (has_depth && eye.depth_mm.size() != size))
     throw std::invalid_argument("stereo view: the eye's image or depth is not the eye's size");
 
-  // The eye's image and the remote depth straight into the framebuffer's textures.
+  // The eye's image straight into the framebuffer's texture.
   if (eye.background_texture != 0) {
     // Already in this context (the warp's output): copied on the GPU, no read-back and upload.
     if (!g.source_fbo) glGenFramebuffers(1, &g.source_fbo);
@@ -293,6 +288,8 @@ cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
     const GLfloat grey[4] = {0.25f, 0.25f, 0.25f, 1.0f};
     glClearBufferfv(GL_COLOR, 0, grey);
   }
+  // The remote depth as window depths: the contact shadows and the body's composite test it
+  // (uploaded by the body pass only where they read it).
   if (has_depth) {
     g.depth_upload.create(size);
     for (int y = 0; y < g.height; ++y) {
@@ -300,14 +297,7 @@ cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
       float* out = g.depth_upload.ptr<float>(y);
       for (int x = 0; x < g.width; ++x) out[x] = g.window_depth[in[x]];
     }
-    glBindTexture(GL_TEXTURE_2D, g.depth_tex);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, g.width, g.height, GL_DEPTH_COMPONENT, GL_FLOAT,
-                    g.depth_upload.data);
-  } else {
-    const GLfloat far_plane = 1.0f;
-    glClearBufferfv(GL_DEPTH, 0, &far_plane);
   }
-  glEnable(GL_DEPTH_TEST);
   glDisable(GL_CULL_FACE);
 
   g.body->set_scene_depth(has_depth ? g.depth_upload : cv::Mat1f());

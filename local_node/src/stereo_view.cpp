@@ -33,9 +33,8 @@ cv::Vec3b pressure_bgr(double n) {
 
 // The overlay: the normal-map inset with the haptic path's windows outlined (none when empty)
 // and the status text, wrapped to fit the width.
-void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3f& normals,
-             std::span<const cv::Rect> windows) {
-  draw_normal_inset(img, normals, windows);
+void overlay(cv::Mat3b& img, const StereoViewInputs& in, const cv::Mat3b& inset) {
+  paste_normal_inset(img, inset);
   draw_status_band(img, in.status, 0.45, 1);
 }
 
@@ -404,20 +403,26 @@ StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVid
   const bool depth_fits =
       !early.depth_mm.empty() && early.depth_mm.size() == cv::Size(early.k.width, early.k.height);
   if (depth_fits) out.normals = display_normals(early.depth_mm, early.k, early.surface);
+  // The inset once for both eyes, before any video is taken, at the size of the eyes drawn last
+  // (again if these are not).
+  const std::vector<cv::Rect> windows = haptic_windows(early.surface, out.normals);
+  const cv::Size inset_for = renderer_size_;
+  cv::Mat3b inset = normal_inset(out.normals, windows, inset_for.width, inset_for.height);
   std::array<EyeView, 2> views;
   StereoViewInputs in;
   out.one_eye = draw_bodies(early, late_video, in, views);
+  if (renderer_size_ != inset_for)
+    inset = normal_inset(out.normals, windows, renderer_size_.width, renderer_size_.height);
   out.warped = warped_;
   out.right = renderer_->compose(index_of(Side::Right), views[index_of(Side::Right)]);
   out.left = renderer_->compose(index_of(Side::Left), views[index_of(Side::Left)]);
   if (in.fig7) {
     cv::Mat3b interaction = out.right.clone();
-    overlay(interaction, in, {}, {});
+    overlay(interaction, in, {});
     out.fig7 = fig7_layout(interaction, k_eye_, out.normals, in.k, in.forces, in.arrow_m_per_N);
   }
-  const std::vector<cv::Rect> windows = haptic_windows(in.surface, out.normals);
-  overlay(out.left, in, out.normals, windows);
-  overlay(out.right, in, out.normals, windows);
+  overlay(out.left, in, inset);
+  overlay(out.right, in, inset);
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }

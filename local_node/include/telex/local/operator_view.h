@@ -36,6 +36,11 @@ cv::Mat3b render_operator_view(const ViewInputs& in);
 // white border: `normals` colourised, `windows` (their pixels) outlined on it. Nothing when empty.
 void draw_normal_inset(cv::Mat3b& img, const cv::Mat3f& normals,
                        std::span<const cv::Rect> windows = {});
+// The same in two steps, for images of one width drawn later: the inset for an image
+// `image_cols` wide (empty when it would not fit `image_rows`), then pasted with its border.
+cv::Mat3b normal_inset(const cv::Mat3f& normals, std::span<const cv::Rect> windows, int image_cols,
+                       int image_rows);
+void paste_normal_inset(cv::Mat3b& img, const cv::Mat3b& inset);
 // The windows the haptic path built normals in (the bounding boxes of where `surface`'s normals
 // are set), to outline on the full-frame normals `shown`; none when `shown` is the surface's own.
 std::vector<cv::Rect> haptic_windows(const Surface* surface, const cv::Mat3f& shown);

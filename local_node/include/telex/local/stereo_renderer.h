@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
-// The operator's stereo view, one eye at a time: that eye's camera image as the background, the
-// remote depth registered to that eye written into the depth buffer, fingertips' contact shadows
-// on it, and the virtual body drawn as one smooth shaded surface over its capsules, so the real
-// scene hides the body wherever it is nearer. OpenGL 3.3 core through
+// The operator's stereo view, one eye at a time: that eye's camera image as the background,
+// fingertips' contact shadows on the remote depth registered to that eye, and the virtual body
+// drawn as one smooth shaded surface over its capsules into a target of its own and composited
+// where it is nearer than the remote depth, so the real scene hides it. OpenGL 3.3 core through
 // libepoxy, on a headless EGL context (Mesa's llvmpipe runs it with no display and no GPU).
 #pragma once
 
