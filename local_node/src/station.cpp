@@ -278,15 +278,17 @@ void Station::Run::main_loop() {
   last_status_ns_ = monotonic_ns();
   bool view_at_written = false;
   while (!stop_.load()) {
-    std::this_thread::sleep_for(milliseconds(5));
+    // With a window the loop's 5 ms are spent waiting for its next picture, shown as soon as the
+    // view hands it over.
+    if (!view_.window())
+      std::this_thread::sleep_for(milliseconds(5));
+    else if (view_.pump_window(stop_, milliseconds(5)))
+      break;
     faults_.check(StationLoop::Main);
     if (poll_thread_faults()) break;
-    if (view_.window()) {
-      if (monotonic_ns() >= next_view && view_.stereo_idle()) {
-        next_view = monotonic_ns() + kOnScreenViewPeriodNs;
-        view_.request_stereo(stats_.last().forces, last_status_);
-      }
-      if (view_.pump_window(stop_)) break;
+    if (view_.window() && monotonic_ns() >= next_view && view_.stereo_idle()) {
+      next_view = monotonic_ns() + kOnScreenViewPeriodNs;
+      view_.request_stereo(stats_.last().forces, last_status_);
     }
     if (view_.openxr()) {
       if (monotonic_ns() >= next_view) {  // the headset draws the newest at its own rate

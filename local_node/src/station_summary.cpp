@@ -59,6 +59,8 @@ nlohmann::json video_json(const StationSummary& s) {
                                           ? static_cast<double>(s.video_pairs_shown) /
                                                 static_cast<double>(s.video_frames_drawn)
                                           : 0.0},
+          {"video_late_waits", s.video_late_waits},
+          {"video_late_waits_met", s.video_late_waits_met},
           {"video_delivered_age_samples", s.video_delivered_age_samples},
           {"video_delivered_age_ms_median", s.video_delivered_age_ms_median},
           {"video_delivered_age_ms_p99", s.video_delivered_age_ms_p99},

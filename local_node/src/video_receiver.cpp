@@ -69,6 +69,35 @@ void VideoReceiver::push(std::vector<std::uint8_t> frame, bool resent) {
   cv_.notify_one();
 }
 
+std::int64_t late_pair_wait_ns(std::int64_t delivered_ns, std::int64_t period_ns,
+                               std::int64_t now_ns, std::int64_t max_wait_ns) {
+  if (delivered_ns == 0 || period_ns <= 0) return 0;
+  const std::int64_t due_in = delivered_ns + period_ns - now_ns;
+  if (due_in > max_wait_ns) return 0;  // the newest is young enough: the next is far
+  return std::max<std::int64_t>(due_in, 0) + kLatePairSlackNs;
+}
+
+std::shared_ptr<const EyePair> VideoReceiver::wait_newer(std::uint32_t frame_id,
+                                                         std::chrono::nanoseconds timeout) const {
+  std::unique_lock lock(pairs_mu_);
+  const bool came = pairs_cv_.wait_for(
+      lock, timeout, [&] { return !pairs_.empty() && pairs_.back()->frame_id != frame_id; });
+  return came ? pairs_.back() : nullptr;
+}
+
+std::int64_t VideoReceiver::pair_period_ns() const {
+  std::array<std::int64_t, kKeptPairs - 1> gaps{};
+  std::size_t n = 0;
+  {
+    std::lock_guard lock(pairs_mu_);
+    for (std::size_t i = 1; i < pairs_.size(); ++i)
+      gaps[n++] = pairs_[i]->capture_ns - pairs_[i - 1]->capture_ns;
+  }
+  if (n < 2) return 0;
+  std::sort(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(n));
+  return std::max<std::int64_t>(gaps[n / 2], 0);
+}
+
 std::shared_ptr<const EyePair> VideoReceiver::pair(std::int64_t want_capture_ns) const {
   std::lock_guard lock(pairs_mu_);
   if (pairs_.empty()) return nullptr;
@@ -150,12 +179,14 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
       if (p->head_joint_rad) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
       p->left_bgr = d.out.left_bgr.clone();  // the decoder reuses its images
       p->right_bgr = d.out.right_bgr.clone();
+      p->delivered_ns = hooks_.now_ns();
       const std::int64_t capture_ns = p->capture_ns;
       {
         std::lock_guard lock(pairs_mu_);
         pairs_.push_back(std::move(p));
         if (pairs_.size() > kKeptPairs) pairs_.pop_front();
       }
+      pairs_cv_.notify_all();
       record_delivery(capture_ns);
       return;
     }

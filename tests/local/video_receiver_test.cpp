@@ -99,6 +99,40 @@ TEST(VideoReceiver, DecodesPairsOfTheRightSizeInOrder) {
   EXPECT_EQ(f.pli_count(), 0u);
 }
 
+// A view taking the newest pair waits for the next only when it is due within the bound.
+TEST(VideoReceiver, AViewWaitsForTheNextPairOnlyWhenItIsDueSoon) {
+  constexpr std::int64_t ms = 1'000'000, period = 33 * ms, bound = 12 * ms;
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, period, 105 * ms, bound), 0) << "due in 28 ms: no wait";
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, period, 120 * ms, bound), 0) << "due in 13 ms: no wait";
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, period, 121 * ms, bound), bound + kLatePairSlackNs);
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, period, 125 * ms, bound), 8 * ms + kLatePairSlackNs);
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, period, 150 * ms, bound), kLatePairSlackNs)
+      << "overdue: only the slack";
+  EXPECT_EQ(late_pair_wait_ns(0, period, 125 * ms, bound), 0) << "no delivery time";
+  EXPECT_EQ(late_pair_wait_ns(100 * ms, 0, 125 * ms, bound), 0) << "no period yet";
+}
+
+// wait_newer returns the pair decoded while it waits, and null when none comes in time; the
+// period is the median gap of the kept pairs' captures (33 ms in the fixture).
+TEST(VideoReceiver, WaitingForANewerPairReturnsItWhenDecodedElseNull) {
+  Fixture f;
+  EXPECT_EQ(f.receiver->pair_period_ns(), 0);
+  for (int i = 0; i < 3; ++i) f.receiver->push(f.next_pair());
+  ASSERT_TRUE(eventually([&] { return f.receiver->counters().decoded.load() == 3; }));
+  EXPECT_EQ(f.receiver->pair_period_ns(), 33'000'000);
+  EXPECT_EQ(f.receiver->pair()->delivered_ns, f.now_ns.load());
+  EXPECT_EQ(f.receiver->wait_newer(3, 20ms), nullptr);
+  std::thread pusher([&] {
+    std::this_thread::sleep_for(20ms);
+    f.receiver->push(f.next_pair());
+  });
+  const auto newer = f.receiver->wait_newer(3, 10s);
+  pusher.join();
+  ASSERT_NE(newer, nullptr);
+  EXPECT_EQ(newer->frame_id, 4u);
+  EXPECT_EQ(f.receiver->wait_newer(3, 0ms)->frame_id, 4u) << "already newer: at once";
+}
+
 // The station stops the receiver before its client goes: from then on no hook that reaches the
 // client (round trip, clock offset, NACKs, PLIs) is called, later pairs wait undecoded, the last
 // pair stays.

@@ -109,6 +109,8 @@ void StationView::summarize(StationSummary& s) const {
   std::lock_guard lock(shown_mu_);
   s.video_pairs_shown = pairs_shown_;
   s.video_frames_drawn = frames_drawn_;
+  s.video_late_waits = late_waits_;
+  s.video_late_waits_met = late_waits_met_;
   std::vector<double> age = shown_age_ms_;
   s.shown_frame_age_ms_median = percentile(age, 0.5);
   s.shown_frame_age_ms_p99 = percentile(age, 0.99);
@@ -167,15 +169,27 @@ void StationView::write_files(const std::array<FingertipForce, kFingerCount>& fo
   request_stereo(forces, status);  // the view thread writes the pair and view.png
 }
 
-std::shared_ptr<const EyePair> StationView::show_pair(std::int64_t want_capture_ns) {
+std::shared_ptr<const EyePair> StationView::show_pair(std::int64_t want_capture_ns, bool late) {
   if (!video_) return nullptr;
   auto pair = video_->pair(want_capture_ns);
   if (!pair) return nullptr;
+  // Late, when the next pair is due within a few ms: waited for, rather than showing one about a
+  // period old.
+  const std::int64_t wait_ns = late
+                                   ? late_pair_wait_ns(pair->delivered_ns, video_->pair_period_ns(),
+                                                       monotonic_ns(), kMaxLatePairWaitNs)
+                                   : 0;
+  std::shared_ptr<const EyePair> newer;
+  if (wait_ns > 0) newer = video_->wait_newer(pair->frame_id, std::chrono::nanoseconds(wait_ns));
+  const bool came = newer != nullptr;
+  if (came) pair = std::move(newer);
   auto* c = client_.load();
   // Display time on the remote's clock (the heartbeat's offset), as the capture time.
   const std::int64_t now_remote_ns = monotonic_ns() + (c ? c->stats().clock_offset_ns.load() : 0);
   std::lock_guard lock(shown_mu_);
   ++frames_drawn_;
+  late_waits_ += wait_ns > 0;
+  late_waits_met_ += came;
   if (pairs_shown_ == 0 || pair->frame_id != last_shown_frame_id_) ++pairs_shown_;
   last_shown_frame_id_ = pair->frame_id;
   if (shown_age_ms_.size() < kMaxAgeSamples)
@@ -197,8 +211,8 @@ void StationView::request_stereo(const std::array<FingertipForce, kFingerCount>&
   stereo_cv_.notify_one();
 }
 
-bool StationView::pump_window(std::atomic<bool>& stop) {
-  if (auto sbs = sbs_for_window_.take(std::chrono::milliseconds(0))) {
+bool StationView::pump_window(std::atomic<bool>& stop, std::chrono::milliseconds wait) {
+  if (auto sbs = sbs_for_window_.take(wait)) {
     window_->show(sbs->bgr);
     photon_now(sbs->stamps);  // swapped
   } else {
@@ -264,7 +278,8 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
   // The pictures keep the pair captured nearest the depth.
   const bool late = spec_.on_screen();  // stereo_inputs only looked at the newest pair
   const StereoViewImages v =
-      late ? view.render(in, [this](StereoViewInputs& l) { take_pair(l, 0); }) : view.render(in);
+      late ? view.render(in, [this](StereoViewInputs& l) { take_pair(l, 0, true); })
+           : view.render(in);
   if (v.one_eye && !warned_one_eye_) {
     spdlog::warn("the remote sends one eye's video only: the stereo view uses it for both eyes");
     warned_one_eye_ = true;
@@ -320,8 +335,8 @@ bool StationView::stereo_inputs(StereoViewInputs& in, bool late_pair) {
   return true;
 }
 
-void StationView::take_pair(StereoViewInputs& in, std::int64_t want_capture_ns) {
-  const auto pair = show_pair(want_capture_ns);
+void StationView::take_pair(StereoViewInputs& in, std::int64_t want_capture_ns, bool late) {
+  const auto pair = show_pair(want_capture_ns, late);
   if (!pair) return;
   drawn_ = pair;
   in.eye_bgr = {pair->left_bgr, pair->right_bgr};

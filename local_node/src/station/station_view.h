@@ -7,6 +7,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -106,9 +107,10 @@ class StationView {
   // thread. With --view-at only the moment it names is written (`at_moment`).
   void write_files(const std::array<FingertipForce, kFingerCount>& forces,
                    const std::string& status, bool at_moment = false);
-  // The window's turn: the newest stereo pair or the window's events. True once the operator
-  // closed it (the station then stops as on a signal; `stop` is set).
-  bool pump_window(std::atomic<bool>& stop);
+  // The window's turn: the newest stereo pair, waited for up to `wait`, or the window's events.
+  // True once the operator closed it (the station then stops as on a signal; `stop` is set).
+  bool pump_window(std::atomic<bool>& stop,
+                   std::chrono::milliseconds wait = std::chrono::milliseconds(0));
   // At the end: what the window showed.
   void log_window_counts() const;
 
@@ -118,7 +120,9 @@ class StationView {
  private:
   // The decoded pair captured nearest to `want_capture_ns` (0: the newest), counted as shown now
   // (its age: display time minus capture time); null before the first.
-  std::shared_ptr<const EyePair> show_pair(std::int64_t want_capture_ns = 0);
+  // `late`: the newest, or the next when it is due within kMaxLatePairWaitNs (waited for).
+  std::shared_ptr<const EyePair> show_pair(std::int64_t want_capture_ns = 0, bool late = false);
+  static constexpr std::int64_t kMaxLatePairWaitNs = 12'000'000;
   // The stereo pair for one request, or false when there is no surface to draw yet.
   bool render_stereo(StereoView& view, StereoViewInputs& in);
   void write_stereo_files(const StereoViewImages& v) const;
@@ -133,7 +137,7 @@ class StationView {
   bool stereo_inputs(StereoViewInputs& in, bool late_pair = false);
   // The pair captured nearest `want_capture_ns` (0: the newest) into `in`, shown (show_pair), with
   // its pairing to the depth in the status and its head pose for the warp.
-  void take_pair(StereoViewInputs& in, std::int64_t want_capture_ns);
+  void take_pair(StereoViewInputs& in, std::int64_t want_capture_ns, bool late = false);
   // in.R_BaseVideo from the drawn pair's own head pose; a pair without one leaves it unset (the
   // video is turned from the depth's pose, as before the pairs carried one), said once.
   void video_pose(StereoViewInputs& in);
@@ -152,6 +156,7 @@ class StationView {
   mutable std::mutex shown_mu_;
   std::uint32_t last_shown_frame_id_ = 0;  // guarded by shown_mu_, as the two below
   std::uint64_t pairs_shown_ = 0;
+  std::uint64_t late_waits_ = 0, late_waits_met_ = 0;  // show_pair's late waits, and those met
   std::uint64_t frames_drawn_ = 0;    // frames that took a pair (pairs_shown_ of them a fresh one)
   std::vector<double> shown_age_ms_;  // at most kMaxAgeSamples
   // Glass to glass: capture to the rendered eye handed to the display, for the pairs whose frame

@@ -94,7 +94,8 @@ void StationView::run_openxr(std::stop_token stop) {
         in.display_k[eye] = pinhole_from_fov(t[eye].fov, t[eye].width, t[eye].height);
         in.R_CameraDisplay[eye] = t[eye].R_HeadEye;
       }
-      // The video late-latched, as in the window: the newest pair, taken once the body is drawn.
+      // The video late-latched, as in the window: the newest pair, taken once the body is drawn
+      // (without waiting for the next: the runtime paces the frames).
       p.view->render_into(in,
                           {StereoView::GlTarget{t[0].texture, t[0].width, t[0].height},
                            StereoView::GlTarget{t[1].texture, t[1].width, t[1].height}},

@@ -78,6 +78,9 @@ struct StationSummary {
   double shown_frame_age_ms_median = 0, shown_frame_age_ms_p99 = 0;
   // Frames the view drew with a pair: video_pairs_shown of them took one not drawn before.
   std::uint64_t video_frames_drawn = 0;
+  // On screen the pair is taken once the body is drawn; when the next pair was due within
+  // kMaxLatePairWaitNs the view waited for it: that many times, and how often it came in time.
+  std::uint64_t video_late_waits = 0, video_late_waits_met = 0;
   // Every pair decoded whole, not only the drawn ones (VideoReceiver::DeliveryAges): capture to
   // delivery to the view, and the age the previous pair had reached when it was replaced (what a
   // display at any rate showed at worst), with how many of those exceeded 3 periods at 30 Hz.

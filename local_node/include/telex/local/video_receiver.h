@@ -8,6 +8,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -32,7 +33,16 @@ struct EyePair {
   // The robot head's joints (yaw, pitch, roll) at capture_ns, when the remote has a head.
   std::optional<std::array<float, 3>> head_joint_rad;
   cv::Mat3b left_bgr, right_bgr;
+  std::int64_t delivered_ns = 0;  // when it was decoded whole (the receiver's now_ns)
 };
+
+// How long a view about to take the newest pair (delivered at `delivered_ns`, pairs coming every
+// `period_ns`) waits for the next one, by the clock of `now_ns`: until the next is due plus
+// kLatePairSlackNs when that is at most `max_wait_ns` away, else not at all (0). Unknown
+// period or delivery (0): no wait.
+inline constexpr std::int64_t kLatePairSlackNs = 3'000'000;
+std::int64_t late_pair_wait_ns(std::int64_t delivered_ns, std::int64_t period_ns,
+                               std::int64_t now_ns, std::int64_t max_wait_ns);
 
 struct VideoReceiverCounters {
   std::atomic<std::uint64_t> received{0};       // EncodedVideo messages taken
@@ -90,6 +100,12 @@ class VideoReceiver {
   // Any thread: the whole pair captured nearest `want_capture_ns` (0: the newest) among the last
   // few decoded, or null before the first.
   std::shared_ptr<const EyePair> pair(std::int64_t want_capture_ns = 0) const;
+  // Any thread: the newest pair once one newer than `frame_id` is decoded, waiting at most
+  // `timeout` for it (std::chrono's steady clock); null if none came by then.
+  std::shared_ptr<const EyePair> wait_newer(std::uint32_t frame_id,
+                                            std::chrono::nanoseconds timeout) const;
+  // The median capture interval of the last pairs kept (0 before three are).
+  std::int64_t pair_period_ns() const;
   const VideoReceiverCounters& counters() const { return counters_; }
   DeliveryAges delivery_ages() const;
 
@@ -121,6 +137,7 @@ class VideoReceiver {
   std::deque<Arrived> queue_;  // guarded by mu_
   bool stopping_ = false;      // guarded by mu_
   mutable std::mutex pairs_mu_;
+  mutable std::condition_variable pairs_cv_;          // a pair was added to pairs_
   std::deque<std::shared_ptr<const EyePair>> pairs_;  // the last kKeptPairs, oldest first
   DeliveryAges ages_;                                 // guarded by pairs_mu_
   std::int64_t last_capture_ns_ = 0;                  // decode thread: the pair delivered last
