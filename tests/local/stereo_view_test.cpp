@@ -231,7 +231,7 @@ StereoViewInputs hand_at_a_wall() {
   return in;
 }
 
-TEST(StereoView, AlateVideoThatChangesNothingGivesTheSameImagesAsTheOneShot) {
+TEST(StereoView, ALateVideoThatChangesNothingGivesTheSameImagesAsTheOneShot) {
   const StereoViewInputs in = hand_at_a_wall();
   StereoView one_shot(640, 480), latched(640, 480);
   const StereoViewImages a = one_shot.render(in);
