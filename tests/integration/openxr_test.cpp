@@ -486,6 +486,60 @@ TEST(OpenXrCalibrateHmd, RecordedPosesGiveTheStageBack) {
             0.002);
 }
 
+// The station drawing a pressing hand over the synthetic plane into the project's runtime until it
+// has dumped a frame (no --duration: llvmpipe on a loaded machine draws a frame in 16 ms or in
+// seconds), then stopped by SIGINT; the runtime's record, which the test checks has no error.
+nlohmann::json run_until_dumped(const std::filesystem::path& dir) {
+  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
+  Process local(
+      station_args(remote, dir, {"--hand", "script:press", "--repeat", "--view", "openxr"}),
+      dir / "local.out", dir / "local.err");
+  const auto dumped = dir / "xr_record.json.eye1.ppm";
+  EXPECT_TRUE(eventually(120s, [&] { return std::filesystem::exists(dumped); }))
+      << "no frame dumped; " << local.stderr_text();
+  local.signal(SIGINT);  // the images are read once the station (the runtime's process) exited
+  EXPECT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
+  nlohmann::json rec = read_json(dir / "xr_record.json");
+  EXPECT_TRUE(rec.is_object()) << local.stderr_text();
+  if (rec.is_object()) {
+    EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  }
+  return rec;
+}
+
+// One eye's dumped image and the tangents of the fov submitted with it (the same every frame).
+struct DumpedEye {
+  cv::Mat3b img;
+  double l = 0, r = 0, u = 0, d = 0;
+};
+DumpedEye dumped_eye(const std::filesystem::path& dir, const nlohmann::json& rec, int eye) {
+  DumpedEye out;
+  out.img = cv::imread((dir / ("xr_record.json.eye" + std::to_string(eye) + ".ppm")).string());
+  std::array<double, 4> fov{};
+  for (const auto& f : rec["frames"])
+    if (f["eyes"].size() == 2)
+      for (int i = 0; i < 4; ++i) fov[i] = f["eyes"][eye]["fov"][i].get<double>();
+  out.l = std::tan(fov[0]);
+  out.r = std::tan(fov[1]);
+  out.u = std::tan(fov[2]);
+  out.d = std::tan(fov[3]);
+  return out;
+}
+
+// The runtime's neutral grey beyond the camera's field.
+bool neutral(const cv::Vec3b& c) {
+  for (int i = 0; i < 3; ++i)
+    if (std::abs(c[i] - 70) > 3) return false;
+  return true;
+}
+
+// The first of n pixels (at(i)) that holds video, n if none.
+int first_video(int n, const std::function<cv::Vec3b(int)>& at) {
+  for (int i = 0; i < n; ++i)
+    if (!neutral(at(i))) return i;
+  return n;
+}
+
 // Each eye drawn in the field of view the runtime located for it (its canted pair, wider than the
 // eye camera's), end to end: in the images the runtime received, the eye camera's field (the
 // directions of its image's edges, known from the synthetic source's intrinsics) begins at the
@@ -499,20 +553,8 @@ TEST(OpenXrView, EyesShowTheVideoAtItsTrueAngleInTheLocatedFov) {
                   {{"width", kW}, {"height", kH}, {"period_ms", 16.0}, {"dump_at_frame", 3}},
                   nullptr);
   env.set("DISPLAY", "");
-  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
-  // No --duration: the run ends once the runtime has dumped the third frame drawn (llvmpipe on a
-  // loaded machine draws a frame in 16 ms or in seconds).
-  Process local(
-      station_args(remote, dir, {"--hand", "script:press", "--repeat", "--view", "openxr"}),
-      dir / "local.out", dir / "local.err");
-  const auto dumped = dir / "xr_record.json.eye1.ppm";
-  ASSERT_TRUE(eventually(120s, [&] { return std::filesystem::exists(dumped); }))
-      << "no frame dumped; " << local.stderr_text();
-  local.signal(SIGINT);  // the images are read once the station (the runtime's process) exited
-  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
-  const nlohmann::json rec = read_json(dir / "xr_record.json");
-  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
-  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  const nlohmann::json rec = run_until_dumped(dir);
+  ASSERT_TRUE(rec.is_object());
   // The station's own end (SIGINT): it asked to exit, ended the session at STOPPING, destroyed it.
   EXPECT_TRUE(rec.contains("exit_requested_at_frame")) << rec.dump();
   ASSERT_FALSE(states_polled(rec).empty());
@@ -520,35 +562,18 @@ TEST(OpenXrView, EyesShowTheVideoAtItsTrueAngleInTheLocatedFov) {
   EXPECT_EQ(rec["session_destroyed_in_state"], "EXITING");
   const Intrinsics cam = kinect_v1_intrinsics(640, 480);  // the synthetic source's field
   const double cam_left = -(cam.cx + 0.5) / cam.fx, cam_top = (cam.cy + 0.5) / cam.fy;
-  const auto neutral = [](const cv::Vec3b& c) {
-    for (int i = 0; i < 3; ++i)
-      if (std::abs(c[i] - 70) > 3) return false;
-    return true;
-  };
   for (int eye = 0; eye < 2; ++eye) {
     SCOPED_TRACE("eye " + std::to_string(eye));
-    const cv::Mat3b img =
-        cv::imread((dir / ("xr_record.json.eye" + std::to_string(eye) + ".ppm")).string());
+    const DumpedEye e = dumped_eye(dir, rec, eye);
+    const cv::Mat3b& img = e.img;
     ASSERT_EQ(img.size(), cv::Size(kW, kH)) << "no image dumped";
-    // The fov submitted with the dumped frame (the same every frame: the runtime's fixed pair).
-    std::array<double, 4> fov{};
-    for (const auto& f : rec["frames"])
-      if (f["eyes"].size() == 2)
-        for (int i = 0; i < 4; ++i) fov[i] = f["eyes"][eye]["fov"][i].get<double>();
-    const double l = std::tan(fov[0]), r = std::tan(fov[1]), u = std::tan(fov[2]),
-                 d = std::tan(fov[3]);
     // OpenXR's projection: tangent t right of the axis at column W (t - l) / (r - l) - 0.5.
-    const double want_col = kW * (cam_left - l) / (r - l) - 0.5;
-    const double want_row = kH * (u - cam_top) / (u - d) - 0.5;
-    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - l) / (r - l) - 0.5));
-    const int axis_row = static_cast<int>(std::lround(kH * u / (u - d) - 0.5));
+    const double want_col = kW * (cam_left - e.l) / (e.r - e.l) - 0.5;
+    const double want_row = kH * (e.u - cam_top) / (e.u - e.d) - 0.5;
+    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - e.l) / (e.r - e.l) - 0.5));
+    const int axis_row = static_cast<int>(std::lround(kH * e.u / (e.u - e.d) - 0.5));
     // The first pixel of the video from the left along the axis's row (upper half: no hand
     // there), and from the top down the axis's column.
-    const auto first_video = [&](int n, const std::function<cv::Vec3b(int)>& at) {
-      for (int i = 0; i < n; ++i)
-        if (!neutral(at(i))) return i;
-      return n;
-    };
     const int row = axis_row - kH / 8;
     const int got_col = first_video(kW, [&](int i) { return img(row, i); });
     const int got_row = first_video(kH, [&](int i) { return img(i, axis_col); });
@@ -578,18 +603,8 @@ TEST(OpenXrView, CantedEyesShowTheVideoTurnedAsTheirLocatedPoses) {
                    {"view_cant_deg", kCant_deg}},
                   nullptr);
   env.set("DISPLAY", "");
-  RemoteProcess remote(dir, {"--source", "synthetic:plane", "--stereo", "synthetic:plane"});
-  Process local(
-      station_args(remote, dir, {"--hand", "script:press", "--repeat", "--view", "openxr"}),
-      dir / "local.out", dir / "local.err");
-  const auto dumped = dir / "xr_record.json.eye1.ppm";
-  ASSERT_TRUE(eventually(120s, [&] { return std::filesystem::exists(dumped); }))
-      << "no frame dumped; " << local.stderr_text();
-  local.signal(SIGINT);
-  ASSERT_EQ(local.wait(60s).value_or(-1), 0) << local.stderr_text();
-  const nlohmann::json rec = read_json(dir / "xr_record.json");
-  ASSERT_TRUE(rec.is_object()) << local.stderr_text();
-  EXPECT_EQ(rec["errors"].size(), 0u) << rec["errors"].dump();
+  const nlohmann::json rec = run_until_dumped(dir);
+  ASSERT_TRUE(rec.is_object());
   int layers = 0;
   for (const auto& f : rec["frames"]) {
     if (f["eyes"].size() != 2) continue;
@@ -606,41 +621,25 @@ TEST(OpenXrView, CantedEyesShowTheVideoTurnedAsTheirLocatedPoses) {
   EXPECT_GE(layers, 3);
   const Intrinsics cam = kinect_v1_intrinsics(640, 480);  // the synthetic source's field
   const double cam_left = -(cam.cx + 0.5) / cam.fx, cam_top = (cam.cy + 0.5) / cam.fy;
-  const auto neutral = [](const cv::Vec3b& c) {
-    for (int i = 0; i < 3; ++i)
-      if (std::abs(c[i] - 70) > 3) return false;
-    return true;
-  };
   const double cant_rad = kCant_deg * M_PI / 180.0;
   for (int eye = 0; eye < 2; ++eye) {
     SCOPED_TRACE("eye " + std::to_string(eye));
-    const cv::Mat3b img =
-        cv::imread((dir / ("xr_record.json.eye" + std::to_string(eye) + ".ppm")).string());
+    const DumpedEye e = dumped_eye(dir, rec, eye);
+    const cv::Mat3b& img = e.img;
     ASSERT_EQ(img.size(), cv::Size(kW, kH)) << "no image dumped";
-    std::array<double, 4> fov{};
-    for (const auto& f : rec["frames"])
-      if (f["eyes"].size() == 2)
-        for (int i = 0; i < 4; ++i) fov[i] = f["eyes"][eye]["fov"][i].get<double>();
-    const double l = std::tan(fov[0]), r = std::tan(fov[1]), u = std::tan(fov[2]),
-                 d = std::tan(fov[3]);
     // The eye in the head (OpenXR's axes): outward, the left one about +y.
     const glm::dquat q_HeadEye =
         glm::angleAxis(eye == 0 ? cant_rad : -cant_rad, glm::dvec3(0.0, 1.0, 0.0));
     // The camera field's left edge, a direction of the head, in the eye: its column.
     const glm::dvec3 edge_Eye = glm::conjugate(q_HeadEye) * glm::dvec3(cam_left, 0.0, -1.0);
-    const double want_col = kW * (edge_Eye.x / -edge_Eye.z - l) / (r - l) - 0.5;
+    const double want_col = kW * (edge_Eye.x / -edge_Eye.z - e.l) / (e.r - e.l) - 0.5;
     // On the eye's axis column a ray (0, t, -1) of the eye meets the top edge where the head sees
     // it at tangent cam_top up: the turn about y leaves y and shortens the head's -z.
     const double axis_z_Head = -(q_HeadEye * glm::dvec3(0.0, 0.0, -1.0)).z;
     const double t_top = cam_top * axis_z_Head;
-    const double want_row = kH * (u - t_top) / (u - d) - 0.5;
-    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - l) / (r - l) - 0.5));
-    const int axis_row = static_cast<int>(std::lround(kH * u / (u - d) - 0.5));
-    const auto first_video = [&](int n, const std::function<cv::Vec3b(int)>& at) {
-      for (int i = 0; i < n; ++i)
-        if (!neutral(at(i))) return i;
-      return n;
-    };
+    const double want_row = kH * (e.u - t_top) / (e.u - e.d) - 0.5;
+    const int axis_col = static_cast<int>(std::lround(kW * (0.0 - e.l) / (e.r - e.l) - 0.5));
+    const int axis_row = static_cast<int>(std::lround(kH * e.u / (e.u - e.d) - 0.5));
     const int row = axis_row - kH / 8;
     const int got_col = first_video(kW, [&](int i) { return img(row, i); });
     const int got_row = first_video(kH, [&](int i) { return img(i, axis_col); });

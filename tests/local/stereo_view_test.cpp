@@ -305,25 +305,35 @@ cv::Point2d centroid(const cv::Mat3b& img, const std::function<bool(const cv::Ve
   return n > 0 ? cv::Point2d(su / n, sv / n) : cv::Point2d(-1e9, -1e9);
 }
 
+// The project's runtime's canted pair of fields of view (tools/sim/openxr/runtime.cpp eye_fovs),
+// wider than the eye camera, for kW x kH eyes.
+const std::array<XrEyeFov, 2> kSimRuntimeFov{XrEyeFov{-0.87, 0.75, 0.82, -0.87},
+                                             XrEyeFov{-0.75, 0.87, 0.82, -0.87}};
+constexpr int kW = 640, kH = 720;
+// The eye video: green, a white dot at camera pixel dot_px (470, 130), as both eyes'
+// (uncalibrated: each seen through the depth camera's pinhole from its own centre), drawn with a
+// reaching hand in kSimRuntimeFov.
+const cv::Point2d dot_px(470.0, 130.0);
+StereoViewInputs dot_video_in_fov() {
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(640, 480);
+  in.hand = reaching_hand();
+  cv::Mat3b video(480, 640, cv::Vec3b(40, 150, 40));
+  cv::rectangle(video, cv::Rect(468, 128, 5, 5), cv::Scalar(255, 255, 255), cv::FILLED);
+  in.eye_bgr = {video, video};
+  for (std::size_t eye = 0; eye < 2; ++eye)
+    in.display_k[eye] = pinhole_from_fov(kSimRuntimeFov[eye], kW, kH);
+  return in;
+}
+
 // --view openxr draws each eye in the field of view the runtime located for it: here the project's
 // runtime's canted pair (tools/sim/openxr/runtime.cpp eye_fovs), wider than the eye camera. A
 // point of the eye video and the index fingertip of the drawn hand land where that fov (the one
 // submitted) puts them; beyond the camera's field the eye is neutral, not the video stretched.
 TEST(OpenXrEyeFov, AKnownPointLandsWhereTheSubmittedFovPutsIt) {
-  const std::array<XrEyeFov, 2> fov{XrEyeFov{-0.87, 0.75, 0.82, -0.87},
-                                    XrEyeFov{-0.75, 0.87, 0.82, -0.87}};
-  constexpr int kW = 640, kH = 720;
+  const std::array<XrEyeFov, 2>& fov = kSimRuntimeFov;
   StereoView view(kW, kH);
-  StereoViewInputs in;
-  in.k = kinect_v1_intrinsics(640, 480);
-  in.hand = reaching_hand();
-  // The eye video: green, a white dot at camera pixel (470, 130), as both eyes' (uncalibrated:
-  // each seen through the depth camera's pinhole from its own centre).
-  cv::Mat3b video(480, 640, cv::Vec3b(40, 150, 40));
-  const cv::Point2d dot_px(470.0, 130.0);
-  cv::rectangle(video, cv::Rect(468, 128, 5, 5), cv::Scalar(255, 255, 255), cv::FILLED);
-  in.eye_bgr = {video, video};
-  for (std::size_t eye = 0; eye < 2; ++eye) in.display_k[eye] = pinhole_from_fov(fov[eye], kW, kH);
+  StereoViewInputs in = dot_video_in_fov();
   const StereoViewImages v = view.render(in);
   ASSERT_EQ(v.right.size(), cv::Size(kW, kH));
   ASSERT_EQ(v.left.size(), cv::Size(kW, kH));
@@ -385,23 +395,14 @@ glm::dvec3 openxr_from_camera(const glm::dvec3& p) { return {p.x, -p.y, -p.z}; }
 // drawn fingertip and the camera field's edge land where OpenXR's projection with the located
 // orientation and fov puts them (drawn as if the eyes were parallel, the dot is some 50 px off).
 TEST(OpenXrEyeFov, CantedEyesShowTheWorldWhereTheLocatedPoseAndFovPutIt) {
-  const std::array<XrEyeFov, 2> fov{XrEyeFov{-0.87, 0.75, 0.82, -0.87},
-                                    XrEyeFov{-0.75, 0.87, 0.82, -0.87}};
+  const std::array<XrEyeFov, 2>& fov = kSimRuntimeFov;
   constexpr double kCant_rad = 10.0 * M_PI / 180.0;
   // Outward, as the project's runtime turns them with "view_cant_deg": left about +y, right -y.
   const std::array<glm::dquat, 2> q_HeadEye{glm::angleAxis(kCant_rad, glm::dvec3(0, 1, 0)),
                                             glm::angleAxis(-kCant_rad, glm::dvec3(0, 1, 0))};
-  constexpr int kW = 640, kH = 720;
   StereoView view(kW, kH);
-  StereoViewInputs in;
-  in.k = kinect_v1_intrinsics(640, 480);
-  in.hand = reaching_hand();
-  cv::Mat3b video(480, 640, cv::Vec3b(40, 150, 40));
-  const cv::Point2d dot_px(470.0, 130.0);
-  cv::rectangle(video, cv::Rect(468, 128, 5, 5), cv::Scalar(255, 255, 255), cv::FILLED);
-  in.eye_bgr = {video, video};
+  StereoViewInputs in = dot_video_in_fov();
   for (std::size_t eye = 0; eye < 2; ++eye) {
-    in.display_k[eye] = pinhole_from_fov(fov[eye], kW, kH);
     in.R_CameraDisplay[eye] = camera_rotation_from_openxr(q_HeadEye[eye]);
   }
   const StereoViewImages v = view.render(in);
