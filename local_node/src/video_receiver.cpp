@@ -86,16 +86,16 @@ std::shared_ptr<const EyePair> VideoReceiver::wait_newer(std::uint32_t frame_id,
 }
 
 std::int64_t VideoReceiver::pair_period_ns() const {
-  std::array<std::int64_t, kKeptPairs - 1> gaps{};
-  std::size_t n = 0;
+  std::vector<std::int64_t> gaps;
   {
     std::lock_guard lock(pairs_mu_);
     for (std::size_t i = 1; i < pairs_.size(); ++i)
-      gaps[n++] = pairs_[i]->capture_ns - pairs_[i - 1]->capture_ns;
+      gaps.push_back(pairs_[i]->capture_ns - pairs_[i - 1]->capture_ns);
   }
-  if (n < 2) return 0;
-  std::sort(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(n));
-  return std::max<std::int64_t>(gaps[n / 2], 0);
+  if (gaps.size() < 2) return 0;
+  const auto mid = gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2);
+  std::nth_element(gaps.begin(), mid, gaps.end());
+  return std::max<std::int64_t>(*mid, 0);
 }
 
 std::shared_ptr<const EyePair> VideoReceiver::pair(std::int64_t want_capture_ns) const {
