@@ -87,7 +87,9 @@ TEST(HostilePeer, HeartbeatFloodAndNackStormFromAPeerThatNeverReadsKeepTheRemote
       static_cast<unsigned long long>(queue));
   // The bound: 32 MiB over the remote's own working set, for queues capped at 64 control
   // messages, 3 frames and 512 KiB of resends.
-  EXPECT_LT(rss_after - rss_before, 32 * 1024);
+  if (kResidentMemoryMeaningful) {
+    EXPECT_LT(rss_after - rss_before, 32 * 1024);
+  }
   EXPECT_GT(dropped, 0u) << "the probes never met the control queue's bound";
   EXPECT_GT(dup + budget + queue, 0u) << "the NACKs never met the repair bounds";
   EXPECT_LT(repaired, static_cast<std::uint64_t>(kNacks) * every_tile.tiles.size() / 100);
@@ -182,7 +184,9 @@ TEST(HostilePeer, VideoNacksFromAPeerThatStopsReadingAreRefusedOverTheResendBoun
   EXPECT_GT(over_queue, 0u) << "no resent pair met the bound of queued resends";
   // The bound: 12 MiB over the remote's working set (measured: +7 MiB with the bound, +19 MiB
   // without it over 1000 VideoNacks, 1.25 MB/s of resends piling up).
-  EXPECT_LT(rss_after - rss_before, 12 * 1024);
+  if (kResidentMemoryMeaningful) {
+    EXPECT_LT(rss_after - rss_before, 12 * 1024);
+  }
 
   // Reading again: depth comes through, decoded whole (a key frame after the frames the full
   // queue dropped), not stuck behind the resends.

@@ -31,6 +31,14 @@ inline constexpr double kSanitizerSlowdown = 4.0;
 #else
 inline constexpr double kSanitizerSlowdown = 1.0;
 #endif
+// A process's resident memory says nothing of its own bounds under AddressSanitizer, whose
+// quarantine keeps up to 256 MiB of freed blocks mapped: the memory bounds are checked in the
+// plain build only (the sanitizer build checks the counters beside them).
+#ifdef TELEX_SANITIZER_BUILD
+inline constexpr bool kResidentMemoryMeaningful = false;
+#else
+inline constexpr bool kResidentMemoryMeaningful = true;
+#endif
 
 // The last value of `name N` in a daemon's log (telex-remote's once-a-second stats lines print
 // cumulative counters so), -1 when absent. `name` must stand as a word: "repaired" does not match
