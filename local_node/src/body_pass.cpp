@@ -275,10 +275,4 @@ void BodyPass::composite_body(int slot) {
   s.target->composite(s.divisor, s.areas_px, g.has_scene_depth ? g.depth_tex : 0);
 }
 
-void BodyPass::draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                         std::span<const Capsule> capsules, float exposure, int divisor) {
-  march_body(0, k, p_RightEye, capsules, exposure, divisor);
-  composite_body(0);
-}
-
 }  // namespace telex::local

@@ -117,9 +117,6 @@ class BodyPass {
   void march_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
                   std::span<const Capsule> capsules, float exposure, int divisor = 1);
   void composite_body(int slot);
-  // Both at once, into the bound framebuffer (slot 0).
-  void draw_body(const Intrinsics& k, const glm::dvec3& p_RightEye,
-                 std::span<const Capsule> capsules, float exposure, int divisor = 1);
   static constexpr int kSlots = 2;
 
   static constexpr std::size_t kMaxCapsules = 256;  // more are not drawn

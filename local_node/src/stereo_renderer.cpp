@@ -229,8 +229,7 @@ void StereoRenderer::Impl::begin(const Intrinsics& k) {
 }
 
 cv::Mat3b StereoRenderer::render(const EyeView& eye, std::span<const Capsule> capsules) {
-  const bool has_color = !eye.background.empty();
-  draw_body_layer(0, eye, capsules, exposure_from_image(has_color ? eye.background : cv::Mat3b()));
+  draw_body_layer(0, eye, capsules, exposure_from_image(eye.background));  // 1 with none
   return compose(0, eye);
 }
 

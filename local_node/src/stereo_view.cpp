@@ -362,38 +362,29 @@ bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2
   return one_eye;
 }
 
-bool StereoView::prepare(const StereoViewInputs& in, std::array<EyeView, 2>& views,
-                         std::vector<Capsule>& capsules) {
-  prepare_geometry(in, views, capsules);
-  prepare_depth(in, views);
-  return prepare_video(in, views);
-}
-
 bool StereoView::draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
                              StereoViewInputs& late, std::array<EyeView, 2>& views) {
   std::vector<Capsule> capsules;
-  if (!late_video) {
-    const bool one_eye = prepare(early, views, capsules);
-    for (const Side side : kSides) {
-      const EyeView& v = views[index_of(side)];
-      renderer_->draw_body_layer(index_of(side), v, capsules, exposure_from_image(v.background));
-    }
-    late = early;
-    return one_eye;
-  }
-  // The body first, lit by the video at hand, then the newest video composed under it: the pair
-  // shown is as young as the body's drawing allows.
   prepare_geometry(early, views, capsules);
   prepare_depth(early, views);
+  late = early;
+  // Without a late video the eyes' pictures are prepared first and light the skin; with one, the
+  // body is drawn first, lit by the video at hand, and the newest video is then composed under
+  // it: the pair shown is as young as the body's drawing allows.
+  bool one_eye = late_video ? false : prepare_video(late, views);
   for (const Side side : kSides) {
     const std::size_t i = index_of(side);
-    const cv::Mat3b& video = early.eye_bgr[i].empty() ? early.eye_bgr[1 - i] : early.eye_bgr[i];
-    renderer_->draw_body_layer(static_cast<int>(i), views[i], capsules, exposure_from_image(video));
+    const cv::Mat3b& early_video =
+        early.eye_bgr[i].empty() ? early.eye_bgr[1 - i] : early.eye_bgr[i];
+    renderer_->draw_body_layer(static_cast<int>(i), views[i], capsules,
+                               exposure_from_image(late_video ? early_video : views[i].background));
   }
-  renderer_->finish();
-  late = early;
-  late_video(late);
-  return prepare_video(late, views);
+  if (late_video) {
+    renderer_->finish();
+    late_video(late);
+    one_eye = prepare_video(late, views);
+  }
+  return one_eye;
 }
 
 StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVideo& late_video) {

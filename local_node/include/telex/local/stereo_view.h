@@ -138,15 +138,13 @@ class StereoView {
  private:
   // Each eye's video and depth at the display pose, by Side, when the inputs carry both poses.
   void warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes);
-  // Both eyes' views (left, right) and the capsules, with the renderer made for in.k's size;
-  // returns whether only one eye's video came.
-  bool prepare(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
-               std::vector<Capsule>& capsules);
-  // prepare()'s steps: the eyes' pinholes, centres, fingertips and the capsules (and the
-  // renderer); the remote depth in each eye; the video in each eye (and the warp), returning
+  // Both eyes' views (left, right) and the capsules, with the renderer made for in.k's size, in
+  // steps: the eyes' pinholes, centres, fingertips and the capsules (and the renderer); the
+  // remote depth in each eye; the video in each eye (and the warp), returning whether only one
+  // eye's video came.
+  // The views prepared and both eyes' body layers drawn, the video late-latched with
+  // `late_video` (see render); `late`: the inputs the eyes are then composed from. Returns
   // whether only one eye's video came.
-  // prepare() and both eyes' body layers drawn, the video late-latched with `late_video` (see
-  // render); `late`: the inputs the eyes are then composed from. Returns prepare()'s one_eye.
   bool draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
                    StereoViewInputs& late, std::array<EyeView, 2>& views);
   void prepare_geometry(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
@@ -160,7 +158,8 @@ class StereoView {
   // On the renderer's context, made at the first warped frame; they go before the renderer does.
   std::array<std::unique_ptr<DepthWarp>, 2> warp_;
   std::optional<glm::dmat3> R_BasePreviousDisplay_;
-  // What the last prepare() chose: the eyes' pinhole camera, and whether it warped.
+  // What the last frame's prepare_geometry and prepare_video chose: the eyes' pinhole camera,
+  // and whether it warped.
   Intrinsics k_eye_;
   std::array<Intrinsics, 2> k_drawn_;  // each eye's pinhole, by Side
   cv::Scalar outside_;                 // what an eye shows beyond the camera's field
