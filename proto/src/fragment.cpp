@@ -87,6 +87,12 @@ void Reassembler::note_message_id(std::uint32_t id, std::uint16_t count) {
   next_message_id_ = id + 1;                    // the sender restarted its sequence
 }
 
+bool Reassembler::completed_lately(std::uint32_t id) const {
+  const std::size_t n = std::min(completed_count_, kCompletedIds);
+  return std::find(completed_ids_.begin(), completed_ids_.begin() + n, id) !=
+         completed_ids_.begin() + n;
+}
+
 void Reassembler::drop(std::map<std::uint32_t, Partial>::iterator it, std::uint64_t& counter) {
   buffered_bytes_ -= it->second.bytes.size();
   counters_.fragments_missing += it->second.count - it->second.received;
@@ -132,6 +138,12 @@ std::optional<std::vector<std::uint8_t>> Reassembler::push(std::span<const std::
   }
   const auto chunk = datagram.subspan(kFragmentHeaderSize);
   ++counters_.fragments;
+  // A message sent twice (a repair, section 4) completes once; the other copy's fragments, and
+  // the copy of a one-fragment message, are duplicates, not a new message.
+  if (partial_.count(h->message_id) == 0 && completed_lately(h->message_id)) {
+    ++counters_.duplicates;
+    return std::nullopt;
+  }
   note_message_id(h->message_id, h->count);
   std::vector<std::uint8_t> done;
   auto it = partial_.find(h->message_id);
@@ -174,6 +186,7 @@ std::optional<std::vector<std::uint8_t>> Reassembler::push(std::span<const std::
     partial_.erase(it);
   }
   ++counters_.completed;
+  completed_ids_[completed_count_++ % kCompletedIds] = h->message_id;
   if (!have_newest_ || older(newest_completed_frame_, h->frame_id)) {
     have_newest_ = true;
     newest_completed_frame_ = h->frame_id;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The eyes over a bad link, both daemons as processes with telex-sim-impair between them (issue
 // 28): lost pairs asked for again (VideoNack) at 5 % loss, against the same run without repair;
-// and the eyes' encoder stepping down on a throttled link and back up when the bottleneck goes.
+// and the eyes' encoder stepping down on a throttled link and back up when the bottleneck goes;
+// a resent pair sent twice under one message id and taken once.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -12,6 +13,9 @@
 
 #include "daemons.h"
 #include "process.h"
+#include "telex/proto/fragment.h"
+#include "telex/video/frame_header.h"
+#include "test_client.h"
 #include "test_support.h"
 
 namespace telex::test {
@@ -103,6 +107,42 @@ TEST(VideoLink, LostPairsAreAskedForAgainAndNearlyAllAreDecoded) {
   EXPECT_LT(without, with - 0.1) << "without repair as many pairs were decoded: the test shows "
                                     "nothing ("
                                  << without << " against " << with << ")";
+}
+
+// Over UDP a resent pair goes twice under one message id (PROTOCOL.md 2.7 and 4), so it is lost
+// only when a fragment is lost in both copies. On loopback both copies come whole: the station's
+// reassembler hands the pair out once, and every fragment of the second copy is a duplicate.
+TEST(VideoLink, AResentPairGoesTwiceUnderOneMessageIdAndIsTakenOnce) {
+  const auto dir = scratch_dir("video_resent_twice");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane,noise=off", "--no-realtime", "--stereo",
+                             "synthetic:room", "--transport", "udp"});
+  ASSERT_TRUE(eventually(10s, [&] {
+    return remote.proc.stderr_text().find("listening") != std::string::npos ||
+           !remote.proc.running();
+  }));
+  remote::test::TestClient client(remote.port, /*udp=*/true, proto::kCapRepair | proto::kCapVideo);
+  ASSERT_TRUE(client.run_until([&] { return client.video_.size() >= 5; }, 20s))
+      << client.video_.size() << " pairs; " << remote.proc.stderr_text();
+  ASSERT_EQ(client.reassembly().duplicates, 0u);
+  const auto& asked = client.video_.back();
+  const std::uint32_t seq = video::parse_frame(asked.frame).header.encode_seq;
+  const std::size_t fragments =
+      proto::fragment_message(proto::encode(proto::Header{}, asked), 0, 0).size();
+  ASSERT_GE(fragments, 2u) << "a pair of one datagram shows only that it came twice";
+  const auto copies_of = [&] {
+    return std::count_if(client.video_.begin(), client.video_.end(), [&](const auto& v) {
+      return video::parse_frame(v.frame).header.encode_seq == seq;
+    });
+  };
+  client.send(proto::VideoNack{seq, 1});
+  ASSERT_TRUE(client.run_until([&] { return copies_of() >= 2; }, 5s))
+      << "the remote did not send pair " << seq << " again: " << remote.proc.stderr_text();
+  client.run_until([] { return false; }, 300ms);  // anything more of it
+  EXPECT_EQ(copies_of(), 2) << "the original and one copy";
+  EXPECT_EQ(client.reassembly().duplicates, fragments)
+      << "the second copy's " << fragments << " fragments";
+  EXPECT_EQ(client.reassembly().lost(), 0u);
+  client.close();
 }
 
 // The remote's "(target X)" per stats line, in Mbit/s, in order.

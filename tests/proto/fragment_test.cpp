@@ -93,6 +93,39 @@ TEST(Reassembler, CountsDuplicatesAndMalformed) {
   EXPECT_EQ(r.counters().completed, 1u);
 }
 
+// A resent pair goes twice under one message id (PROTOCOL.md section 4): the message completes
+// from the fragments of either copy, once; the rest are duplicates, and nothing counts as lost.
+TEST(Reassembler, AMessageSentTwiceCompletesOnceFromEitherCopy) {
+  const auto msg = message_of(5000, 3);  // 4 fragments
+  const auto frags = fragment_message(msg, 7, 1);
+  ASSERT_EQ(frags.size(), 4u);
+  Reassembler r;
+  int completed = 0;
+  // Copy one loses fragment 2; copy two's 2 completes it, and its 3 comes after.
+  for (std::size_t i : {0u, 1u, 3u}) completed += r.push(frags[i], 0).has_value();
+  for (std::size_t i : {0u, 1u, 2u, 3u}) {
+    const auto out = r.push(frags[i], 1);
+    if (out) {
+      EXPECT_EQ(*out, msg);
+    }
+    completed += out.has_value();
+  }
+  EXPECT_EQ(completed, 1);
+  EXPECT_EQ(r.in_flight(), 0u);  // copy two's last fragment started no new message
+  EXPECT_EQ(r.counters().duplicates, 3u);
+  EXPECT_EQ(r.counters().messages_by_fragments[3], 1u);
+  EXPECT_EQ(r.counters().lost(), 0u);
+
+  // A one-fragment message twice is handed out once.
+  const auto one = fragment_message(message_of(100, 4), 8, 1);
+  EXPECT_TRUE(r.push(one[0], 2));
+  EXPECT_FALSE(r.push(one[0], 2));
+  EXPECT_EQ(r.counters().duplicates, 4u);
+  EXPECT_EQ(r.counters().completed, 2u);
+  // A later message with a new id goes through.
+  EXPECT_TRUE(r.push(fragment_message(message_of(100, 5), 9, 1)[0], 3));
+}
+
 TEST(Reassembler, IncompleteMessagesTimeOut) {
   ReassemblerLimits lim;
   lim.timeout_ns = 100;

@@ -128,14 +128,16 @@ class RemoteServer::Impl {
   std::optional<Link> link() const;  // any thread
   proto::Header header(std::uint32_t session_id, std::uint32_t frame_id, std::int64_t capture_ns,
                        bool key, std::uint16_t extra_flags = 0);
+  // Over UDP each message's datagrams go `copies` times, all under one message id (a resent pair
+  // twice: the client's reassembler completes it from the fragments of either copy).
   OutFrame pack(const Link& l, std::uint32_t frame_id,
-                const std::vector<std::pair<proto::Header, proto::Message>>& msgs);
+                const std::vector<std::pair<proto::Header, proto::Message>>& msgs, int copies = 1);
   // `frame_id` is the fragments' (the messages' headers keep their own).
   // Packs `msgs` on the io thread, so message ids follow the send queue's order (the client's
   // reassembler counts an id that arrives after a later one as lost).
   void post_frame(const Link& l, std::uint32_t frame_id,
                   std::vector<std::pair<proto::Header, proto::Message>> msgs, bool counts_as_frame,
-                  bool depth, bool trimmable = true);
+                  bool depth, bool trimmable = true, int copies = 1);
   // Sends StreamConfig first when the session or the frame's shape or codec is new.
   void announce(const Link& l, const ProcessedFrame& frame);
   // One message per tile of tiles[from, end), with the part's header flags.

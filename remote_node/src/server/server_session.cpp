@@ -260,8 +260,10 @@ void RemoteServer::Impl::on_nack(const proto::TileNack& nack) {
   enqueue_frame(Lane::Depth, std::move(f));
 }
 
-// A VideoNack (PROTOCOL.md 2.7): each pair it lists that the cache still holds goes out again
-// once, in the video lane ahead of the pairs not yet started, under the same bounds as tiles.
+// A VideoNack (PROTOCOL.md 2.7): each pair it lists that the cache still holds goes out again,
+// in the video lane ahead of the pairs not yet started, under the same bounds as tiles. Over UDP
+// it goes twice under one message id, so it is lost only if one of its fragments is lost in both
+// copies: at 5 % loss a pair of 10 fragments is lost 40 % of the time in one copy, 2.5 % in two.
 void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
   ++counters_.video_nacks_in;
   const auto l = link();
@@ -271,6 +273,7 @@ void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
   }
   std::size_t queued = queued_repair_bytes(*active_);
   const std::int64_t now = steady_now_ns();
+  const int copies = l->udp ? 2 : 1;
   for (std::uint32_t i = 0; i < nack.count; ++i) {
     const std::uint32_t seq = nack.first_seq + i;
     std::optional<VideoRepairCache::Pair> p;
@@ -284,14 +287,15 @@ void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
     }
     // Pairs share the limiter with tiles: their dedup slots follow the tiles' index range.
     const auto slot = static_cast<std::uint16_t>(proto::kMaxManifestTiles + seq % 64);
-    if (!admit_repair(queued, slot, seq, p->frame->size(), now, counters_.video_repair_over_queue))
+    if (!admit_repair(queued, slot, seq, p->frame->size() * static_cast<std::size_t>(copies), now,
+                      counters_.video_repair_over_queue))
       continue;
     ++counters_.video_pairs_resent;
     std::vector<std::pair<proto::Header, proto::Message>> msgs;
     msgs.emplace_back(
         header(l->session_id, p->frame_id, p->capture_ns, p->is_intra, proto::kFlagRepair),
         proto::EncodedVideo{*p->frame});
-    post_frame(*l, p->frame_id, std::move(msgs), false, false, false);
+    post_frame(*l, p->frame_id, std::move(msgs), false, false, false, copies);
   }
 }
 

@@ -27,19 +27,25 @@ proto::Header RemoteServer::Impl::header(std::uint32_t session_id, std::uint32_t
 }
 
 // Turns whole messages into what goes on the wire for this link.
-OutFrame RemoteServer::Impl::pack(
-    const Link& l, std::uint32_t frame_id,
-    const std::vector<std::pair<proto::Header, proto::Message>>& msgs) {
+OutFrame RemoteServer::Impl::pack(const Link& l, std::uint32_t frame_id,
+                                  const std::vector<std::pair<proto::Header, proto::Message>>& msgs,
+                                  int copies) {
   OutFrame f;
   f.frame_id = frame_id;
   for (const auto& [h, m] : msgs) {
     if (l.udp) {
       const auto bytes = proto::encode(h, m);
-      for (auto& d : proto::fragment_message(bytes, message_id_++, frame_id)) {
-        // Every datagram is sealed on its own, so a forged fragment never reaches the
-        // reassembler. Sealing happens here, on the io thread, in queue order: sequence numbers
-        // rise in sending order (trimmed frames leave gaps, which the replay window allows).
-        f.items.push_back(make_buffer(l.sealer ? l.sealer->seal(d) : std::move(d)));
+      const auto datagrams = proto::fragment_message(bytes, message_id_++, frame_id);
+      // A second copy follows the whole first one, so a burst that takes a fragment of one
+      // leaves the other's.
+      for (int c = 0; c < copies; ++c) {
+        for (const auto& d : datagrams) {
+          // Every datagram is sealed on its own (each copy under its own sequence number), so a
+          // forged fragment never reaches the reassembler. Sealing happens here, on the io
+          // thread, in queue order: sequence numbers rise in sending order (trimmed frames
+          // leave gaps, which the replay window allows).
+          f.items.push_back(make_buffer(l.sealer ? l.sealer->seal(d) : d));
+        }
       }
     } else {
       f.items.push_back(make_buffer(proto::encode_stream(h, m)));
@@ -144,9 +150,9 @@ void RemoteServer::Impl::publish_video(std::uint32_t frame_id, std::int64_t capt
 // its message ids and seals must still follow the sending order).
 void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
                                     std::vector<std::pair<proto::Header, proto::Message>> msgs,
-                                    bool counts_as_frame, bool depth, bool trimmable) {
-  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth,
-                   trimmable]() mutable {
+                                    bool counts_as_frame, bool depth, bool trimmable, int copies) {
+  asio::post(io_, [this, l, frame_id, msgs = std::move(msgs), counts_as_frame, depth, trimmable,
+                   copies]() mutable {
     if (!active_ || active_generation_ != l.generation) return;
     OutFrame f;
     if (depth) {
@@ -160,10 +166,11 @@ void RemoteServer::Impl::post_frame(const Link& l, std::uint32_t frame_id,
       f.frame_id = frame_id;
       for (const auto& [h, m] : msgs) {
         const auto* v = std::get_if<proto::EncodedVideo>(&m);
-        f.unpacked_bytes += proto::kHeaderSize + (v ? v->frame.size() : 0);
+        f.unpacked_bytes +=
+            (proto::kHeaderSize + (v ? v->frame.size() : 0)) * static_cast<std::size_t>(copies);
       }
-      f.pack = [this, l, msgs = std::move(msgs)] {
-        return pack(l, newest_queued_frame_id_, msgs).items;
+      f.pack = [this, l, msgs = std::move(msgs), copies] {
+        return pack(l, newest_queued_frame_id_, msgs, copies).items;
       };
     }
     f.counts_as_frame = counts_as_frame;

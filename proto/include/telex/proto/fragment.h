@@ -47,11 +47,12 @@ struct ReassemblerLimits {
 };
 
 struct ReassemblerCounters {
-  std::uint64_t fragments = 0;   // accepted datagrams
-  std::uint64_t completed = 0;   // messages handed out
-  std::uint64_t malformed = 0;   // datagrams with a bad fragment header or disagreeing fragments
-  std::uint64_t duplicates = 0;  // fragment already received
-  std::uint64_t stale = 0;       // fragment of a frame older than the newest completed one
+  std::uint64_t fragments = 0;  // accepted datagrams
+  std::uint64_t completed = 0;  // messages handed out
+  std::uint64_t malformed = 0;  // datagrams with a bad fragment header or disagreeing fragments
+  // Fragment already received, or of a message completed lately (a repair sent twice, section 4).
+  std::uint64_t duplicates = 0;
+  std::uint64_t stale = 0;  // fragment of a frame older than the newest completed one
   std::uint64_t dropped_superseded =
       0;                              // incomplete messages dropped because a newer frame completed
   std::uint64_t dropped_bound = 0;    // incomplete messages evicted to stay within the bounds
@@ -102,6 +103,11 @@ class Reassembler {
   std::map<std::uint32_t, Partial> partial_;  // by message_id
   std::size_t buffered_bytes_ = 0;
   void note_message_id(std::uint32_t id, std::uint16_t count);
+  bool completed_lately(std::uint32_t id) const;
+  // The ids of the last messages completed (a ring): a second copy's fragments are duplicates.
+  static constexpr std::size_t kCompletedIds = 32;
+  std::array<std::uint32_t, kCompletedIds> completed_ids_{};
+  std::size_t completed_count_ = 0;
   bool have_newest_ = false;
   bool have_message_id_ = false;
   std::uint32_t next_message_id_ = 0;
