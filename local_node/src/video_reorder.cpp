@@ -65,35 +65,51 @@ void VideoReorder::push(std::uint32_t seq, std::vector<std::uint8_t> frame, std:
     if (held_.count(s) != 0) continue;
     auto [it, added] = missing_.emplace(s, Missing{now_ns, 0, 0, false});
     if (!added && it->second.overdue) {
-      it->second.overdue = false;
+      it->second.overdue = false;  // a gap now: asked for again up to max_nacks times
       it->second.seen_ns = now_ns;
+      it->second.nacks = 0;
     }
   }
   held_.emplace(seq, std::move(frame));
-  note_arrival(seq, now_ns);
+  note_arrival(seq, now_ns, resent);
 }
 
-void VideoReorder::note_arrival(std::uint32_t seq, std::int64_t now_ns) {
+void VideoReorder::note_arrival(std::uint32_t seq, std::int64_t now_ns, bool resent) {
+  std::int64_t arrival_ns = now_ns;
   if (have_newest_) {
     const std::uint32_t ahead = seq - newest_seq_;
     if (ahead == 0 || ahead >= 0x8000'0000u) return;  // not newer: a repair or a late copy
-    if (ahead == 1) {
-      intervals_ns_[interval_count_ % kIntervals] = now_ns - newest_arrival_ns_;
+    if (resent) {
+      // A copy came when it was asked for, not on the pairs' schedule: the next pair is still
+      // due an interval after this one was, not an interval after the copy.
+      if (const std::int64_t interval = usual_interval_ns(); interval > 0)
+        arrival_ns =
+            std::min(now_ns, newest_arrival_ns_ + static_cast<std::int64_t>(ahead) * interval);
+    } else if (ahead <= kIntervals) {
+      // Pairs lost in between (many, as a stream starts with large pairs) still tell the
+      // interval: the time since the newest, per pair.
+      intervals_ns_[interval_count_ % kIntervals] =
+          (now_ns - newest_arrival_ns_) / static_cast<std::int64_t>(ahead);
       ++interval_count_;
     }
   }
   have_newest_ = true;
   newest_seq_ = seq;
-  newest_arrival_ns_ = now_ns;
+  newest_arrival_ns_ = arrival_ns;
   overdue_asked_ = false;
 }
 
-std::int64_t VideoReorder::overdue_ns() const {
-  if (!cfg_.ask_overdue || interval_count_ < 4) return 0;
+std::int64_t VideoReorder::usual_interval_ns() const {
+  if (interval_count_ < kMinIntervals) return 0;
   const std::size_t n = std::min(interval_count_, kIntervals);
   std::array<std::int64_t, kIntervals> sorted = intervals_ns_;
   std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.begin() + n);
-  const std::int64_t interval = std::max<std::int64_t>(sorted[n / 2], 0);
+  return std::max<std::int64_t>(sorted[n / 2], 0);
+}
+
+std::int64_t VideoReorder::overdue_ns() const {
+  if (!cfg_.ask_overdue || interval_count_ < kMinIntervals) return 0;
+  const std::int64_t interval = usual_interval_ns();
   return interval + std::max(interval / 2, cfg_.overdue_slack_min_ns);
 }
 
@@ -140,14 +156,15 @@ void VideoReorder::poll(std::int64_t now_ns, std::int64_t rtt_ns,
   }
   ask_overdue(now_ns);
   // The NACKs due now, consecutive seqs joined into one request of at most kMaxVideoNackPairs.
-  // An overdue pair is asked for once until a later pair shows its gap.
+  // An overdue pair is asked for again like a gap (its copy may be lost too), and again up to
+  // max_nacks times once a later pair shows the gap.
   const std::int64_t retry = retry_ns(rtt_ns);
   std::vector<std::uint32_t> due;
   for (auto& [seq, m] : missing_) {
-    if (m.overdue ? m.last_nack_ns != 0 : m.nacks >= cfg_.max_nacks) continue;
+    if (m.nacks >= cfg_.max_nacks) continue;
     if (m.last_nack_ns != 0 && now_ns - m.last_nack_ns < retry) continue;
     m.last_nack_ns = now_ns;
-    if (!m.overdue) ++m.nacks;
+    ++m.nacks;
     due.push_back(seq);
   }
   std::sort(due.begin(), due.end(),
@@ -170,7 +187,7 @@ std::int64_t VideoReorder::next_wake_ns(std::int64_t rtt_ns) const {
   const auto head = missing_.find(next_seq_);
   if (head != missing_.end() && !held_.empty()) consider(head->second.seen_ns + hold_ns(rtt_ns));
   for (const auto& [seq, m] : missing_)
-    if (!m.overdue && m.nacks < cfg_.max_nacks) consider(m.last_nack_ns + retry_ns(rtt_ns));
+    if (m.nacks < cfg_.max_nacks) consider(m.last_nack_ns + retry_ns(rtt_ns));
   if (const std::int64_t overdue = overdue_ns(); overdue != 0 && !overdue_asked_)
     consider(newest_arrival_ns_ + overdue);
   return wake;

@@ -112,7 +112,10 @@ TEST(VideoReorder, AGapPastItsDeadlineIsGivenUpAndLateCopiesAreDropped) {
 // (the median interval plus half of it) and asked for once, a period before the pair behind it
 // would show the gap. When that pair comes the gap is known: the retries go on from the overdue
 // NACK, and the resend is a repair.
-TEST(VideoReorder, AnOverduePairIsAskedForOnceBeforeALaterPairShowsTheGap) {
+// An overdue pair is asked for, and again every retry interval (its copy can be lost too); a
+// later pair that shows the gap starts its retries afresh. A copy keeps the pairs' schedule:
+// the pair after it is overdue an interval after the copy's pair was due.
+TEST(VideoReorder, AnOverduePairIsAskedForAgainUntilItOrALaterPairComes) {
   Stream r;
   for (std::uint32_t s = 0; s <= 5; ++s) {
     r.push(s, s * 33 * kMs);
@@ -126,27 +129,65 @@ TEST(VideoReorder, AnOverduePairIsAskedForOnceBeforeALaterPairShowsTheGap) {
   ASSERT_EQ(r.nacks.size(), 1u);
   EXPECT_EQ(r.nacks[0], (proto::VideoNack{6, 1}));
   EXPECT_EQ(r.reorder.counters().asked_overdue, 1u);
-  r.poll(newest_ns + 70 * kMs);  // once only while no later pair has come
+  r.poll(newest_ns + 61 * kMs);  // not before the retry interval (12 ms) ...
   EXPECT_EQ(r.nacks.size(), 1u);
-  r.push(7, 7 * 33 * kMs);  // the gap shows: 7 waits, 6 is asked again at once (12 ms passed)
-  r.poll(7 * 33 * kMs);
+  r.poll(newest_ns + 62 * kMs);  // ... then again: the copy may have been lost
   ASSERT_EQ(r.nacks.size(), 2u);
   EXPECT_EQ(r.nacks[1], (proto::VideoNack{6, 1}));
+  r.push(7, 7 * 33 * kMs);  // the gap shows: 7 waits; the retries go on from the last NACK
+  r.poll(7 * 33 * kMs);
+  EXPECT_EQ(r.nacks.size(), 2u);
+  r.poll(newest_ns + 74 * kMs);
+  ASSERT_EQ(r.nacks.size(), 3u);
+  EXPECT_EQ(r.nacks[2], (proto::VideoNack{6, 1}));
   EXPECT_EQ(r.out.size(), 6u);
-  r.push(6, 7 * 33 * kMs + kMs);  // the resend
-  r.poll(7 * 33 * kMs + kMs);
+  r.push(6, newest_ns + 75 * kMs, /*resent=*/true);
+  r.poll(newest_ns + 75 * kMs);
   EXPECT_EQ(r.out, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7}));
   EXPECT_EQ(r.reorder.counters().repaired, 1u);
   EXPECT_EQ(r.reorder.counters().asked_overdue, 1u);
   // 8 is lost too; the remote's copy, asked for as overdue, comes before 9: a repair.
-  r.poll(7 * 33 * kMs + 50 * kMs);
-  ASSERT_EQ(r.nacks.size(), 3u);
-  EXPECT_EQ(r.nacks[2], (proto::VideoNack{8, 1}));
-  r.push(8, 7 * 33 * kMs + 51 * kMs, /*resent=*/true);
-  r.poll(7 * 33 * kMs + 51 * kMs);
+  const std::int64_t seven_ns = 7 * 33 * kMs;
+  r.poll(seven_ns + 50 * kMs);
+  ASSERT_EQ(r.nacks.size(), 4u);
+  EXPECT_EQ(r.nacks[3], (proto::VideoNack{8, 1}));
+  r.push(8, seven_ns + 51 * kMs, /*resent=*/true);
+  r.poll(seven_ns + 51 * kMs);
   EXPECT_EQ(r.out.back(), 8u);
   EXPECT_EQ(r.reorder.counters().repaired, 2u);
   EXPECT_EQ(r.reorder.counters().held, 1u);  // only 7 waited
+  // 8 was due at 7 + 33 ms: 9 is overdue 49.5 ms after that, not after the copy came. The
+  // copy's 51 ms is no interval either.
+  EXPECT_EQ(r.reorder.overdue_ns(), 49'500'000);
+  r.poll(seven_ns + 82 * kMs);
+  EXPECT_EQ(r.nacks.size(), 4u);
+  r.poll(seven_ns + 83 * kMs);
+  ASSERT_EQ(r.nacks.size(), 5u);
+  EXPECT_EQ(r.nacks[4], (proto::VideoNack{9, 1}));
+}
+
+// A stream starts with its largest pairs, the ones most often lost: the interval is known from
+// the pairs that came, per pair between them, so the first pairs are asked for when overdue too.
+TEST(VideoReorder, PairsLostAsTheStreamStartsStillTellTheInterval) {
+  Stream r;
+  r.push(0, 0);
+  r.poll(0);
+  EXPECT_EQ(r.reorder.overdue_ns(), 0);  // no interval yet
+  r.push(3, 99 * kMs);                   // 1 and 2 lost: 33 ms a pair
+  r.poll(99 * kMs);
+  EXPECT_EQ(r.reorder.overdue_ns(), 0);  // one interval is not a median
+  r.push(1, 100 * kMs, /*resent=*/true);
+  r.push(2, 100 * kMs, /*resent=*/true);
+  r.push(4, 132 * kMs);
+  r.poll(132 * kMs);
+  EXPECT_EQ(r.out, (std::vector<std::uint32_t>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(r.reorder.overdue_ns(), 49'500'000);
+  const std::size_t before = r.nacks.size();
+  r.poll(181 * kMs);
+  EXPECT_EQ(r.nacks.size(), before);
+  r.poll(182 * kMs);  // 5 is overdue
+  ASSERT_EQ(r.nacks.size(), before + 1);
+  EXPECT_EQ(r.nacks.back(), (proto::VideoNack{5, 1}));
 }
 
 // A pair that was only late comes after its overdue NACK and goes straight through, neither

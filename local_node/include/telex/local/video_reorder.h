@@ -8,10 +8,14 @@
 //
 // Asking sooner: a gap is only seen when a pair behind it arrives, one pair interval after the
 // lost one was due, and the view shows the pair before it all that time. So the pair after the
-// newest is also asked for once when it is overdue: when no newer pair has arrived for the
-// usual interval (the median of the last 8 between consecutive pairs) plus half of it, at least
-// `overdue_slack_min_ns`. A pair merely late costs one NACK the remote answers with nothing (it
-// has not sent it yet) or a copy dropped as late here; a lost pair is back a period sooner.
+// newest is also asked for when it is overdue: when no newer pair has arrived for the usual
+// interval (the median of the last 8 between arrivals, per pair: two pairs apart, half the time
+// between them) plus half of it, at least
+// `overdue_slack_min_ns`; and again every retry interval, as a gap is, since the copy can be
+// lost too. A copy keeps the pairs' schedule: the pair after it is due an interval after the
+// copy's pair was, not after the copy. A pair merely late costs NACKs the remote answers with
+// nothing (it has not sent it yet) or a copy dropped as late here; a lost pair is back a period
+// sooner.
 //
 // Pure (no thread, no clock): time and the round trip come in as arguments. The station's decode
 // thread owns one (VideoReceiver).
@@ -51,7 +55,7 @@ struct VideoReorderCounters {
   std::uint64_t late = 0;           // pairs behind the released sequence, or already held: dropped
   std::uint64_t nacks = 0;          // VideoNack messages made
   std::uint64_t restarts = 0;       // jumps no gap explains (a restarted encoder): started afresh
-  std::uint64_t asked_overdue = 0;  // pairs asked for because they were overdue (one NACK each)
+  std::uint64_t asked_overdue = 0;  // pairs asked for because they were overdue
 };
 
 class VideoReorder {
@@ -73,7 +77,7 @@ class VideoReorder {
   // (0: none).
   std::int64_t next_wake_ns(std::int64_t rtt_ns) const;
   // How long after the newest pair's arrival the next one is overdue: the usual interval plus
-  // max(half of it, overdue_slack_min_ns); 0 while fewer than 4 intervals are known.
+  // max(half of it, overdue_slack_min_ns); 0 while fewer than 2 intervals are known.
   std::int64_t overdue_ns() const;
 
   const VideoReorderCounters& counters() const { return counters_; }
@@ -86,7 +90,8 @@ class VideoReorder {
     int nacks = 0;
     bool overdue = false;  // asked for as overdue; no later pair has shown the gap yet
   };
-  void note_arrival(std::uint32_t seq, std::int64_t now_ns);
+  void note_arrival(std::uint32_t seq, std::int64_t now_ns, bool resent);
+  std::int64_t usual_interval_ns() const;  // the median of the intervals known; 0: too few
   void ask_overdue(std::int64_t now_ns);
   std::int64_t hold_ns(std::int64_t rtt_ns) const;
   std::int64_t retry_ns(std::int64_t rtt_ns) const;
@@ -99,12 +104,14 @@ class VideoReorder {
   std::uint32_t next_seq_ = 0;                               // the pair the decoder needs next
   std::map<std::uint32_t, std::vector<std::uint8_t>> held_;  // by encode_seq - next_seq_ order
   std::map<std::uint32_t, Missing> missing_;                 // seqs in [next_seq_, newest held)
-  // The newest pair's seq and arrival, the last intervals between consecutive pairs' arrivals
-  // (a ring), and whether the pair after the newest was asked for as overdue.
+  // The newest pair's seq and arrival (for a copy, when it was due), the last intervals between
+  // pairs' arrivals per pair (a ring), and whether the pair after the newest was asked for as
+  // overdue.
   bool have_newest_ = false;
   std::uint32_t newest_seq_ = 0;
   std::int64_t newest_arrival_ns_ = 0;
   static constexpr std::size_t kIntervals = 8;
+  static constexpr std::size_t kMinIntervals = 2;
   std::array<std::int64_t, kIntervals> intervals_ns_{};
   std::size_t interval_count_ = 0;
   bool overdue_asked_ = false;
