@@ -40,6 +40,16 @@ inline constexpr bool kResidentMemoryMeaningful = false;
 inline constexpr bool kResidentMemoryMeaningful = true;
 #endif
 
+// Whether `rc` is the exit code of a process killed by `sig` (128 + sig). In the sanitizer
+// builds a sanitizer's SEGV handler reports the crash and exits with its own code (ASan 1, TSan
+// 66): the process still died, and any nonzero code counts.
+inline bool died_by_signal(int rc, int sig) {
+#ifdef TELEX_SANITIZER_BUILD
+  if (sig == 11) return rc != 0;  // SIGSEGV
+#endif
+  return rc == 128 + sig;
+}
+
 // The last value of `name N` in a daemon's log (telex-remote's once-a-second stats lines print
 // cumulative counters so), -1 when absent. `name` must stand as a word: "repaired" does not match
 // inside "tiles-repaired".
