@@ -2,6 +2,7 @@
 // Test helpers: where the shared real frames are, and where built binaries live.
 #pragma once
 
+#include <csignal>
 #include <exception>
 #include <filesystem>
 #include <initializer_list>
@@ -45,7 +46,7 @@ inline constexpr bool kResidentMemoryMeaningful = true;
 // 66): the process still died, and any nonzero code counts.
 inline bool died_by_signal(int rc, int sig) {
 #ifdef TELEX_SANITIZER_BUILD
-  if (sig == 11) return rc != 0;  // SIGSEGV
+  if (sig == SIGSEGV) return rc != 0;
 #endif
   return rc == 128 + sig;
 }

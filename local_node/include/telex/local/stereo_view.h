@@ -138,13 +138,11 @@ class StereoView {
  private:
   // Each eye's video and depth at the display pose, by Side, when the inputs carry both poses.
   void warp_eyes(const StereoViewInputs& in, std::array<EyeView*, 2> eyes);
-  // Both eyes' views (left, right) and the capsules, with the renderer made for in.k's size, in
-  // steps: the eyes' pinholes, centres, fingertips and the capsules (and the renderer); the
-  // remote depth in each eye; the video in each eye (and the warp), returning whether only one
-  // eye's video came.
-  // The views prepared and both eyes' body layers drawn, the video late-latched with
-  // `late_video` (see render); `late`: the inputs the eyes are then composed from. Returns
-  // whether only one eye's video came.
+  // Both eyes' views (left, right) prepared and their body layers drawn, the video late-latched
+  // with `late_video` (see render); `late`: the inputs the eyes are then composed from. Returns
+  // whether only one eye's video came. The steps below: the eyes' pinholes, centres, fingertips
+  // and the capsules (and the renderer made for in.k's size); the remote depth in each eye; the
+  // video in each eye (and the warp).
   bool draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
                    StereoViewInputs& late, std::array<EyeView, 2>& views);
   void prepare_geometry(const StereoViewInputs& in, std::array<EyeView, 2>& eyes,
