@@ -193,10 +193,14 @@ struct SurfaceClient::Impl {
         });
   }
 
+  // Counted as an authentication failure only when the TLS layer says so (an alert, or bytes that
+  // are not TLS): a connection closed or reset with no TLS reply is a remote not (yet) there, as
+  // behind a forwarder that accepts before its far end listens, and is retried like a refused
+  // connect, without "authentication failed" in the final message.
   void on_handshake_failed(const boost::system::error_code& e) {
-    stats.auth_failed.fetch_add(1);
     handshake_failed = true;
     const bool ssl_error = e.category() == asio::error::get_ssl_category();
+    if (ssl_error) stats.auth_failed.fetch_add(1);
     disconnect(ssl_error
                    ? proto::explain_tls_failure(static_cast<unsigned long>(e.value()), e.message(),
                                                 proto::TlsRole::Client, cfg.tls)

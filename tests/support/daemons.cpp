@@ -21,7 +21,11 @@ std::vector<std::string> remote_argv(std::uint16_t port, std::vector<std::string
 }  // namespace
 
 RemoteProcess::RemoteProcess(const std::filesystem::path& dir, std::vector<std::string> extra)
-    : port(free_port()),
+    : RemoteProcess(dir, std::move(extra), free_port()) {}
+
+RemoteProcess::RemoteProcess(const std::filesystem::path& dir, std::vector<std::string> extra,
+                             std::uint16_t on_port)
+    : port(on_port),
       proc(remote_argv(port, std::move(extra)), dir / "remote.out", dir / "remote.err") {}
 
 RemoteProcess::~RemoteProcess() {

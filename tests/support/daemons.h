@@ -17,6 +17,9 @@ namespace telex::test {
 // stopped with SIGINT when the test ends.
 struct RemoteProcess {
   RemoteProcess(const std::filesystem::path& dir, std::vector<std::string> extra);
+  // On a port chosen beforehand (a forwarder already points at it).
+  RemoteProcess(const std::filesystem::path& dir, std::vector<std::string> extra,
+                std::uint16_t on_port);
   ~RemoteProcess();
   std::uint16_t port;
   Process proc;

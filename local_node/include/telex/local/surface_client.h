@@ -61,10 +61,10 @@ struct ClientStats {
   // Messages to the remote dropped unsent because 64 were already queued behind a stalled write.
   std::atomic<std::uint64_t> upstream_dropped{0};
   std::atomic<std::uint64_t> dropped_foreign{0};  // wrong session or source
-  // Authentication: auth_failed counts TLS handshakes that failed (another key, a peer without
-  // TLS, a certificate the CA does not vouch for) and datagrams that do not open under the
-  // remote->station key; unsealed: plain datagrams on a sealed link; replayed: authentic datagrams
-  // seen before.
+  // Authentication: auth_failed counts TLS handshakes that the TLS layer failed (another key, a
+  // peer without TLS, a certificate the CA does not vouch for; not a bare close or reset) and
+  // datagrams that do not open under the remote->station key; unsealed: plain datagrams on a
+  // sealed link; replayed: authentic datagrams seen before.
   std::atomic<std::uint64_t> auth_failed{0};
   std::atomic<std::uint64_t> unsealed{0};
   std::atomic<std::uint64_t> replayed{0};
