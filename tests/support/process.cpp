@@ -144,19 +144,27 @@ std::uint16_t free_port() {
   throw std::runtime_error("no free port found");
 }
 
-namespace {
-sockaddr_in loopback(std::uint16_t port) {
+sockaddr_in loopback_address(std::uint16_t port) {
   sockaddr_in a{};
   a.sin_family = AF_INET;
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   a.sin_port = htons(port);
   return a;
 }
-}  // namespace
+
+int bound_socket(int type, std::uint16_t& port) {
+  const int fd = socket(AF_INET, type, 0);
+  sockaddr_in a = loopback_address(0);
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  port = ntohs(a.sin_port);
+  return fd;
+}
 
 void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  const sockaddr_in a = loopback(port);
+  const sockaddr_in a = loopback_address(port);
   if (connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0)
     (void)!send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
   close(fd);
@@ -164,7 +172,7 @@ void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
 
 void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes) {
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  const sockaddr_in a = loopback(port);
+  const sockaddr_in a = loopback_address(port);
   sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&a), sizeof a);
   close(fd);
 }
@@ -180,7 +188,7 @@ std::size_t udp_send_from(const std::string& from_address, std::uint16_t port,
     if (fd >= 0) close(fd);
     throw std::runtime_error("cannot bind a UDP socket to " + from_address + ": " + why);
   }
-  const sockaddr_in to = loopback(port);
+  const sockaddr_in to = loopback_address(port);
   std::size_t sent = 0;
   for (const auto& d : datagrams)
     if (sendto(fd, d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to) ==

@@ -8,26 +8,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-namespace telex::test {
-namespace {
-sockaddr_in loopback_address(std::uint16_t port) {
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(port);
-  return a;
-}
-}  // namespace
+#include "process.h"
 
-int bound_socket(int type, std::uint16_t& port) {
-  const int fd = ::socket(AF_INET, type, 0);
-  sockaddr_in a = loopback_address(0);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  port = ntohs(a.sin_port);
-  return fd;
-}
+namespace telex::test {
 
 RecordingProxy::RecordingProxy(std::uint16_t remote_tcp, std::uint16_t station_udp)
     : remote_tcp_(remote_tcp), station_udp_(station_udp) {

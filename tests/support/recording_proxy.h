@@ -15,9 +15,6 @@
 
 namespace telex::test {
 
-// A socket of `type` bound to an ephemeral loopback port, which it writes to `port`.
-int bound_socket(int type, std::uint16_t& port);
-
 class RecordingProxy {
  public:
   struct Chunk {
