@@ -56,12 +56,12 @@ struct CsvFile {
   std::vector<std::vector<std::string>> rows;
 };
 CsvFile read_csv_file(const std::filesystem::path& p);
-// Hostile-peer helpers: connect to 127.0.0.1:port over TCP, write `bytes`, close (failures are
-// ignored: a daemon may reset a hostile peer); or send one UDP datagram there.
 // 127.0.0.1:port as a socket address.
 sockaddr_in loopback_address(std::uint16_t port);
 // A socket of `type` bound to an ephemeral loopback port, which it writes to `port`.
 int bound_socket(int type, std::uint16_t& port);
+// Hostile-peer helpers: connect to 127.0.0.1:port over TCP, write `bytes`, close (failures are
+// ignored: a daemon may reset a hostile peer); or send one UDP datagram there.
 void tcp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
 void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
 // A spoofing sender: from a socket bound to `from_address` (another loopback address, e.g.
