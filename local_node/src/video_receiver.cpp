@@ -167,43 +167,48 @@ void VideoReceiver::decode_one(const std::vector<std::uint8_t>& bytes) {
   const video::DecodeStatus status = d.decoder.decode(bytes, d.out);
   switch (status) {
     case video::DecodeStatus::Ok: {
-      counters_.decoded.fetch_add(1, std::memory_order_relaxed);
-      if (d.out.header.is_intra) counters_.intra.fetch_add(1, std::memory_order_relaxed);
       last_good_seq_ = d.out.header.encode_seq;
-      counters_.eye_width_px.store(d.out.left_bgr.cols, std::memory_order_relaxed);
-      counters_.eye_height_px.store(d.out.left_bgr.rows, std::memory_order_relaxed);
       auto p = std::make_shared<EyePair>();
       p->frame_id = d.out.header.frame_id;
       p->capture_ns = d.out.header.capture_ns;
       p->head_joint_rad = d.out.header.head_joint_rad;
-      if (p->head_joint_rad) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
       p->left_bgr = d.out.left_bgr.clone();  // the decoder reuses its images
       p->right_bgr = d.out.right_bgr.clone();
       p->delivered_ns = hooks_.now_ns();
       const std::int64_t capture_ns = p->capture_ns;
+      const bool posed = p->head_joint_rad.has_value();
       {
         std::lock_guard lock(pairs_mu_);
         pairs_.push_back(std::move(p));
         if (pairs_.size() > kKeptPairs) pairs_.pop_front();
       }
-      pairs_cv_.notify_all();
       record_delivery(capture_ns);
+      // Counted once the pair and its age can be had: a reader that sees `decoded` reach N (an
+      // acquire load) finds the N-th pair in pair() and its age in delivery_ages(). Counting
+      // first let a test take pair() while it was still null (a SEGV in CI).
+      if (d.out.header.is_intra) counters_.intra.fetch_add(1, std::memory_order_relaxed);
+      if (posed) counters_.with_head_pose.fetch_add(1, std::memory_order_relaxed);
+      counters_.eye_width_px.store(d.out.left_bgr.cols, std::memory_order_relaxed);
+      counters_.eye_height_px.store(d.out.left_bgr.rows, std::memory_order_relaxed);
+      counters_.decoded.fetch_add(1, std::memory_order_release);
+      pairs_cv_.notify_all();
       return;
     }
     case video::DecodeStatus::MissingReference:
-      counters_.damaged.fetch_add(1, std::memory_order_relaxed);
+      // As above: asked (or held) before it is counted.
       ask_for_intra(proto::PictureLossReason::MissingReference);
+      counters_.damaged.fetch_add(1, std::memory_order_release);
       return;
     case video::DecodeStatus::BadHeader:
     case video::DecodeStatus::DecodeError:
-      counters_.decode_errors.fetch_add(1, std::memory_order_relaxed);
       ask_for_intra(proto::PictureLossReason::DecodeError);
+      counters_.decode_errors.fetch_add(1, std::memory_order_release);
       return;
     case video::DecodeStatus::NoPicture:
       // libavcodec holds back pictures without their references: as lost as a damaged one.
       if (d.decoder.needs_intra()) {
-        counters_.damaged.fetch_add(1, std::memory_order_relaxed);
         ask_for_intra(proto::PictureLossReason::MissingReference);
+        counters_.damaged.fetch_add(1, std::memory_order_release);
       }
       return;
   }
