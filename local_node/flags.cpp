@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
@@ -390,7 +391,13 @@ void apply_security_flags(StationFlags& f) {
     // Loaded once here, so an unreadable or mismatched file exits 2 before anything starts.
     SSL_CTX_free(proto::make_tls_context(client.tls, proto::TlsRole::Client));
   }
-  const bool loopback = proto::is_loopback_host(client.host);
+  try {
+    client.addresses = proto::resolve_host(client.host);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--connect ") + f.connect + ": " + e.what());
+  }
+  const bool loopback =
+      std::all_of(client.addresses.begin(), client.addresses.end(), proto::is_loopback_address);
   if (!client.tls.enabled() && !loopback && !f.insecure)
     throw std::invalid_argument(proto::insecure_refusal("--connect", f.connect));
   f.cfg.insecure = !client.tls.enabled() && !loopback;

@@ -35,6 +35,8 @@ using std::chrono::milliseconds;
 // On a screen (--view window | hmd) the stereo pair is drawn at video rate (the synthetic and V4L2
 // stereo sources send 30 fps); into PNGs once a second.
 constexpr std::int64_t kOnScreenViewPeriodNs = 33'333'333;
+// Authentication failures before the first surface that end the wait (they do not heal).
+constexpr std::uint64_t kAuthFailuresToStop = 3;
 
 }  // namespace
 
@@ -88,7 +90,7 @@ class Station::Run {
   std::atomic<bool>& stop_;
   const std::int64_t t_start_ns_ = monotonic_ns();
   StationFaults faults_;
-  std::array<bool, 4> fault_reported_{};
+  std::array<bool, 5> fault_reported_{};
 
   // ---- outputs, opened first so a bad device or path fails before anything connects ----
   std::unique_ptr<HapticDisplay> display_;
@@ -168,6 +170,9 @@ void Station::Run::connect() {
     spdlog::info("remote {}: {}", to_string(s), why);
   };
   events.on_warning = [](const std::string& what) { spdlog::warn("{}", what); };
+  events.on_auth_failed = [](const std::string& why) {
+    spdlog::error("authentication failed: {}", why);
+  };
   start_opencv_workers();  // from this thread, so they never inherit the depth path's priority
   ClientConfig client_cfg = cfg_.client;
   client_cfg.want_video = client_cfg.want_video || view_.stereo();
@@ -200,6 +205,7 @@ bool Station::Run::poll_thread_faults() {
   if (haptic_.tracker()) poll(1, haptic_.tracker()->thread_fault());
   poll(2, display_->thread_fault());
   if (log_.recorder()) poll(3, log_.recorder()->thread_fault());
+  poll(4, view_.thread_fault());
   return std::find(fault_reported_.begin(), fault_reported_.end(), true) != fault_reported_.end();
 }
 
@@ -221,7 +227,8 @@ bool Station::Run::wait_first_surface() {
     if (poll_thread_faults()) break;
     if (view_.window() && view_.pump_window(stop_)) break;
     if (xr_ended()) break;
-    if (monotonic_ns() > deadline) {
+    // Keys or certificates that do not match do not heal by retrying: three refusals end it.
+    if (monotonic_ns() > deadline || client_->stats().auth_failed.load() >= kAuthFailuresToStop) {
       const auto& cs = client_->stats();
       const std::string remote = cfg_.client.host + ":" + std::to_string(cfg_.client.port);
       if (cs.auth_failed.load() > 0)

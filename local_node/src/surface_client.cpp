@@ -46,7 +46,6 @@ struct SurfaceClient::Impl {
         tls_ctx(make_tls(cfg.tls)),
         tcp_sock(io),
         udp_sock(io),
-        resolver(io),
         heartbeat_timer(io),
         retry_timer(io),
         parser(cfg.limits),
@@ -63,7 +62,6 @@ struct SurfaceClient::Impl {
   tcp::socket tcp_sock;                     // while connecting; then moved into `link`
   std::shared_ptr<proto::LinkStream> link;  // the connection: TLS or plain
   udp::socket udp_sock;
-  tcp::resolver resolver;
   asio::steady_timer heartbeat_timer;
   asio::steady_timer retry_timer;
   ThreadFault fault{"network (telex-net)"};
@@ -146,18 +144,20 @@ struct SurfaceClient::Impl {
     ++generation;
     set_state(ClientState::Connecting, cfg.host + ":" + std::to_string(cfg.port));
     const auto gen = generation;
-    resolver.async_resolve(
-        cfg.host, std::to_string(cfg.port),
-        [this, gen](boost::system::error_code ec, tcp::resolver::results_type results) {
-          if (gen != generation || stopping) return;
-          if (ec) return retry("cannot resolve " + cfg.host + ": " + ec.message());
-          asio::async_connect(tcp_sock, results,
-                              [this, gen](boost::system::error_code ec2, const tcp::endpoint& ep) {
-                                if (gen != generation || stopping) return;
-                                if (ec2) return retry("cannot connect: " + ec2.message());
-                                start_link(ep);
-                              });
-        });
+    // The addresses resolved (and checked) at start; a config made in code resolves here.
+    std::vector<tcp::endpoint> endpoints;
+    try {
+      for (const auto& a : cfg.addresses.empty() ? proto::resolve_host(cfg.host) : cfg.addresses)
+        endpoints.emplace_back(asio::ip::make_address(a), cfg.port);
+    } catch (const std::exception& e) {
+      return retry(e.what());
+    }
+    asio::async_connect(tcp_sock, endpoints,
+                        [this, gen](boost::system::error_code ec, const tcp::endpoint& ep) {
+                          if (gen != generation || stopping) return;
+                          if (ec) return retry("cannot connect: " + ec.message());
+                          start_link(ep);
+                        });
   }
 
   // TCP is up: the TLS handshake (when configured), then the session.
@@ -182,6 +182,13 @@ struct SurfaceClient::Impl {
           if (gen != generation) return;
           if (e) return on_handshake_failed(e);
           if (link->tls()) {
+            // Before any byte of the session (the Hello) goes out: a peer that completed TLS
+            // without the key (a certificate-only server on the path) is no remote of ours.
+            if (auto why =
+                    proto::unauthenticated_session(link->ssl(), proto::TlsRole::Client, cfg.tls)) {
+              handshake_failed = true;
+              return auth_failed(*why);
+            }
             try {
               opener = std::make_unique<proto::DatagramOpener>(
                   proto::export_link_keys(link->ssl(), proto::TlsRole::Client).rx);
@@ -199,14 +206,19 @@ struct SurfaceClient::Impl {
   // connect, without "authentication failed" in the final message.
   void on_handshake_failed(const boost::system::error_code& e) {
     handshake_failed = true;
-    const bool ssl_error = e.category() == asio::error::get_ssl_category();
-    if (ssl_error) stats.auth_failed.fetch_add(1);
-    disconnect(ssl_error
-                   ? proto::explain_tls_failure(static_cast<unsigned long>(e.value()), e.message(),
-                                                proto::TlsRole::Client, cfg.tls)
-                   : "the remote closed the connection during the TLS handshake (" + e.message() +
-                         "): it may run without --psk or certificates, or refuse this "
-                         "station's; see its log");
+    if (e.category() == asio::error::get_ssl_category())
+      return auth_failed(proto::explain_tls_failure(static_cast<unsigned long>(e.value()),
+                                                    e.message(), proto::TlsRole::Client, cfg.tls));
+    disconnect("the remote closed the connection during the TLS handshake (" + e.message() +
+               "): it may run without --psk or certificates, or refuse this station's; see its "
+               "log");
+  }
+
+  // Counted, said as an error (a key mismatch is not a passing state), then retried.
+  void auth_failed(const std::string& why) {
+    stats.auth_failed.fetch_add(1);
+    if (ev.on_auth_failed) ev.on_auth_failed(why);
+    disconnect(why);
   }
 
   void on_connected(const tcp::endpoint& ep) {
@@ -406,6 +418,8 @@ struct SurfaceClient::Impl {
           } else if constexpr (std::is_same_v<T, proto::Reject>) {
             stats.rejects.fetch_add(1);
             handshake_failed = true;  // the remote said why: no guessing in auth_hint
+            if (m.reason == proto::RejectReason::AuthFailed)
+              return auth_failed("remote refused: " + m.text);
             disconnect("remote refused: " + m.text);
           } else if constexpr (std::is_same_v<T, proto::Heartbeat>) {
             on_heartbeat(m);
@@ -516,7 +530,6 @@ void SurfaceClient::stop() {
     impl_->stopping = true;
     ++impl_->generation;  // handlers still queued bail out
     impl_->retry_timer.cancel();
-    impl_->resolver.cancel();
     const auto finish = [this] {
       impl_->close_sockets();
       impl_->work.reset();

@@ -12,10 +12,13 @@
 #include <openssl/ssl.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <stdexcept>
+#include <vector>
 
 namespace telex::proto {
 namespace {
@@ -118,6 +121,13 @@ int server_psk(SSL* ssl, const unsigned char* identity, std::size_t identity_len
 
 const char* peer_name(TlsRole role) { return role == TlsRole::Server ? "station" : "remote"; }
 
+// PSK mode: whoever shows a certificate is not keyed (anyone can run a TLS 1.3 server with a
+// throw-away certificate), so no certificate ever verifies and such a handshake fails at once.
+int refuse_any_certificate(int, X509_STORE_CTX* store) {
+  X509_STORE_CTX_set_error(store, X509_V_ERR_APPLICATION_VERIFICATION);
+  return 0;
+}
+
 }  // namespace
 
 std::string TlsConfig::describe() const {
@@ -159,11 +169,16 @@ SSL_CTX* make_tls_context(const TlsConfig& config, TlsRole role) {
       delete psk;
       throw std::runtime_error("cannot attach the PSK to the TLS context: " + ssl_errors());
     }
-    if (role == TlsRole::Client)
+    // The client fails any certificate a server shows; the server asks for none (and a server
+    // that verified would need a session id context for its PSK "resumptions"). Both check the
+    // session after the handshake (unauthenticated_session).
+    if (role == TlsRole::Client) {
       SSL_CTX_set_psk_use_session_callback(ctx, &client_psk);
-    else
+      SSL_CTX_set_verify(ctx, SSL_VERIFY_PEER, &refuse_any_certificate);
+    } else {
       SSL_CTX_set_psk_find_session_callback(ctx, &server_psk);
-    SSL_CTX_set_verify(ctx, SSL_VERIFY_NONE, nullptr);
+      SSL_CTX_set_verify(ctx, SSL_VERIFY_NONE, nullptr);
+    }
   } else {
     const std::string cert = config.cert.string(), key = config.key.string(),
                       ca = config.ca.string();
@@ -205,6 +220,27 @@ LinkKeys export_link_keys(SSL* ssl, TlsRole role) {
   return keys;
 }
 
+std::optional<std::string> unauthenticated_session(SSL* ssl, TlsRole role,
+                                                   const TlsConfig& config) {
+  const std::string peer = peer_name(role);
+  if (config.psk) {
+    // An external PSK handshake is OpenSSL's "resumption": anything else authenticated nobody.
+    if (SSL_session_reused(ssl) != 1)
+      return "the " + peer +
+             " completed TLS without the shared key (no PSK was used): it does not hold this "
+             "--psk key, so it is not the " +
+             peer + " it claims to be; nothing was sent";
+    if (SSL_get0_peer_certificate(ssl) != nullptr)
+      return "the " + peer + " showed a certificate in --psk mode; nothing was sent";
+    return std::nullopt;
+  }
+  if (config.certificates() &&
+      (SSL_get0_peer_certificate(ssl) == nullptr || SSL_get_verify_result(ssl) != X509_V_OK))
+    return "the " + peer + "'s certificate was not verified against --ca '" + config.ca.string() +
+           "'; nothing was sent";
+  return std::nullopt;
+}
+
 bool tls_failure_is_plain_peer(unsigned long e) {
   if (ERR_GET_LIB(e) != ERR_LIB_SSL) return false;
   switch (ERR_GET_REASON(e)) {
@@ -231,6 +267,12 @@ std::string explain_tls_failure(unsigned long e, const std::string& text, TlsRol
            same + " (" + text + ")";
   const int reason = ERR_GET_LIB(e) == ERR_LIB_SSL ? ERR_GET_REASON(e) : 0;
   if (config.psk) {
+    if (reason == SSL_R_CERTIFICATE_VERIFY_FAILED)
+      return "the " + peer +
+             " answered with a certificate, not the shared key: it does not hold this --psk key "
+             "(an impostor on the path, or a " +
+             peer + " started with --cert/--key/--ca); give both daemons the same --psk FILE (" +
+             text + ")";
     if (reason == SSL_R_BINDER_DOES_NOT_VERIFY)
       return "key mismatch: the station's --psk key differs from this telex-remote's (the TLS "
              "PSK binder does not verify); give both daemons the same key file (" +
@@ -270,37 +312,59 @@ std::string explain_tls_failure(unsigned long e, const std::string& text, TlsRol
   return "TLS handshake with the " + peer + " failed: " + text;
 }
 
-bool is_loopback_host(const std::string& host) {
-  if (host == "localhost") return true;
-  std::string h = host;
-  if (h.size() >= 2 && h.front() == '[' && h.back() == ']') h = h.substr(1, h.size() - 2);
-  in_addr v4{};
-  if (inet_pton(AF_INET, h.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
-  in6_addr v6{};
-  if (inet_pton(AF_INET6, h.c_str(), &v6) == 1) {
-    if (IN6_IS_ADDR_LOOPBACK(&v6)) return true;
-    if (IN6_IS_ADDR_V4MAPPED(&v6)) return v6.s6_addr[12] == 127;
-    return false;
-  }
+namespace {
+std::string strip_brackets(const std::string& host) {
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    return host.substr(1, host.size() - 2);
+  return host;
+}
+}  // namespace
+
+std::vector<std::string> resolve_host(const std::string& host) {
+  const std::string h = strip_brackets(host);
   addrinfo hints{};
   hints.ai_family = AF_UNSPEC;
   hints.ai_socktype = SOCK_STREAM;
   addrinfo* res = nullptr;
-  if (getaddrinfo(h.c_str(), nullptr, &hints, &res) != 0 || res == nullptr) return false;
-  bool all = true;
+  const int rc = getaddrinfo(h.c_str(), nullptr, &hints, &res);
+  if (rc != 0 || res == nullptr)
+    throw std::invalid_argument("cannot resolve '" + host + "': " + gai_strerror(rc));
+  std::vector<std::string> out;
   char buf[INET6_ADDRSTRLEN];
   for (addrinfo* p = res; p != nullptr; p = p->ai_next) {
     const void* a =
         p->ai_family == AF_INET
             ? static_cast<const void*>(&reinterpret_cast<sockaddr_in*>(p->ai_addr)->sin_addr)
             : static_cast<const void*>(&reinterpret_cast<sockaddr_in6*>(p->ai_addr)->sin6_addr);
-    if (inet_ntop(p->ai_family, a, buf, sizeof buf) == nullptr || !is_loopback_host(buf)) {
-      all = false;
-      break;
-    }
+    if (inet_ntop(p->ai_family, a, buf, sizeof buf) != nullptr &&
+        std::find(out.begin(), out.end(), buf) == out.end())
+      out.emplace_back(buf);
   }
   freeaddrinfo(res);
-  return all;
+  if (out.empty()) throw std::invalid_argument("cannot resolve '" + host + "': no address");
+  return out;
+}
+
+bool is_loopback_address(const std::string& address) {
+  const std::string h = strip_brackets(address);
+  in_addr v4{};
+  if (inet_pton(AF_INET, h.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  if (inet_pton(AF_INET6, h.c_str(), &v6) == 1) {
+    if (IN6_IS_ADDR_LOOPBACK(&v6)) return true;
+    if (IN6_IS_ADDR_V4MAPPED(&v6)) return v6.s6_addr[12] == 127;
+  }
+  return false;
+}
+
+bool is_loopback_host(const std::string& host) {
+  if (host == "localhost") return true;
+  try {
+    const auto addresses = resolve_host(host);
+    return std::all_of(addresses.begin(), addresses.end(), is_loopback_address);
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
 }
 
 std::string insecure_refusal(const std::string& flag, const std::string& address) {

@@ -8,8 +8,12 @@
 #include <openssl/err.h>
 #include <openssl/ssl.h>
 
+#include <filesystem>
 #include <memory>
 #include <string>
+
+#include "process.h"
+#include "telex/proto/certs.h"
 
 namespace telex::proto {
 namespace {
@@ -133,6 +137,45 @@ TEST(Tls, LoopbackRule) {
   const auto msg = insecure_refusal("--listen", "0.0.0.0:7300");
   EXPECT_NE(msg.find("--insecure"), std::string::npos);
   EXPECT_NE(msg.find("robot head"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace telex::proto
+
+namespace telex::proto {
+namespace {
+
+// `telex certs`: the CA it makes verifies both daemons' certificates in a mutual handshake, and
+// the key usages hold: the station's certificate (clientAuth) does not serve as the remote's.
+TEST(LinkCertificates, MakeAWorkingPairWithTheRightKeyUsages) {
+  const auto dir = ::telex::test::scratch_dir("link_certs");
+  const auto c = make_link_certificates(dir / "certs", 2, {"robot.local", "192.0.2.7"});
+  const auto perms = std::filesystem::status(c.remote_key).permissions();
+  EXPECT_EQ(perms & (std::filesystem::perms::group_all | std::filesystem::perms::others_all),
+            std::filesystem::perms::none);
+  TlsConfig remote{std::nullopt, c.remote_cert, c.remote_key, c.ca_cert};
+  TlsConfig station{std::nullopt, c.station_cert, c.station_key, c.ca_cert};
+  Pair ok(remote, station);
+  ASSERT_TRUE(ok.handshake()) << ok.server_error << " " << ok.client_error;
+  EXPECT_FALSE(unauthenticated_session(ok.client.get(), TlsRole::Client, station).has_value());
+  EXPECT_FALSE(unauthenticated_session(ok.server.get(), TlsRole::Server, remote).has_value());
+  // The roles swapped: each certificate's extended key usage refuses it.
+  Pair swapped(station, remote);
+  EXPECT_FALSE(swapped.handshake());
+  // Never over existing files.
+  EXPECT_THROW(make_link_certificates(dir / "certs", 2, {}), std::runtime_error);
+}
+
+// --psk: a peer that shows a certificate, and a handshake without the PSK, are refused.
+TEST(Tls, PskModeRefusesACertificateOnlyServer) {
+  const auto dir = ::telex::test::scratch_dir("psk_vs_cert");
+  const auto c = make_link_certificates(dir / "certs", 2, {});
+  TlsConfig impostor{std::nullopt, c.remote_cert, c.remote_key, c.ca_cert};
+  Pair p(impostor, psk_config(0x42));
+  EXPECT_FALSE(p.handshake());
+  ASSERT_NE(p.client_error, 0u);
+  const auto says = explain_tls_failure(p.client_error, "x", TlsRole::Client, psk_config(0x42));
+  EXPECT_NE(says.find("certificate, not the shared key"), std::string::npos) << says;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "telex/base/thread_fault.h"
 #include "telex/proto/messages.h"
@@ -19,6 +20,9 @@ namespace telex::local {
 
 struct ClientConfig {
   std::string host = "127.0.0.1";
+  // host's addresses, resolved once at start (proto::resolve_host): the ones the loopback rule
+  // checked are the ones connected to. Empty: host is resolved at each connect.
+  std::vector<std::string> addresses;
   std::uint16_t port = 7300;
   bool use_udp = true;      // ask for depth over UDP (the remote may still choose TCP)
   bool want_video = false;  // ask for the eyes' video (EncodedVideo)
@@ -89,6 +93,9 @@ struct ClientEvents {
   std::function<void(ClientState, const std::string&)> on_state;  // with a human-readable reason
   // Dropped messages, at most one call a second (counts are in ClientStats).
   std::function<void(const std::string&)> on_warning;
+  // The remote, or whoever answered, failed authentication: another key, no TLS, a certificate
+  // in --psk mode, a Reject for authentication. Counted in auth_failed; the station logs an error.
+  std::function<void(const std::string&)> on_auth_failed;
 };
 
 class SurfaceClient {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "telex/proto/auth.h"
 #include "telex/proto/seal.h"
@@ -61,6 +62,12 @@ struct LinkKeys {
 // Throws std::runtime_error when the session cannot export (no TLS 1.3 session yet).
 LinkKeys export_link_keys(SSL* ssl, TlsRole role);
 
+// Checked after every handshake, on both sides, before a byte of the session is sent: with --psk
+// the session must have been made from the PSK (OpenSSL reports an external PSK as a resumed
+// session) and no certificate shown; with certificates the peer's must have verified. Returns
+// what is wrong, for the log and the auth_failed count; nullopt when the peer is authenticated.
+std::optional<std::string> unauthenticated_session(SSL* ssl, TlsRole role, const TlsConfig& config);
+
 // What a failed handshake says to the operator of `role`, from OpenSSL's error code (the value of
 // an asio ssl error_code): names a key mismatch, a peer without TLS, a certificate the CA does not
 // vouch for; otherwise the OpenSSL text.
@@ -69,6 +76,12 @@ std::string explain_tls_failure(unsigned long openssl_error, const std::string& 
 // True when the failure is the peer speaking plain TCP (the first bytes are no TLS record).
 bool tls_failure_is_plain_peer(unsigned long openssl_error);
 
+// The numeric addresses HOST names (an address literal, "[v6]" or a name), each once, resolved
+// now. Throws std::invalid_argument naming HOST when it does not resolve. A daemon resolves once
+// at start: the addresses it checks (loopback or not) are the ones it then uses.
+std::vector<std::string> resolve_host(const std::string& host);
+// True for a numeric loopback address (127.0.0.0/8, ::1, ::ffff:127.x.y.z).
+bool is_loopback_address(const std::string& address);
 // True when every address HOST names is a loopback address (127.0.0.0/8, ::1, "localhost").
 // A name that does not resolve counts as not loopback.
 bool is_loopback_host(const std::string& host);
