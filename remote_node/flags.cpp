@@ -457,8 +457,12 @@ void resolve_security(RemoteFlags& f) {
   ServerConfig& server = f.cfg.server;
   proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
   if (!f.psk_file.empty()) {
-    proto::check_key_file_permissions(f.psk_file);
-    server.tls.psk = proto::load_key_file(f.psk_file);
+    try {
+      proto::check_key_file_permissions(f.psk_file);
+      server.tls.psk = proto::load_key_file(f.psk_file);
+    } catch (const std::exception& e) {
+      throw std::invalid_argument(std::string("--psk: ") + e.what());
+    }
   }
   if (!f.cert_file.empty()) {
     proto::check_key_file_permissions(f.key_file, "private key file");
@@ -466,7 +470,13 @@ void resolve_security(RemoteFlags& f) {
     server.tls.key = f.key_file;
     server.tls.ca = f.ca_file;
   }
-  const bool loopback = proto::is_loopback_host(server.host);
+  // A name (localhost) listens on its first address; the address checked is the one bound.
+  try {
+    server.host = proto::resolve_host(server.host).front();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("--listen " + f.listen + ": " + e.what());
+  }
+  const bool loopback = proto::is_loopback_address(server.host);
   if (!server.tls.enabled() && !loopback && !f.insecure)
     throw std::invalid_argument(proto::insecure_refusal("--listen", f.listen));
   f.cfg.insecure = !server.tls.enabled() && !loopback;

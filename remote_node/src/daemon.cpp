@@ -85,6 +85,7 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       "{:.1f} ms | client {} (accepted {} "
       "rejected {} timeouts {}) | ended{} | "
       "errors {} malformed {} | auth-failed {} unsealed {} replayed {} udp-ignored {} | "
+      "pre-auth-evicted {} pre-auth-timeouts {} accept-errors {} | "
       "key-requests {} nacks {} repaired {} unavailable {} repair-dup {} over-budget {} "
       "over-queue {} control-dropped {} | frames-sent {} | head-in {} "
       "clamped {} rate-limited {} accel-limited {} link-lost {} stale-held {} repeat-held {} "
@@ -114,12 +115,13 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
       static_cast<double>(now.last_report.delay_mean_us) / 1e3, client_state_name(now.client),
       now.clients_accepted, now.clients_rejected, now.client_timeouts,
       ended.empty() ? std::string(" none") : ended, now.source_errors, now.malformed_in,
-      now.auth_failed, now.unsealed, now.replayed, now.udp_ignored, now.key_frame_requests,
-      now.nacks_in, now.repair_tiles_sent, now.repair_unavailable, now.repair_duplicates,
-      now.repair_over_budget, now.repair_over_queue, now.control_dropped, now.frames_sent,
-      now.head_commands_in, now.head_control.clamped, now.head_control.rate_limited,
-      now.head_control.accel_limited, now.head_control.link_losses, now.head_control.stale_holds,
-      now.head_control.repeat_holds, now.head_control.deadman_holds,
+      now.auth_failed, now.unsealed, now.replayed, now.udp_ignored, now.preauth_evicted,
+      now.preauth_timeouts, now.accept_errors, now.key_frame_requests, now.nacks_in,
+      now.repair_tiles_sent, now.repair_unavailable, now.repair_duplicates, now.repair_over_budget,
+      now.repair_over_queue, now.control_dropped, now.frames_sent, now.head_commands_in,
+      now.head_control.clamped, now.head_control.rate_limited, now.head_control.accel_limited,
+      now.head_control.link_losses, now.head_control.stale_holds, now.head_control.repeat_holds,
+      now.head_control.deadman_holds,
       now.head_holding ? std::string(" holding (") + head_hold_name(now.head_hold) + ")" : "",
       now.head.timeouts + now.head.crc_errors + now.head.bad_packets + now.head.status_errors +
           now.head.hardware_errors + now.head.io_errors,
@@ -200,13 +202,14 @@ void RemoteDaemon::start() {
   pipeline_.set_tile_sink(
       [this](const ProcessedFrame& part, std::size_t from) { server_->publish_tiles(part, from); });
   running_ = true;
-  capture_thread_ = std::thread([this] { capture_loop(); });
-  process_thread_ = std::thread([this] { process_loop(); });
+  capture_thread_ = std::thread([this] { capture_fault_.run([this] { capture_loop(); }); });
+  process_thread_ = std::thread([this] { process_fault_.run([this] { process_loop(); }); });
   if (stereo_) {
-    stereo_thread_ = std::thread([this] { stereo_loop(); });
-    video_thread_ = std::thread([this] { video_loop(); });
+    stereo_thread_ = std::thread([this] { stereo_fault_.run([this] { stereo_loop(); }); });
+    video_thread_ = std::thread([this] { video_fault_.run([this] { video_loop(); }); });
   }
-  if (head_driven_) head_thread_ = std::thread([this] { head_loop(); });
+  if (head_driven_)
+    head_thread_ = std::thread([this] { head_fault_.run([this] { head_loop(); }); });
   // From capture to the network, above video, logs and whatever else runs here (periodic.h).
   name_thread(capture_thread_.native_handle(), "telex-capture");
   name_thread(process_thread_.native_handle(), "telex-process");
@@ -264,6 +267,9 @@ DaemonStats RemoteDaemon::stats() const {
     s.unsealed = c.unsealed;
     s.replayed = c.replayed;
     s.udp_ignored = c.udp_ignored;
+    s.preauth_evicted = c.preauth_evicted;
+    s.preauth_timeouts = c.preauth_timeouts;
+    s.accept_errors = c.accept_errors;
     s.key_frame_requests = c.key_frame_requests;
     s.nacks_in = c.nacks_in;
     s.repair_tiles_sent = c.repair_tiles_sent;
@@ -515,6 +521,14 @@ void RemoteDaemon::process_loop() {
   }
 }
 
+std::optional<ThreadFaultReport> RemoteDaemon::thread_fault() const {
+  for (const ThreadFault* f :
+       {&capture_fault_, &stereo_fault_, &process_fault_, &video_fault_, &head_fault_})
+    if (f->failed()) return f->report();
+  if (server_ && server_->fault().failed()) return server_->fault().report();
+  return std::nullopt;
+}
+
 int RemoteDaemon::run() {
   namespace asio = boost::asio;
   asio::io_context io;
@@ -535,6 +549,15 @@ int RemoteDaemon::run() {
     tick.async_wait([&](boost::system::error_code ec) {
       if (ec) return;
       const auto now = std::chrono::steady_clock::now();
+      // A failed thread ends the run: the session closes (the station sees it), the head loop
+      // stops commanding and the head holds its last target.
+      if (const auto fault = thread_fault()) {
+        spdlog::error("thread {} stopped: {}; stopping (the head holds still)", fault->thread,
+                      fault->what());
+        exit_code = 1;
+        io.stop();
+        return;
+      }
       if (config_.insecure && now - last_insecure_warning >= 60s) {
         spdlog::warn("{}", proto::insecure_warning());
         last_insecure_warning = now;

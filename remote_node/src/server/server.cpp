@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// The remote's network server, acceptor part: the listening socket, the one-operator policy, the
-// client timeout, session ends (logged and counted by reason), and RemoteServer's public face.
+// The remote's network server, acceptor part: the listening socket, the TLS handshake and its
+// check, the client timeout, session ends (logged and counted by reason), and RemoteServer's
+// public face. Connections before authentication are server_pending.cpp's.
 #include <openssl/objects.h>
 #include <openssl/ssl.h>
 
@@ -40,6 +41,7 @@ RemoteServer::Impl::Impl(ServerConfig config)
       acceptor_(io_),
       udp_(io_),
       timer_(io_),
+      accept_backoff_(io_),
       cache_(config_.repair_cache_frames) {
   // Bad certificate, key or CA files are configuration errors (std::invalid_argument: exit 2).
   if (config_.tls.enabled())
@@ -54,8 +56,13 @@ RemoteServer::Impl::Impl(ServerConfig config)
   if (!ec) acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);
   if (!ec) acceptor_.bind(endpoint, ec);
   if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+  // A bad --listen value (port in use, address not ours) is a configuration error: exit 2.
+  if (ec == boost::system::errc::address_not_available)
+    throw std::invalid_argument(fmt::format(
+        "cannot listen on {}:{}: this machine has no address {} (`ip -brief address` lists its "
+        "addresses; 0.0.0.0 listens on all of them)",
+        config_.host, config_.port, config_.host));
   if (ec)
-    // A bad --listen value (port in use, address not ours) is a configuration error: exit 2.
     throw std::invalid_argument(
         fmt::format("cannot listen on {}:{}: {} (is another telex-remote running? pick another "
                     "--listen port)",
@@ -73,7 +80,7 @@ void RemoteServer::Impl::start() {
   do_accept();
   arm_timer();
   udp_receive();
-  thread_ = std::thread([this] { io_.run(); });
+  thread_ = std::thread([this] { fault_.run([this] { io_.run(); }); });
   name_thread(thread_.native_handle(), "telex-net");
   scheduling_ = try_realtime(thread_.native_handle(), config_.realtime_priority);
 }
@@ -84,6 +91,8 @@ void RemoteServer::Impl::stop() {
     boost::system::error_code ec;
     acceptor_.close(ec);
     timer_.cancel();
+    accept_backoff_.cancel();
+    close_all_pending();
     end_session(SessionEnd::ServerStopping);
     udp_.close(ec);
     work_.reset();
@@ -100,18 +109,9 @@ FrameRequest RemoteServer::Impl::take_request() {
 
 void RemoteServer::Impl::do_accept() {
   acceptor_.async_accept([this](boost::system::error_code ec, tcp::socket socket) {
-    if (ec) {
-      if (ec != asio::error::operation_aborted && acceptor_.is_open()) do_accept();
-      return;
-    }
-    if (active_) {
-      reject(make_link(std::move(socket)), proto::RejectReason::Busy,
-             fmt::format("another operator is connected from {}; try again when it disconnects",
-                         active_->peer),
-             true);
-    } else {
-      start_session(std::move(socket));
-    }
+    if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;
+    if (ec) return on_accept_error(ec);
+    admit(std::move(socket));
     do_accept();
   });
 }
@@ -121,55 +121,22 @@ std::shared_ptr<proto::LinkStream> RemoteServer::Impl::make_link(tcp::socket soc
   return std::make_shared<proto::LinkStream>(std::move(socket));
 }
 
-// With TLS and `handshake`, the Reject goes out only after a handshake (a peer without the key or
-// a valid certificate learns nothing, not even that the remote is busy); a handshake that does not
-// finish within 2 s is dropped.
+// A Reject, then the connection closes. Only an authenticated peer, or one that speaks no TLS
+// (which then learns only that TLS is required), is ever told why.
 void RemoteServer::Impl::reject(std::shared_ptr<proto::LinkStream> link, proto::RejectReason reason,
-                                std::string text, bool handshake) {
+                                std::string text) {
   ++counters_.clients_rejected;
   proto::Reject r;
   r.reason = reason;
   r.text = std::move(text);
   auto buf = make_buffer(proto::encode_stream(header(0, 0, steady_now_ns(), false), r));
-  const auto write = [link, buf] {
-    link->async_write(asio::buffer(*buf),
-                      [link, buf](boost::system::error_code, std::size_t) { link->close(); });
-  };
-  if (!handshake || !link->tls()) return write();
-  auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::seconds(2));
-  timer->async_wait([link](boost::system::error_code ec) {
-    if (!ec) link->close();
-  });
-  link->async_handshake(asio::ssl::stream_base::server,
-                        [link, timer, write](boost::system::error_code ec) {
-                          timer->cancel();
-                          if (ec) return link->close();
-                          write();
-                        });
+  link->async_write(asio::buffer(*buf),
+                    [link, buf](boost::system::error_code, std::size_t) { link->close(); });
 }
 
-void RemoteServer::Impl::start_session(tcp::socket socket) {
-  active_ = std::make_shared<Session>(
-      make_link(std::move(socket)), config_.repair_limits,
-      SendQueueLimits{config_.max_queued_frames, config_.max_queued_video_frames});
-  ++active_generation_;
-  boost::system::error_code ec;
-  const auto remote = active_->link->socket().remote_endpoint(ec);
-  active_->peer =
-      ec ? std::string("?") : fmt::format("{}:{}", remote.address().to_string(), remote.port());
-  active_->link->socket().set_option(tcp::no_delay(true), ec);
-  // A handshake that never finishes ends as client-silent after the client timeout.
-  active_->last_rx = std::chrono::steady_clock::now();
-  auto a = active_;
-  const auto gen = active_generation_;
-  a->link->async_handshake(
-      asio::ssl::stream_base::server,
-      [this, a, gen](boost::system::error_code e) { on_handshake(a, gen, e); });
-}
-
-void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a, std::uint32_t gen,
+void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a,
                                       boost::system::error_code ec) {
-  if (active_ != a || gen != active_generation_) return;
+  if (!a->open) return;
   if (ec) {
     ++counters_.auth_failed;
     const bool ssl_error = ec.category() == asio::error::get_ssl_category();
@@ -178,10 +145,11 @@ void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a, std::ui
         ssl_error
             ? proto::explain_tls_failure(code, ec.message(), proto::TlsRole::Server, config_.tls)
             : "the connection closed during the TLS handshake (" + ec.message() + ")";
-    spdlog::warn("TLS handshake with {} failed: {}", a->peer, why);
+    if (log_allowed(last_auth_log_, auth_logs_held_))
+      spdlog::warn("TLS handshake with {} failed: {}", a->peer, why);
     // A station without TLS reads a clear-text Reject and can say what to fix.
     const bool plain_peer = ssl_error && proto::tls_failure_is_plain_peer(code);
-    refuse_session(proto::RejectReason::AuthFailed,
+    refuse_session(a, proto::RejectReason::AuthFailed,
                    plain_peer ? "this telex-remote requires TLS (" + config_.tls.describe() +
                                     "): start telex-local with the same --psk FILE (or "
                                     "--cert/--key/--ca)"
@@ -189,15 +157,22 @@ void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a, std::ui
                    plain_peer, plain_peer);
     return;
   }
-  a->handshake_done = true;
   if (a->link->tls()) {
+    if (auto why =
+            proto::unauthenticated_session(a->link->ssl(), proto::TlsRole::Server, config_.tls)) {
+      ++counters_.auth_failed;
+      if (log_allowed(last_auth_log_, auth_logs_held_))
+        spdlog::warn("TLS handshake with {} refused: {}", a->peer, *why);
+      refuse_session(a, proto::RejectReason::AuthFailed, *why, false);
+      return;
+    }
     try {
       auto keys = proto::export_link_keys(a->link->ssl(), proto::TlsRole::Server);
       a->sealer = std::make_shared<proto::DatagramSealer>(keys.tx);
       a->opener = std::make_unique<proto::DatagramOpener>(keys.rx);
     } catch (const std::exception& e) {
       spdlog::error("session with {}: {}", a->peer, e.what());
-      refuse_session(proto::RejectReason::Unspecified, e.what(), false);
+      refuse_session(a, proto::RejectReason::Unspecified, e.what(), false);
       return;
     }
     SSL* ssl = a->link->ssl();
@@ -206,8 +181,13 @@ void RemoteServer::Impl::on_handshake(const std::shared_ptr<Session>& a, std::ui
                  SSL_get_cipher_name(ssl), config_.tls.describe(),
                  group != 0 ? OBJ_nid2sn(group) : "none");
   }
-  a->last_rx = std::chrono::steady_clock::now();
-  do_read(a, gen);
+  a->stage = Session::Stage::AwaitingHello;
+  do_read(a);
+}
+
+void RemoteServer::Impl::close_session(const std::shared_ptr<Session>& a, SessionEnd why) {
+  if (a == active_) return end_session(why);
+  drop_pending(a);
 }
 
 // Every way a session ends comes through here (or refuse_session, which answers first): the
@@ -216,6 +196,7 @@ void RemoteServer::Impl::end_session(SessionEnd why) {
   if (!active_) return;
   ++counters_.sessions_ended[static_cast<std::size_t>(why)];
   spdlog::info("session {} with {} ended: {}", session_id_, active_->peer, session_end_name(why));
+  active_->open = false;
   active_->link->close();
   active_.reset();
   std::lock_guard lock(mu_);
@@ -230,10 +211,12 @@ void RemoteServer::Impl::arm_timer() {
     // after stop()'s handler, which closed the acceptor. Re-arming then would keep io_.run()
     // (and stop()'s join) waiting forever; a latency run of the daemons hung there once.
     if (ec || !acceptor_.is_open()) return;
-    if (active_ && std::chrono::steady_clock::now() - active_->last_rx > config_.client_timeout) {
+    const auto now = std::chrono::steady_clock::now();
+    if (active_ && now - active_->last_rx > config_.client_timeout) {
       ++counters_.client_timeouts;
       end_session(SessionEnd::ClientSilent);
     }
+    sweep_pending(now);
     arm_timer();
   });
 }
@@ -248,6 +231,7 @@ ClientState RemoteServer::state() const { return impl_->state(); }
 bool RemoteServer::video_wanted() const { return impl_->video_wanted(); }
 const ServerCounters& RemoteServer::counters() const { return impl_->counters_; }
 const std::string& RemoteServer::scheduling() const { return impl_->scheduling_; }
+const ThreadFault& RemoteServer::fault() const { return impl_->fault_; }
 FrameRequest RemoteServer::take_request() { return impl_->take_request(); }
 void RemoteServer::publish(const ProcessedFrame& frame) { impl_->publish(frame); }
 void RemoteServer::publish_tiles(const ProcessedFrame& part, std::size_t from) {

@@ -9,6 +9,7 @@
 #include <array>
 #include <boost/asio.hpp>
 #include <deque>
+#include <list>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -49,7 +50,14 @@ struct Session {
   SealerPtr sealer;
   std::unique_ptr<proto::DatagramOpener> opener;
   std::array<std::uint8_t, 16384> rx{};
-  bool handshake_done = false;
+  // Until an authenticated Hello the connection is pending (server_pending.cpp), not the session:
+  // it waits for its first byte (Idle), runs the TLS handshake (Handshaking), then reads until
+  // its Hello (AwaitingHello); only then may it take the operator's slot (Active).
+  enum class Stage : std::uint8_t { Idle, Handshaking, AwaitingHello, Active };
+  Stage stage = Stage::Idle;
+  bool open = true;  // false once closed: its pending handlers bail out
+  std::chrono::steady_clock::time_point accepted_at;
+  std::string source;             // the peer's address alone, for the per-source cap
   bool first_bytes_seen = false;  // plain server: the first read checks for a TLS ClientHello
   bool hello_done = false;
   std::chrono::steady_clock::time_point last_rx;
@@ -62,6 +70,15 @@ struct Session {
   bool udp_sending = false;    // one async_send_to in flight
   std::string peer;
 };
+
+// Bounds on connections before authentication (issue 49): an idle or half-open crowd can neither
+// take the operator's slot nor run the remote out of descriptors. Over a cap the oldest
+// connection goes first, idle ones (no byte yet) before those whose handshake runs.
+inline constexpr std::size_t kMaxPending = 64;
+inline constexpr std::size_t kMaxPendingPerSource = 8;
+inline constexpr auto kFirstByteTimeout = std::chrono::seconds(1);      // a TLS client speaks first
+inline constexpr auto kPreauthTimeout = std::chrono::seconds(3);        // handshake and Hello done
+inline constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);  // after EMFILE and kin
 
 // Bounds on what a station that does not read can make the remote hold (issue 27).
 inline constexpr std::size_t kMaxControlQueue = 64;     // control messages waiting
@@ -84,6 +101,7 @@ class RemoteServer::Impl {
   bool video_wanted() const { return video_wanted_; }
   ServerCounters counters_;
   std::string scheduling_;  // the io thread's, set by start()
+  ThreadFault fault_{"network (telex-net)"};
 
  private:
   // What the processing thread needs to address the current session.
@@ -97,24 +115,36 @@ class RemoteServer::Impl {
 
   // ---- acceptor (server.cpp), io thread ----
   void do_accept();
-  void reject(std::shared_ptr<proto::LinkStream> link, proto::RejectReason reason, std::string text,
-              bool handshake);
-  void start_session(tcp::socket socket);
-  void on_handshake(const std::shared_ptr<Session>& s, std::uint32_t gen,
-                    boost::system::error_code ec);
+  void reject(std::shared_ptr<proto::LinkStream> link, proto::RejectReason reason,
+              std::string text);
+  void on_handshake(const std::shared_ptr<Session>& s, boost::system::error_code ec);
   void end_session(SessionEnd why);
+  // Ends `s` whether it is the operator's session or still pending.
+  void close_session(const std::shared_ptr<Session>& s, SessionEnd why);
   void arm_timer();
   std::shared_ptr<proto::LinkStream> make_link(tcp::socket socket);
 
+  // ---- pre-authentication (server_pending.cpp), io thread ----
+  void admit(tcp::socket socket);
+  void on_accept_error(boost::system::error_code ec);
+  void make_room(const std::string& source);
+  void drop_pending(const std::shared_ptr<Session>& s);
+  void sweep_pending(std::chrono::steady_clock::time_point now);
+  void close_all_pending();
+  // Takes the operator's slot for `s`, whose Hello just authenticated it.
+  void promote(const std::shared_ptr<Session>& s);
+  // At most one line a second per `last`; how many were held back is said with the next.
+  bool log_allowed(std::chrono::steady_clock::time_point& last, std::uint64_t& held);
+
   // ---- session (server_session.cpp), io thread ----
-  void do_read(std::shared_ptr<Session> s, std::uint32_t gen);
+  void do_read(std::shared_ptr<Session> s);
   void handle(const std::shared_ptr<Session>& s, const proto::Envelope& env);
   void on_bad_message(const std::shared_ptr<Session>& s, const proto::Result& r);
   void on_hello(const std::shared_ptr<Session>& s, const proto::Hello& hello);
   // Ends the session as Refused; the Reject goes over the session's link, or with `plain` in
   // clear text on its socket (a peer that does not speak TLS), or not at all with `send` false.
-  void refuse_session(proto::RejectReason reason, std::string text, bool send = true,
-                      bool plain = false);
+  void refuse_session(const std::shared_ptr<Session>& s, proto::RejectReason reason,
+                      std::string text, bool send = true, bool plain = false);
   void request_key_frame();
   void on_nack(const proto::TileNack& nack);
   void on_video_nack(const proto::VideoNack& nack);
@@ -157,6 +187,7 @@ class RemoteServer::Impl {
   tcp::acceptor acceptor_;
   udp::socket udp_;
   asio::steady_timer timer_;
+  asio::steady_timer accept_backoff_;
   std::thread thread_;
 
   // io thread only
@@ -165,6 +196,9 @@ class RemoteServer::Impl {
   std::uint32_t session_id_ = 0;
   std::uint32_t next_session_id_ = 1;
   std::chrono::steady_clock::time_point last_drop_log_{};
+  std::list<std::shared_ptr<Session>> pending_;  // in accept order: the oldest first
+  std::chrono::steady_clock::time_point last_auth_log_{}, last_accept_log_{};
+  std::uint64_t auth_logs_held_ = 0, accept_logs_held_ = 0;
   std::array<std::uint8_t, 2048> udp_rx_{};
   std::vector<std::uint8_t> udp_plain_;
   udp::endpoint udp_from_;

@@ -6,12 +6,13 @@
 
 namespace telex::remote {
 
-void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) {
+// Reads a pending connection up to its Hello and the operator's session after it.
+void RemoteServer::Impl::do_read(std::shared_ptr<Session> a) {
   a->link->async_read_some(
-      asio::buffer(a->rx), [this, a, gen](boost::system::error_code ec, std::size_t n) {
-        if (active_ != a || gen != active_generation_) return;
+      asio::buffer(a->rx), [this, a](boost::system::error_code ec, std::size_t n) {
+        if (!a->open) return;
         if (ec) {
-          end_session(SessionEnd::ConnectionLost);
+          close_session(a, SessionEnd::ConnectionLost);
           return;
         }
         if (!a->first_bytes_seen) {
@@ -19,11 +20,12 @@ void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) 
           // A TLS record (handshake 0x16, version 3.x) where a plain length prefix belongs.
           if (!a->link->tls() && n >= 2 && a->rx[0] == 0x16 && a->rx[1] == 0x03) {
             ++counters_.auth_failed;
-            spdlog::warn(
-                "connection from {} speaks TLS but this telex-remote has no --psk key or "
-                "certificates",
-                a->peer);
-            refuse_session(proto::RejectReason::AuthFailed,
+            if (log_allowed(last_auth_log_, auth_logs_held_))
+              spdlog::warn(
+                  "connection from {} speaks TLS but this telex-remote has no --psk key or "
+                  "certificates",
+                  a->peer);
+            refuse_session(a, proto::RejectReason::AuthFailed,
                            "this telex-remote has no --psk key or certificates but the station "
                            "speaks TLS: start both daemons with the same --psk FILE, or neither",
                            true, true);
@@ -38,22 +40,22 @@ void RemoteServer::Impl::do_read(std::shared_ptr<Session> a, std::uint32_t gen) 
           while (auto r = a->parser.next()) {
             if (!r->ok()) {
               on_bad_message(a, *r);
-              if (active_ != a) return;
+              if (!a->open) return;
               continue;
             }
             // Only a message that decoded (over TLS when configured) keeps the session alive.
             a->last_rx = std::chrono::steady_clock::now();
             handle(a, *r->envelope);
-            if (active_ != a) return;
+            if (!a->open) return;
           }
           if (a->parser.failed()) {
             ++counters_.malformed_in;
-            end_session(SessionEnd::Unparseable);
+            close_session(a, SessionEnd::Unparseable);
             return;
           }
           if (took == 0) break;
         }
-        do_read(a, gen);
+        do_read(a);
       });
 }
 
@@ -62,7 +64,7 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
     const auto* hello = std::get_if<proto::Hello>(&env.message);
     if (hello == nullptr) {
       ++counters_.malformed_in;
-      refuse_session(proto::RejectReason::BadRequest, "the first message must be Hello");
+      refuse_session(a, proto::RejectReason::BadRequest, "the first message must be Hello");
       return;
     }
     on_hello(a, *hello);
@@ -128,16 +130,23 @@ void RemoteServer::Impl::on_bad_message(const std::shared_ptr<Session>& a, const
   }
 }
 
-void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string text, bool send,
+// Refuses the operator's session or a pending connection (before its Hello, whoever it is: the log
+// line is rate-limited).
+void RemoteServer::Impl::refuse_session(const std::shared_ptr<Session>& a,
+                                        proto::RejectReason reason, std::string text, bool send,
                                         bool plain) {
-  auto a = active_;
   ++counters_.sessions_ended[static_cast<std::size_t>(SessionEnd::Refused)];
-  spdlog::info("session with {} refused: {}", a->peer, text);
-  active_.reset();
-  {
+  if (a == active_) {
+    spdlog::info("session with {} refused: {}", a->peer, text);
+    active_.reset();
     std::lock_guard lock(mu_);
     connected_ = false;
+  } else {
+    if (log_allowed(last_auth_log_, auth_logs_held_))
+      spdlog::info("connection from {} refused: {}", a->peer, text);
+    pending_.remove(a);
   }
+  a->open = false;
   if (!send) {
     ++counters_.clients_rejected;
     a->link->close();
@@ -145,16 +154,25 @@ void RemoteServer::Impl::refuse_session(proto::RejectReason reason, std::string 
   }
   // In clear text on the socket under a failed TLS layer: a plain station can read it.
   auto link = plain ? std::make_shared<proto::LinkStream>(std::move(a->link->socket())) : a->link;
-  reject(std::move(link), reason, std::move(text), false);
+  reject(std::move(link), reason, std::move(text));
 }
 
 void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto::Hello& hello) {
   if (hello.version != proto::kProtocolVersion) {
-    refuse_session(proto::RejectReason::VersionMismatch,
+    refuse_session(a, proto::RejectReason::VersionMismatch,
                    fmt::format("server speaks protocol version {}, client {}",
                                proto::kProtocolVersion, hello.version));
     return;
   }
+  // The slot is taken here, after the handshake and an authenticated Hello, never at accept.
+  if (active_) {
+    refuse_session(a, proto::RejectReason::Busy,
+                   fmt::format("another operator is connected from {}; try again when it "
+                               "disconnects",
+                               active_->peer));
+    return;
+  }
+  promote(a);
   proto::Codec codec = config_.codec;
   if (!hello.codecs.empty() &&
       std::find(hello.codecs.begin(), hello.codecs.end(), codec) == hello.codecs.end())

@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -17,6 +18,7 @@
 
 #include "telex/base/latest_slot.h"
 #include "telex/base/pi_mutex.h"
+#include "telex/base/thread_fault.h"
 #include "telex/common/rig.h"
 #include "telex/remote/eye_rate.h"
 #include "telex/remote/eye_stream.h"
@@ -99,6 +101,7 @@ struct DaemonStats {
   proto::ReceiverReport last_report;
   std::uint64_t malformed_in = 0;
   std::uint64_t auth_failed = 0, unsealed = 0, replayed = 0, udp_ignored = 0;
+  std::uint64_t preauth_evicted = 0, preauth_timeouts = 0, accept_errors = 0;  // server.h
   // Repair (PROTOCOL.md 2.5): key-frame requests and TileNacks from the station, tiles resent,
   // tiles asked for that the cache no longer held.
   std::uint64_t key_frame_requests = 0, nacks_in = 0, repair_tiles_sent = 0, repair_unavailable = 0;
@@ -147,10 +150,11 @@ class RemoteDaemon {
   // Called on the processing thread with every processed frame, before it is published.
   void set_frame_observer(std::function<void(const ProcessedFrame&)> observer);
 
-  // Runs until SIGINT/SIGTERM, the configured duration, or the end of a non-looping recording,
-  // printing the stats line every second. Returns the process exit code. A source that plays once
-  // (DepthSource::plays_once) starts when the first station connects, and the daemon stays up
-  // after its end while that station is connected.
+  // Runs until SIGINT/SIGTERM, the configured duration, the end of a non-looping recording, or a
+  // thread that failed (an exception escaped it: logged, the threads stopped, the head left holding
+  // its last target, exit 1), printing the stats line every second. Returns the process exit code.
+  // A source that plays once (DepthSource::plays_once) starts when the first station connects, and
+  // the daemon stays up after its end while that station is connected.
   int run();
 
  private:
@@ -190,6 +194,12 @@ class RemoteDaemon {
   std::atomic<bool> station_seen_{false}, video_seen_{false};
   std::atomic<EyeState> eyes_{EyeState::Off};
   std::thread capture_thread_, stereo_thread_, process_thread_, video_thread_, head_thread_;
+  // Each thread's last-resort catch: run() ends the daemon with exit 1 and names the thread when
+  // one has failed (the network thread's is the server's).
+  ThreadFault capture_fault_{"capture (telex-capture)"}, stereo_fault_{"stereo (telex-stereo)"},
+      process_fault_{"process (telex-process)"}, video_fault_{"video (telex-video)"},
+      head_fault_{"head (telex-head)"};
+  std::optional<ThreadFaultReport> thread_fault() const;
   // Head teleoperation: the operator's targets (network thread) and the measured poses (head
   // loop) read by the capture thread.
   bool head_driven_ = false;  // --head is not none

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "telex/base/thread_fault.h"
 #include "telex/proto/messages.h"
 #include "telex/proto/tls.h"
 #include "telex/remote/pipeline.h"
@@ -93,6 +94,12 @@ struct ServerCounters {
   std::atomic<std::uint64_t> unsealed{0};
   std::atomic<std::uint64_t> replayed{0};
   std::atomic<std::uint64_t> udp_ignored{0};
+  // Connections before authentication (server_pending.cpp): closed to make room under a cap (or
+  // to give back a descriptor), closed for not finishing the handshake and Hello in time; and
+  // failed accepts (out of descriptors: each followed by a pause, never a spin).
+  std::atomic<std::uint64_t> preauth_evicted{0};
+  std::atomic<std::uint64_t> preauth_timeouts{0};
+  std::atomic<std::uint64_t> accept_errors{0};
   std::atomic<std::uint64_t> key_frame_requests{0};
   std::atomic<std::uint64_t> head_commands_in{0};  // HeadCommands from the station
   // Repair (PROTOCOL.md 2.5): TileNacks in, tiles resent from the cache, requested tiles the cache
@@ -149,6 +156,8 @@ class RemoteServer {
   const ServerCounters& counters() const;
   // What the network thread got (try_realtime's description); empty before start().
   const std::string& scheduling() const;
+  // The network thread's last-resort catch (the daemon polls it).
+  const ThreadFault& fault() const;
 
   // The receiver's wishes for the next frame; clears a pending key-frame request.
   FrameRequest take_request();
