@@ -39,7 +39,7 @@ VideoReceiver::VideoReceiver(Hooks hooks, VideoReorderConfig reorder)
     : hooks_(std::move(hooks)),
       reorder_(reorder_config(hooks_, reorder)),
       decoder_(std::make_unique<Decoder>()) {
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] { fault_.run([this] { run(); }); });
   name_thread(thread_.native_handle(), "telex-eyes");
 }
 

@@ -51,6 +51,10 @@ class StationView {
     client_ = nullptr;
   }
   bool stereo() const { return spec_.stereo(); }
+  // The eyes' decode thread's fault, if it failed.
+  std::optional<ThreadFaultReport> thread_fault() const {
+    return video_ ? video_->thread_fault() : std::nullopt;
+  }
   bool window() const { return window_ != nullptr; }
   // Encoded pairs received so far: the status line's eye rate.
   std::uint64_t eye_frames_received() const {

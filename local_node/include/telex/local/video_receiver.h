@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "telex/base/pi_mutex.h"
+#include "telex/base/thread_fault.h"
 #include "telex/local/video_reorder.h"
 #include "telex/proto/messages.h"
 
@@ -110,6 +111,8 @@ class VideoReceiver {
   std::int64_t pair_period_ns() const;
   const VideoReceiverCounters& counters() const { return counters_; }
   DeliveryAges delivery_ages() const;
+  // The decode thread's last-resort catch: empty while it has not failed (the station polls it).
+  std::optional<ThreadFaultReport> thread_fault() const { return fault_.report(); }
 
   // The shortest time between two PLIs, whatever the round trip.
   static constexpr std::int64_t kMinPliIntervalNs = 100'000'000;
@@ -132,6 +135,7 @@ class VideoReceiver {
 
   Hooks hooks_;
   VideoReceiverCounters counters_;
+  ThreadFault fault_{"eyes (telex-eyes)"};
   // Taken by the real-time network thread (push) and the decode thread at nice 5: priority
   // inheritance, so threads between them cannot keep the network thread waiting.
   PiMutex mu_;
