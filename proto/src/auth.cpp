@@ -2,11 +2,14 @@
 // Pre-shared key files: loading, permissions, wiping; the system random source.
 #include "telex/proto/auth.h"
 
+#include <fcntl.h>
 #include <openssl/crypto.h>
 #include <openssl/rand.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -58,7 +61,8 @@ AuthKey load_key_file(const std::filesystem::path& path) {
     return key;
   } catch (const std::invalid_argument& e) {
     if (!bytes.empty()) OPENSSL_cleanse(bytes.data(), bytes.size());
-    throw std::invalid_argument("pre-shared key file '" + path.string() + "': " + e.what());
+    throw std::invalid_argument("pre-shared key file '" + path.string() + "': " + e.what() +
+                                " (`telex keygen FILE` writes a random one)");
   }
 }
 
@@ -73,6 +77,27 @@ void check_key_file_permissions(const std::filesystem::path& path, const char* w
     throw std::invalid_argument(std::string(what) + " '" + path.string() + "' has mode " + mode +
                                 ": group and others must have no access (chmod 600 '" +
                                 path.string() + "')");
+  }
+}
+
+void write_new_key_file(const std::filesystem::path& path) {
+  std::array<std::uint8_t, kMinKeyBytes> key{};
+  if (RAND_bytes(key.data(), static_cast<int>(key.size())) != 1)
+    throw std::runtime_error("the system random source failed (OpenSSL RAND_bytes)");
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    OPENSSL_cleanse(key.data(), key.size());
+    throw std::runtime_error(
+        "cannot create key file '" + path.string() + "': " + std::strerror(errno) +
+        (errno == EEXIST ? " (a key is never overwritten: remove it first)" : ""));
+  }
+  const ssize_t n = ::write(fd, key.data(), key.size());
+  OPENSSL_cleanse(key.data(), key.size());
+  const bool ok = n == static_cast<ssize_t>(key.size()) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    std::filesystem::remove(path);
+    throw std::runtime_error("cannot write key file '" + path.string() + "'");
   }
 }
 

@@ -10,7 +10,9 @@
 
 namespace telex::proto {
 
-inline constexpr std::size_t kMinKeyBytes = 16;
+// 32 bytes: a random key of the TLS suite's strength. A typed password of 16 characters has far
+// less entropy and the PSK is not stretched: `telex keygen FILE` writes a proper one.
+inline constexpr std::size_t kMinKeyBytes = 32;
 inline constexpr std::size_t kMaxKeyBytes = 1024;
 
 // A pre-shared key. Its bytes are wiped when it goes away.
@@ -32,6 +34,10 @@ class AuthKey {
 // Throws std::runtime_error naming the path when it cannot be read, and
 // std::invalid_argument naming it when the key is too short or too long.
 AuthKey load_key_file(const std::filesystem::path& path);
+
+// Writes kMinKeyBytes from the system random source to a new file `path` with mode 0600 (the
+// file must not exist). Throws std::runtime_error naming the path when it cannot.
+void write_new_key_file(const std::filesystem::path& path);
 
 // Throws std::invalid_argument naming the path when group or others may read or write the key
 // file (its mode must be 0600 or 0400, as for ssh keys); std::runtime_error when it cannot stat.
