@@ -19,8 +19,10 @@ namespace telex::proto {
 namespace {
 
 TEST(Auth, KeyLengthBounds) {
-  EXPECT_THROW(AuthKey(std::vector<std::uint8_t>(15, 1)), std::invalid_argument);
-  EXPECT_NO_THROW(AuthKey(std::vector<std::uint8_t>(16, 1)));
+  // 16 bytes (a typed password) no longer: a key has the suite's 32 (issue 49).
+  EXPECT_THROW(AuthKey(std::vector<std::uint8_t>(16, 1)), std::invalid_argument);
+  EXPECT_THROW(AuthKey(std::vector<std::uint8_t>(31, 1)), std::invalid_argument);
+  EXPECT_NO_THROW(AuthKey(std::vector<std::uint8_t>(32, 1)));
   EXPECT_THROW(AuthKey(std::vector<std::uint8_t>(kMaxKeyBytes + 1, 1)), std::invalid_argument);
 }
 
@@ -66,13 +68,41 @@ TEST_F(KeyFile, ErrorsNameTheFile) {
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("short.key"), std::string::npos) << what;
-    EXPECT_NE(what.find("at least 16"), std::string::npos) << what;
+    EXPECT_NE(what.find("at least 32"), std::string::npos) << what;
   }
   EXPECT_THROW(load_key_file(write("empty.key", "")), std::invalid_argument);
   EXPECT_THROW(load_key_file(dir_), std::exception);  // a directory is not a key
 }
 
 using Verdict = ReplayWindow::Verdict;
+
+// `telex keygen`'s writer: 32 random bytes, mode 0600, loadable, never over an existing file.
+TEST_F(KeyFile, NewKeyFileIsRandomPrivateAndNeverOverwritten) {
+  const auto a = dir_ / "a.key";
+  const auto b = dir_ / "b.key";
+  write_new_key_file(a);
+  write_new_key_file(b);
+  EXPECT_EQ(std::filesystem::file_size(a), kMinKeyBytes);
+  EXPECT_EQ(std::filesystem::status(a).permissions(),
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_NO_THROW(check_key_file_permissions(a));
+  const auto ka = load_key_file(a);
+  EXPECT_FALSE(std::ranges::equal(ka.bytes(), load_key_file(b).bytes()));
+  try {
+    write_new_key_file(a);
+    FAIL() << "an existing key was overwritten";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("never overwritten"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(std::ranges::equal(load_key_file(a).bytes(), ka.bytes()));
+  // A typed 16-character password is refused, naming the way to a proper key.
+  try {
+    load_key_file(write("short.key", "correct-horse-16"));
+    FAIL() << "a 16-byte key was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("telex keygen"), std::string::npos) << e.what();
+  }
+}
 
 TEST(ReplayWindow, RejectsExactReplays) {
   ReplayWindow w;

@@ -28,6 +28,7 @@
 #include "telex/proto/messages.h"
 #include "telex/proto/seal.h"
 #include "test_support.h"
+#include "tls_peers.h"
 
 namespace telex::test {
 namespace {
@@ -362,30 +363,6 @@ TEST(TlsHead, ForgedAndUnkeyedHeadCommandsNeverMoveTheSimHead) {
   ASSERT_TRUE(eventually(5s, [&] {
     return last_counter(open_remote.proc.stderr_text(), "head-in") >= 1;
   })) << open_remote.proc.stderr_text();
-}
-
-// Runs the openssl command line; false when it fails.
-bool openssl(const std::string& args, const std::filesystem::path& dir) {
-  const std::string cmd = "cd '" + dir.string() + "' && openssl " + args + " >> openssl.log 2>&1";
-  return std::system(cmd.c_str()) == 0;
-}
-
-// A CA and one certificate for `who` signed by it (EC P-256, in `dir`).
-bool make_ca(const std::filesystem::path& dir, const std::string& ca) {
-  return openssl(
-      "req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 2 -subj "
-      "/CN=" +
-          ca + " -keyout " + ca + ".key -out " + ca + ".pem",
-      dir);
-}
-bool make_cert(const std::filesystem::path& dir, const std::string& ca, const std::string& who) {
-  return openssl("req -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -subj /CN=" + who +
-                     " -keyout " + who + ".key -out " + who + ".csr",
-                 dir) &&
-         openssl("x509 -req -in " + who + ".csr -CA " + ca + ".pem -CAkey " + ca +
-                     ".key -CAcreateserial -days 2 -out " + who + ".pem",
-                 dir) &&
-         ::chmod((dir / (who + ".key")).c_str(), 0600) == 0;
 }
 
 // Certificates from one throwaway CA on both daemons give a session (and the press); a station

@@ -493,3 +493,22 @@ TEST(TelexRemoteCli, RunsForADurationFromAJsonConfigAndMissingDeviceExitsOne) {
 
 }  // namespace
 }  // namespace telex::remote
+
+namespace telex::remote {
+namespace {
+
+// Issue 49: an exception that escapes a daemon thread (here the processing thread, through the
+// frame observer) no longer reaches std::terminate: run() ends with exit 1 naming the thread.
+TEST(RemoteDaemon, AThreadThatThrowsEndsTheRunWithExitOneNotTerminate) {
+  DaemonConfig cfg = base_config("synthetic:plane");
+  cfg.head = "sim";
+  cfg.realtime = false;
+  cfg.duration_s = 60;  // the fault, not the duration, ends the run
+  RemoteDaemon d(cfg);
+  d.set_frame_observer([](const ProcessedFrame&) { throw std::runtime_error("injected fault"); });
+  d.start();
+  EXPECT_EQ(d.run(), 1);
+}
+
+}  // namespace
+}  // namespace telex::remote
