@@ -240,7 +240,7 @@ TEST(PskKeyFile, ErrorsExitTwoWithAMessageNamingTheFix) {
     const char* says;
   } cases[] = {{dir / "absent", "No such file"},
                {open_mode, "chmod 600"},
-               {short_key, "at least 16"},
+               {short_key, "at least 32"},
                {unreadable, "cannot read"}};
   for (const char* daemon : {"telex-remote", "telex-local"}) {
     for (const auto& c : cases) {
