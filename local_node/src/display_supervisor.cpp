@@ -281,13 +281,14 @@ int zero_copies(const ZeroChannel& c, const SupervisorOptions& o) {
 }
 
 // The station went silent: zero, counted in the page first (a tick that runs again sees the count
-// and starts its forces from zero), and a line. The sim CSV gets no row: the station, alive, is
-// still writing that file, and no one feels a sim display.
+// and starts its forces from zero), and a line. Only a display outside the station (UDP, HID) is
+// answered: no one feels a sim display, and the live station is still writing the sim CSV, so a
+// silence there (a starved haptic thread on a loaded machine) changes nothing.
 void answer_silence(const ZeroChannel& c, const SupervisorOptions& o, const Watch& w) {
+  if (c.kind != ZeroChannel::Kind::Udp && c.kind != ZeroChannel::Kind::Hid) return;
   StationHeartbeat& heartbeat = w.page->heartbeat;
   heartbeat.zeroed.fetch_add(1, std::memory_order_acq_rel);
-  const int copies = c.kind == ZeroChannel::Kind::CsvRow ? 0 : zero_copies(c, o);
-  const Sent s = command_zeros(c, o, copies, &heartbeat, w.answered_beat_ns);
+  const Sent s = command_zeros(c, o, zero_copies(c, o), &heartbeat, w.answered_beat_ns);
   Line line;
   line << "telex-local: " << kSupervisorSilentLine << " (no heartbeat from its haptic loop for "
        << static_cast<std::uint64_t>(w.silent_for_ns / 1'000'000)

@@ -41,9 +41,10 @@ struct ZeroChannel {
 ZeroChannel zero_channel_for(const std::string& spec, const DisplayConfig& config);
 
 // The station's haptic loop's heartbeat, in the page the station shares with its supervisor. The
-// supervisor commands zero force when no beat came for the loop's period + kSilenceNs, whatever
-// silenced it: a SIGSTOP or Ctrl-Z (every thread stops), a hung tick, a starved thread. It reads
-// `beat_ns` and `limit_ns` and counts its zeroings in `zeroed`; the station calls the methods.
+// supervisor commands zero force on a UDP or HID display when no beat came for the loop's period +
+// kSilenceNs, whatever silenced it: a SIGSTOP or Ctrl-Z (every thread stops), a hung tick, a
+// starved thread. It reads `beat_ns` and `limit_ns` and counts its zeroings in `zeroed`; the
+// station calls the methods.
 struct StationHeartbeat {
   static constexpr std::int64_t kSilenceNs = 20'000'000;
   // The haptic thread, before its first tick: beats are due every `period_ns`.
