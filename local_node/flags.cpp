@@ -171,8 +171,8 @@ void add_haptic_options(CLI::App& app, StationFlags& f) {
                  "default: any). With --no-realtime it is pinned all the same");
   app.add_flag("--no-supervisor", f.no_supervisor,
                "no display supervisor (default: a child process that commands zero force on the "
-               "haptic display if the station dies by SIGKILL, abort or a segfault; "
-               "docs/HARDWARE.md)");
+               "haptic display if the station dies by SIGKILL, abort or a segfault, or is stopped "
+               "or hung; docs/HARDWARE.md)");
 }
 
 // The surface: where it is built, how it is filtered, repair.

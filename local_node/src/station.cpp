@@ -26,6 +26,7 @@
 #include "telex/common/head_kinematics.h"
 #include "telex/common/opencv_workers.h"
 #include "telex/local/deadman.h"
+#include "telex/local/display_supervisor.h"
 
 namespace telex::local {
 namespace {
@@ -78,6 +79,7 @@ class Station::Run {
   void drain_bodies();
   void drain_stage_poses();
   void print_status();
+  void report_supervisor_zeroings();
   // The threads the station does not run itself (network client, tracker and gloves, display
   // writer, recorder): each stops on an exception and keeps it; the main thread polls them here
   // and fails the station on the first. True when one has failed.
@@ -112,6 +114,7 @@ class Station::Run {
   std::uint64_t eyes_at_last_status_ = 0;
   std::string last_status_ = "starting";
   int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
+  std::uint64_t supervisor_zeroings_ = 0;
 
   // ---- last: stopped and joined first on destruction ----
   std::unique_ptr<SurfaceClient> client_;
@@ -307,6 +310,7 @@ void Station::Run::main_loop() {
     drain();
     drain_bodies();
     drain_stage_poses();
+    report_supervisor_zeroings();
     const std::int64_t now = monotonic_ns();
     head_.send(now, haptic_.head_out(), *client_);
     if (cfg_.view_at_s >= 0.0 && !view_at_written) {
@@ -365,6 +369,19 @@ void Station::Run::drain_bodies() {
 void Station::Run::drain_stage_poses() {
   StationView::StagePose pose;
   while (view_.take_stage_pose(pose)) log_.add_hmd_pose(pose.display_time_ns, pose.X_StageView);
+}
+
+// The display supervisor zeroed the display while the station was silent (stopped, hung): said
+// once the station runs again.
+void Station::Run::report_supervisor_zeroings() {
+  if (cfg_.supervisor_heartbeat == nullptr) return;
+  const std::uint64_t n = cfg_.supervisor_heartbeat->zeroings();
+  if (n == supervisor_zeroings_) return;
+  supervisor_zeroings_ = n;
+  spdlog::warn(
+      "{} ({} time(s) in this run; its line above says for how long): the forces start "
+      "again from zero",
+      kSupervisorZeroedLine, n);
 }
 
 // Once a second: the status line and the view PNG.

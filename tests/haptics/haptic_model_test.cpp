@@ -249,6 +249,36 @@ TEST(HapticModel, ClampAndRateLimit) {
   EXPECT_NEAR(glm::length(f.force_N), 59 * 0.05, 1e-9);
 }
 
+// The display supervisor commanded zero while the station was stopped: the output starts again
+// from zero, by the rate limit and the start-up ramp, and returns to the contact's force without
+// losing the contact.
+TEST(HapticModel, RestartOutputRampsUpFromZeroToTheSameContact) {
+  HapticParams p = bare();
+  p.max_force_step_N = 0.05;
+  p.startup_ramp_s = 0.1;
+  Rig rig(p);
+  rig.surface = wall(0.8);
+  rig.step({0, 0, 0.79});
+  FingertipForce f;
+  for (int i = 0; i < 300; ++i) f = rig.step({0, 0, 0.81});
+  const double full = p.stiffness_N_per_m * 0.01;
+  ASSERT_NEAR(f.normal_force_N, full, kForceTol);
+  rig.model.restart_output();
+  f = rig.step({0, 0, 0.81});
+  EXPECT_LE(f.normal_force_N, 0.05 + 1e-12) << "jumped back to the force last output";
+  EXPECT_TRUE(f.contact);
+  double prev = f.normal_force_N, max_step = 0.0;
+  for (int i = 0; i < 300; ++i) {
+    f = rig.step({0, 0, 0.81});
+    max_step = std::max(max_step, f.normal_force_N - prev);
+    EXPECT_GE(f.normal_force_N, prev - 1e-12) << i;
+    prev = f.normal_force_N;
+  }
+  EXPECT_LE(max_step, 0.05 + 1e-12);
+  EXPECT_NEAR(f.normal_force_N, full, kForceTol);
+  EXPECT_NEAR(f.gain, 1.0, 1e-12);
+}
+
 TEST(HapticModel, StaleSurfaceFadesToZero) {
   HapticParams p = bare();
   p.fade_out_s = 0.05;

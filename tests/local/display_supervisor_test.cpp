@@ -22,6 +22,7 @@
 #include <functional>
 #include <iterator>
 #include <sstream>
+#include <thread>
 
 #include "process.h"
 #include "telex/base/periodic.h"
@@ -335,6 +336,128 @@ TEST_P(SupervisorScheduling, TheSupervisorReplacesTheSchedulingOfARealtimeStatio
 INSTANTIATE_TEST_SUITE_P(Realtime, SupervisorScheduling, ::testing::Bool(), [](const auto& info) {
   return std::string(info.param ? "LowestFifo" : "Default");
 });
+
+// The haptic loop's heartbeat in a stand-in station: beating, no zero; silent (a hung tick), five
+// zeros once, counted in the page, with a line; beating again, quiet; then the goodbye's five. The
+// beats are due every 100 ms here, so a loaded machine's late wake-up is not a silence.
+TEST(SupervisorHeartbeat, ASilenceGetsZeroOnceAndBeatingAgainNone) {
+  Receiver rx;
+  int said[2], counts[2];
+  ASSERT_EQ(::pipe(said), 0);
+  ASSERT_EQ(::pipe(counts), 0);
+  ZeroChannel ch = zero_channel_for("udp:127.0.0.1:" + std::to_string(rx.port()), DisplayConfig{});
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    SupervisorOptions options;
+    options.report_fd = said[1];
+    DisplaySupervisor s = start_display_supervisor(std::move(ch), options);
+    StationHeartbeat& heartbeat = *s.heartbeat();
+    const auto beat_for = [&](std::chrono::milliseconds how_long) {
+      const std::int64_t end = monotonic_ns() + how_long.count() * 1'000'000;
+      for (std::int64_t now = monotonic_ns(); now < end; now = monotonic_ns()) {
+        heartbeat.beat(now);
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    };
+    heartbeat.arm(100'000'000);
+    beat_for(std::chrono::milliseconds(300));
+    std::array<std::uint64_t, 3> zeroings{heartbeat.zeroings(), 0, 0};
+    std::this_thread::sleep_for(std::chrono::milliseconds(600));  // silent
+    zeroings[1] = heartbeat.zeroings();
+    beat_for(std::chrono::milliseconds(300));
+    zeroings[2] = heartbeat.zeroings();
+    heartbeat.disarm();
+    (void)!::write(counts[1], zeroings.data(), sizeof zeroings);
+    ::_exit(s.stop() == 0 ? 0 : 3);
+  }
+  ::close(said[1]);
+  ::close(counts[1]);
+  std::array<std::uint64_t, 3> zeroings{9, 9, 9};
+  EXPECT_EQ(::read(counts[0], zeroings.data(), sizeof zeroings),
+            static_cast<ssize_t>(sizeof zeroings));
+  ::close(counts[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  EXPECT_EQ(zeroings[0], 0u) << "zero while beating";
+  EXPECT_EQ(zeroings[1], 1u) << "the silence";
+  EXPECT_EQ(zeroings[2], 1u) << "zero again after the beats came back";
+  const auto got = rx.drain(300);
+  EXPECT_EQ(got.size(), 10u) << "five for the silence, five for the goodbye";
+  for (const auto& [datagram, port] : got) EXPECT_TRUE(all_zero(datagram)) << datagram;
+  std::string line;
+  char buf[256];
+  for (ssize_t n; (n = ::read(said[0], buf, sizeof buf)) > 0;)
+    line.append(buf, static_cast<std::size_t>(n));
+  ::close(said[0]);
+  EXPECT_NE(line.find(kSupervisorSilentLine), std::string::npos) << line;
+  EXPECT_NE(line.find("stopped or hung); commanded zero force on udp:127.0.0.1:"),
+            std::string::npos)
+      << line;
+  EXPECT_NE(line.find("(5 of 5 sent)\n"), std::string::npos) << line;
+  EXPECT_EQ(line.find(kSupervisorDiedLine), std::string::npos) << line;
+}
+
+// What /proc says of a process: its state letter, process group and session (stat's 3rd, 5th and
+// 6th fields) and the signals it ignores (status's SigIgn mask).
+struct ProcState {
+  char state = '?';
+  pid_t group = -1, session = -1;
+  std::uint64_t ignored = 0;
+};
+
+ProcState proc_state(pid_t pid) {
+  ProcState p;
+  const std::string stat = test::read_text("/proc/" + std::to_string(pid) + "/stat");
+  const auto close = stat.rfind(')');
+  if (close == std::string::npos) return p;
+  std::istringstream rest(stat.substr(close + 1));
+  pid_t parent = -1;
+  rest >> p.state >> parent >> p.group >> p.session;
+  std::istringstream status(test::read_text("/proc/" + std::to_string(pid) + "/status"));
+  for (std::string line; std::getline(status, line);)
+    if (line.rfind("SigIgn:", 0) == 0) p.ignored = std::stoull(line.substr(7), nullptr, 16);
+  return p;
+}
+
+bool ignores(const ProcState& p, int sig) { return (p.ignored >> (sig - 1)) & 1U; }
+
+// Ctrl-Z (SIGTSTP) and a background read or write of the terminal (SIGTTIN, SIGTTOU) stop the
+// terminal's foreground process group, which held the supervisor with the station: the supervisor
+// runs in a session of its own and ignores them, so it still zeroes the display of a station they
+// stopped.
+TEST(SupervisorSignals, ItsOwnSessionAndTerminalStopsIgnored) {
+  int seen[2];
+  ASSERT_EQ(::pipe(seen), 0);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    SupervisorOptions options;
+    options.report_fd = -1;
+    DisplaySupervisor s = start_display_supervisor(ZeroChannel{}, options);
+    test::eventually(std::chrono::seconds(2),
+                     [&] { return ignores(proc_state(s.pid()), SIGTTOU); });
+    for (const int sig : {SIGTSTP, SIGTTIN, SIGTTOU}) ::kill(s.pid(), sig);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const ProcState got = proc_state(s.pid());
+    ::kill(s.pid(), SIGCONT);  // one that was stopped hears the goodbye
+    const int rc = s.stop();
+    (void)!::write(seen[1], &got, sizeof got);
+    (void)!::write(seen[1], &rc, sizeof rc);
+    ::_exit(0);
+  }
+  ::close(seen[1]);
+  ProcState got;
+  int rc = -1;
+  EXPECT_EQ(::read(seen[0], &got, sizeof got), static_cast<ssize_t>(sizeof got));
+  EXPECT_EQ(::read(seen[0], &rc, sizeof rc), static_cast<ssize_t>(sizeof rc));
+  ::close(seen[0]);
+  ::waitpid(pid, nullptr, 0);
+  for (const int sig : {SIGTSTP, SIGTTIN, SIGTTOU}) EXPECT_TRUE(ignores(got, sig)) << sig;
+  EXPECT_NE(got.state, 'T') << "stopped";
+  EXPECT_NE(got.session, ::getsid(0)) << "in the station's session";
+  EXPECT_NE(got.group, ::getpgrp()) << "in the station's process group";
+  EXPECT_EQ(rc, 0) << "the supervisor's exit after the goodbye";
+}
 
 }  // namespace
 }  // namespace telex::local

@@ -19,6 +19,7 @@
 #include "telex/base/periodic.h"
 #include "telex/base/realtime.h"
 #include "telex/common/synthetic.h"
+#include "telex/local/display_supervisor.h"
 #include "telex/local/hand_script.h"
 #include "telex/local/surface_builder.h"
 
@@ -107,6 +108,10 @@ TEST(TickAllocation, TheHapticTickAllocatesNothingAfterWarmUp) {
   StationConfig cfg;
   cfg.realtime = false;
   cfg.rate_hz = 1000.0;
+  // The display supervisor's heartbeat, beaten every tick; a zeroing by the supervisor while
+  // counting (below) takes the loop's restart from zero too.
+  StationHeartbeat heartbeat;
+  cfg.supervisor_heartbeat = &heartbeat;
   std::atomic<bool> stop_flag{false};
   const std::function<void(StationLoop)> no_hook;
   StationFaults faults(stop_flag, no_hook);
@@ -150,6 +155,7 @@ TEST(TickAllocation, TheHapticTickAllocatesNothingAfterWarmUp) {
         if (g_counting.load()) ++surfaces_while_counting;
       }
       if (ticks == 300) g_counting.store(true);
+      if (ticks == 900) heartbeat.zeroed.fetch_add(1);
     }
     if (!any) std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
@@ -157,6 +163,8 @@ TEST(TickAllocation, TheHapticTickAllocatesNothingAfterWarmUp) {
   haptic.request_stop();
   haptic.join();
   EXPECT_EQ(g_allocations.load(), 0u) << "allocations on the haptic thread after warm-up";
+  EXPECT_NE(heartbeat.beat_ns.load(), 0) << "the loop never beat";
+  EXPECT_EQ(heartbeat.limit_ns.load(), 0) << "the loop ended without disarming the heartbeat";
   EXPECT_GE(surfaces_while_counting, 40u);
   EXPECT_GT(contact_ticks, counted_ticks / 2) << "the fingertip must be in contact";
 }

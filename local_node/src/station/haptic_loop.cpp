@@ -8,6 +8,7 @@
 
 #include "telex/base/periodic.h"
 #include "telex/base/realtime.h"
+#include "telex/local/display_supervisor.h"
 
 namespace telex::local {
 namespace {
@@ -49,6 +50,8 @@ void HapticLoop::run(std::stop_token stop) {
   }
   // Release the device: zero force on every finger (the guard does it again after the join).
   display_zero_.release();
+  // Stopped in order: the silence that follows is not a hang.
+  if (cfg_.supervisor_heartbeat) cfg_.supervisor_heartbeat->disarm();
 }
 
 std::string HapticLoop::wait_scheduling() const {
@@ -67,10 +70,28 @@ void HapticLoop::ticks(std::stop_token stop) {
   std::int64_t prev = 0;
   const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
   std::uint64_t gate_before = 0;
+  // The display supervisor's heartbeat is written here, on the thread that commands the force:
+  // its silence is exactly what leaves a force held on the display (SIGSTOP or Ctrl-Z stop every
+  // thread; a hung or starved tick stops this one), where a thread of its own would beat on
+  // through a hung tick. A beat is one relaxed atomic store to the page mapped before this
+  // thread started: no system call, lock or allocation.
+  StationHeartbeat* const heartbeat = cfg_.supervisor_heartbeat;
+  std::uint64_t zeroings = 0;
+  if (heartbeat) {
+    zeroings = heartbeat->zeroings();
+    heartbeat->arm(period_ns_);
+  }
   while (!stop.stop_requested()) {
     if (gate_) gate_before = gate_->epoch();
     const std::int64_t now = timer.wait_next();
+    if (heartbeat) heartbeat->beat(now);
     faults_.check(StationLoop::Haptic);
+    // The supervisor zeroed the display while this thread was silent: start again from zero
+    // (the rate limit and the start-up ramp) rather than jump back to the force last sent.
+    if (heartbeat && heartbeat->zeroings() != zeroings) {
+      zeroings = heartbeat->zeroings();
+      model_.restart_output();
+    }
     if (prev == 0) t0_ns_.store(now, std::memory_order_release);
     if (tracker_->poll(now, hand)) {
       hand_for_surface_.publish(hand);
@@ -94,6 +115,12 @@ void HapticLoop::ticks(std::stop_token stop) {
       ticks_gated_.fetch_add(1, std::memory_order_relaxed);
     }
     display_.write(now, shown);
+    // A zero that came between the check above and this write (the station stopped in between)
+    // may have gone out before it: zero again now; the next tick starts from zero.
+    if (heartbeat && heartbeat->zeroings() != zeroings) {
+      for (auto& f : shown) f = {f.finger, 0.0, 0.0, false};
+      display_.write(now, shown);
+    }
     sample.t_ns = now;
     sample.deadline_ns = timer.deadline_ns();
     sample.period_ns = prev ? now - prev : period_ns_;

@@ -23,6 +23,8 @@
 
 namespace telex::local {
 
+struct StationHeartbeat;  // display_supervisor.h
+
 // The station's loops, each on its own thread (Main is the thread that called Station::run;
 // Network is the SurfaceClient's thread, at each frame's manifest; Tracking the NatNet client's
 // receive thread, at each datagram from the server).
@@ -119,6 +121,10 @@ struct StationConfig {
   // warning goes to stderr every minute (main() warns at start).
   bool insecure = false;
   bool roi_requests = true;  // ask the remote for full-rate tiles near the hands
+  // The display supervisor's heartbeat (telex-local's main sets it; nullptr: none, as with
+  // --no-supervisor): the haptic loop beats every tick, and after the supervisor zeroed the
+  // display (the station was stopped or hung) its forces start again from zero.
+  StationHeartbeat* supervisor_heartbeat = nullptr;
   // Test seam, never set by telex-local: called at the top of every pass of the named loop; an
   // exception it throws takes that loop's error path (tests/integration/station_faults_test.cpp).
   std::function<void(StationLoop)> fault_hook;

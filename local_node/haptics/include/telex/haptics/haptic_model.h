@@ -175,6 +175,11 @@ class HapticModel {
 
   // Forgets proxies, ramps and the observer (e.g. after the operator re-engages).
   void reset();
+  // The display was commanded zero force from outside the model (the station's display
+  // supervisor, while the station was stopped or hung): the next ticks start from zero, through
+  // the rate limit and the start-up ramp, instead of jumping back to the force last output.
+  // Proxies and contacts are kept, so the force comes back where it was.
+  void restart_output();
 
   const HapticParams& params() const { return params_; }
   const HapticCounters& counters() const { return counters_; }
