@@ -42,41 +42,6 @@ std::int64_t natnet_reported_latency_ns(const natnet::Frame& frame, const natnet
   return std::llround(latency_s * 1e9);
 }
 
-std::string_view to_string(PoseVerdict v) {
-  switch (v) {
-    case PoseVerdict::Ok:
-      return "ok";
-    case PoseVerdict::NonFinite:
-      return "non-finite or out-of-range position";
-    case PoseVerdict::BadQuaternion:
-      return "quaternion not of unit length";
-    case PoseVerdict::TooFast:
-      return "moved faster than a human";
-  }
-  return "?";
-}
-
-PoseVerdict check_pose(const natnet::RigidBody& body, const PoseLimits& limits,
-                       const Pose* previous, double dt_s, Pose& out) {
-  const glm::dvec3 p{body.p_m.x, body.p_m.y, body.p_m.z};
-  for (int i = 0; i < 3; ++i)
-    if (!std::isfinite(p[i]) || std::abs(p[i]) > limits.max_abs_coordinate_m)
-      return PoseVerdict::NonFinite;
-  const glm::dquat q(body.qw, body.qx, body.qy, body.qz);
-  // A NaN component makes the norm NaN, which fails this comparison too.
-  const double norm = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
-  if (!(std::abs(norm - 1.0) <= limits.quaternion_norm_tolerance))
-    return PoseVerdict::BadQuaternion;
-  if (previous != nullptr) {
-    const double moved_m = glm::length(p - previous->p_m);
-    if (moved_m > limits.max_speed_m_per_s * std::max(dt_s, 0.0) + limits.jump_slack_m)
-      return PoseVerdict::TooFast;
-  }
-  out.p_m = p;
-  out.q = q / norm;
-  return PoseVerdict::Ok;
-}
-
 struct NatNetClient::Impl {
   explicit Impl(NatNetClientConfig c, TripleBuffer<NatNetSample>& out)
       : cfg(std::move(c)), samples(out), command(io), ping_timer(io) {}
@@ -92,23 +57,30 @@ struct NatNetClient::Impl {
   std::array<std::uint8_t, natnet::kMaxPacketBytes> cmd_buf{};
   std::array<std::uint8_t, natnet::kMaxPacketBytes> data_buf{};
   udp::endpoint cmd_from, data_from;
-  asio::ip::address server_addr;  // the only sender read (unicast and multicast alike)
+  // Who speaks for the server (source_of). `server` is its command endpoint, where the connect
+  // request goes and its replies come from; `frame_source` is where its frames come from, once
+  // learnt, and `frame_source_seen_ns` when it last sent one (steady clock). Receive thread only.
+  asio::ip::address server_addr;
+  std::optional<udp::endpoint> frame_source;
+  std::int64_t frame_source_seen_ns = 0;
   bool warned_foreign = false;
   int command_port = 0;  // bound, read by any thread
   natnet::Frame frame;   // reused, so the top-level arrays stop reallocating
   // The server's high-resolution clock (Hz; 0 before its SERVERINFO), the unit of a frame's
   // stamps. Receive thread only.
   std::uint64_t clock_hz = 0;
-  // Per published body (cfg.body_ids order): its last accepted pose and when (server seconds,
-  // arrival ns), the reference of the speed check.
+  // Per published body (cfg.body_ids order): its last accepted pose and its frame's stamp and
+  // arrival, the reference of the speed check. And the last accepted frame, the reference of the
+  // timeline check. Both start afresh with a new frame source.
   struct Accepted {
     bool have = false;
     Pose pose;
-    double timestamp_s = 0;
-    std::int64_t received_ns = 0;
+    FrameStamp stamp;
   };
   std::array<Accepted, NatNetSample::kMaxBodies> accepted{};
+  std::optional<FrameStamp> last_frame;
   const PoseLimits limits{};
+  const TimelineLimits timeline{};
   ThreadFault fault{"tracking (telex-natnet)"};
 
   std::atomic<int> version_major{0}, version_minor{0};
@@ -117,8 +89,8 @@ struct NatNetClient::Impl {
   std::string last_error;
 
   std::atomic<std::uint64_t> datagrams{0}, frames{0}, parse_errors{0}, before_version{0},
-      pings_sent{0}, io_errors{0}, foreign{0}, rejected_nonfinite{0}, rejected_quaternion{0},
-      rejected_too_fast{0};
+      pings_sent{0}, io_errors{0}, foreign_datagrams{0}, frame_jumps{0}, rejected_nonfinite{0},
+      rejected_quaternion{0}, rejected_too_fast{0};
 
   void open() {
     boost::system::error_code ec;
@@ -240,58 +212,120 @@ struct NatNetClient::Impl {
     last_error = why;
   }
 
-  // A datagram from anyone but the server is dropped before it is parsed: neither its server info
-  // (which sets the layout every later frame is parsed in) nor its poses are believed.
-  bool from_server(const udp::endpoint& from) {
-    if (from.address() == server_addr) return true;
-    ++foreign;
+  void note(std::string what) {
     std::lock_guard lock(info_mu);
-    last_error = "datagram from " + from.address().to_string() + ":" + std::to_string(from.port()) +
-                 ", not the server " + server_addr.to_string() + ": dropped";
-    if (!warned_foreign) {
+    last_error = std::move(what);
+  }
+
+  // Who speaks for the server. Its replies come from its command socket, the endpoint the connect
+  // request goes to (SERVER_IP:cmd): only that endpoint's replies are read. Its frames come from
+  // whichever socket it streams on, and NatNet names no source port: telex-sim-natnet sends
+  // unicast frames from its command socket and multicast ones from an unbound socket (an
+  // ephemeral port), and Motive streams from a data socket of its own, whose port may differ from
+  // its command port. So the frames' source is learnt, then pinned:
+  // - a frame from the command endpoint pins it, whatever was pinned before: no other process can
+  //   send from the port the server has bound, so a sender that got in first is displaced by the
+  //   server's next frame;
+  // - else the first frame from another port of the server's address pins that port, once the
+  //   layout is known (the server answered the connect request, or version= was given: before,
+  //   its frames are counted before_version, unread);
+  // - from then on any other port of that address is foreign, unless the pinned source has sent
+  //   nothing for resync_s (a restarted Motive binds anew).
+  // What this cannot tell apart: a sender on the server's host whose frame is the first after the
+  // connect reply, to a server streaming from another port than its command port, holds the pin
+  // while it keeps sending (the server's frames are then counted foreign, and the stream checks
+  // below still hold its frames to one timeline and human speeds).
+  enum class Source { Foreign, Command, Frames, Candidate };
+  Source source_of(const udp::endpoint& from, std::int64_t now_ns) const {
+    if (from.address() != server_addr) return Source::Foreign;
+    if (from == server) return Source::Command;
+    if (frame_source && from == *frame_source) return Source::Frames;
+    const bool pinned_alive =
+        frame_source &&
+        static_cast<double>(now_ns - frame_source_seen_ns) * 1e-9 <= timeline.resync_s;
+    return pinned_alive ? Source::Foreign : Source::Candidate;
+  }
+
+  // A datagram from anyone but the server is dropped before it is believed: neither its server
+  // info (which sets the layout every later frame is parsed in) nor its poses.
+  void foreign(const udp::endpoint& from, const char* why) {
+    ++foreign_datagrams;
+    std::string what = "datagram from " + from.address().to_string() + ":" +
+                       std::to_string(from.port()) + " dropped: " + why + " (the server is " +
+                       server.address().to_string() + ":" + std::to_string(server.port());
+    if (frame_source && *frame_source != server)
+      what += ", its frames come from port " + std::to_string(frame_source->port());
+    what += ")";
+    if (!warned_foreign && from.address() != server_addr) {
       warned_foreign = true;
       // Once: a Motive PC multicasting from a second interface shows up here too.
-      last_error += " (if Motive sends from that address, give it as the server's)";
+      what += "; if Motive sends from that address, give it as the server's";
     }
-    return false;
+    note(std::move(what));
   }
 
   void handle(const udp::endpoint& from, std::span<const std::uint8_t> datagram) {
     ++datagrams;
-    if (!from_server(from)) return;
+    const std::int64_t now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::steady_clock::now().time_since_epoch())
+                                    .count();
+    const Source src = source_of(from, now_ns);
+    if (src == Source::Foreign) return foreign(from, "not the server's address or port");
     if (cfg.receive_hook) cfg.receive_hook();
     natnet::PacketView pkt;
-    if (auto st = natnet::parse_packet(datagram, pkt); !st.ok()) return reject(st.reason);
+    if (auto st = natnet::parse_packet(datagram, pkt); !st.ok())
+      return src == Source::Candidate ? foreign(from, "unreadable, from an unknown port")
+                                      : reject(st.reason);
     if (pkt.message_id == natnet::kPingResponse) {
-      natnet::ServerInfo si;
-      if (auto st = natnet::parse_server_info(pkt.payload, si); !st.ok()) return reject(st.reason);
-      if (!cfg.version) {
-        version_major = si.natnet_version.major;
-        version_minor = si.natnet_version.minor;
-      }
-      // 3.0+: the connection fields, with the rate of the clock the frames' stamps count; a
-      // server whose info does not parse so has its frames' arrivals as their mid-exposure.
-      if (natnet::ServerInfo full;
-          natnet::parse_server_info(pkt.payload, si.natnet_version, full).ok())
-        si = std::move(full);
-      clock_hz = si.has_connection_info ? si.high_res_clock_hz : 0;
-      std::lock_guard lock(info_mu);
-      info = std::move(si);
-      return;
+      if (src != Source::Command) return foreign(from, "server info not from its command port");
+      return on_server_info(pkt.payload);
     }
-    if (pkt.message_id != natnet::kFrameOfData) return;  // model defs, messages: not needed
+    if (pkt.message_id == natnet::kFrameOfData) return on_frame(from, src, pkt.payload, now_ns);
+    // Model definitions, messages: not needed, and believed from nowhere else either.
+    if (src == Source::Candidate) foreign(from, "not a frame, from an unknown port");
+  }
+
+  void on_server_info(std::span<const std::uint8_t> payload) {
+    natnet::ServerInfo si;
+    if (auto st = natnet::parse_server_info(payload, si); !st.ok()) return reject(st.reason);
+    if (!cfg.version) {
+      version_major = si.natnet_version.major;
+      version_minor = si.natnet_version.minor;
+    }
+    // 3.0+: the connection fields, with the rate of the clock the frames' stamps count; a
+    // server whose info does not parse so has its frames' arrivals as their mid-exposure.
+    if (natnet::ServerInfo full; natnet::parse_server_info(payload, si.natnet_version, full).ok())
+      si = std::move(full);
+    clock_hz = si.has_connection_info ? si.high_res_clock_hz : 0;
+    std::lock_guard lock(info_mu);
+    info = std::move(si);
+  }
+
+  // A new source of frames: its frames start their own timeline, and no pose from the old one is
+  // a reference for the speed check.
+  void pin_frame_source(const udp::endpoint& from) {
+    if (frame_source == from) return;
+    frame_source = from;
+    last_frame.reset();
+    accepted = {};
+  }
+
+  void on_frame(const udp::endpoint& from, Source src, std::span<const std::uint8_t> payload,
+                std::int64_t now_ns) {
     const natnet::Version v{version_major.load(), version_minor.load()};
     if (v.major == 0) {
       ++before_version;
       return;
     }
-    if (auto st = natnet::parse_frame(pkt.payload, v, frame); !st.ok()) return reject(st.reason);
+    if (auto st = natnet::parse_frame(payload, v, frame); !st.ok())
+      return src == Source::Candidate ? foreign(from, "unreadable frame, from an unknown port")
+                                      : reject(st.reason);
+    if (src != Source::Frames) pin_frame_source(from);
+    frame_source_seen_ns = now_ns;
     ++frames;
     NatNetSample s;
     s.frame_number = frame.frame_number;
-    s.received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                        std::chrono::steady_clock::now().time_since_epoch())
-                        .count();
+    s.received_ns = now_ns;
     s.mid_exposure_ns = s.received_ns - natnet_reported_latency_ns(frame, v, clock_hz);
     // Servers before NatNet 2.6 send no frame timestamp: their frames are stamped on arrival.
     s.timestamp_s =
@@ -300,6 +334,24 @@ struct NatNetClient::Impl {
       ++rejected_nonfinite;
       return;
     }
+    const FrameStamp stamp{s.frame_number, s.timestamp_s, s.received_ns};
+    if (last_frame) {
+      const FrameVerdict verdict = check_frame(*last_frame, stamp, timeline);
+      if (verdict == FrameVerdict::Backwards || verdict == FrameVerdict::TooFarAhead) {
+        ++frame_jumps;
+        note("frame " + std::to_string(stamp.frame_number) + " at " +
+             std::to_string(stamp.timestamp_s) + " s after frame " +
+             std::to_string(last_frame->frame_number) + " at " +
+             std::to_string(last_frame->timestamp_s) + " s: " + std::string(to_string(verdict)) +
+             ", dropped");
+        return;
+      }
+    }
+    last_frame = stamp;
+    publish(s, stamp);
+  }
+
+  void publish(NatNetSample& s, const FrameStamp& stamp) {
     const std::size_t n = std::min<std::size_t>(cfg.body_ids.size(), NatNetSample::kMaxBodies);
     for (std::size_t i = 0; i < n; ++i) {
       auto& b = s.bodies[i];
@@ -315,10 +367,9 @@ struct NatNetClient::Impl {
         continue;
       }
       Accepted& last = accepted[i];
-      // The time since the last accepted pose: the server's stamps, or the arrival times when
-      // those say longer (a restarted server's stamps go back to zero).
-      const double dt_s = std::max(s.timestamp_s - last.timestamp_s,
-                                   static_cast<double>(s.received_ns - last.received_ns) * 1e-9);
+      // The time since the last accepted pose, bounded by the arrivals' (speed_check_dt_s): a
+      // sender's stamps alone never widen it.
+      const double dt_s = last.have ? speed_check_dt_s(last.stamp, stamp, timeline) : 0.0;
       const PoseVerdict verdict =
           check_pose(*rb, limits, last.have ? &last.pose : nullptr, dt_s, b.pose);
       if (verdict != PoseVerdict::Ok) {
@@ -328,7 +379,7 @@ struct NatNetClient::Impl {
         continue;
       }
       b.valid = true;
-      last = {true, b.pose, s.timestamp_s, s.received_ns};
+      last = {true, b.pose, stamp};
     }
     samples.publish(s);
   }
@@ -374,7 +425,8 @@ NatNetClientStats NatNetClient::stats() const {
   s.before_version = impl_->before_version;
   s.pings_sent = impl_->pings_sent;
   s.io_errors = impl_->io_errors;
-  s.foreign_datagrams = impl_->foreign;
+  s.foreign_datagrams = impl_->foreign_datagrams;
+  s.frame_jumps = impl_->frame_jumps;
   s.rejected_nonfinite = impl_->rejected_nonfinite;
   s.rejected_quaternion = impl_->rejected_quaternion;
   s.rejected_too_fast = impl_->rejected_too_fast;

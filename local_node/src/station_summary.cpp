@@ -26,6 +26,7 @@ nlohmann::json tracker_json(const TrackerStats& t) {
           {"parse_errors", t.parse_errors},
           {"io_errors", t.io_errors},
           {"foreign_datagrams", t.foreign_datagrams},
+          {"frame_jumps", t.frame_jumps},
           {"rejected_nonfinite", t.rejected_nonfinite},
           {"rejected_quaternion", t.rejected_quaternion},
           {"rejected_too_fast", t.rejected_too_fast},

@@ -169,6 +169,7 @@ class NatNetTracker final : public HandTracker {
     s.parse_errors = c.parse_errors;
     s.io_errors = c.io_errors;
     s.foreign_datagrams = c.foreign_datagrams;
+    s.frame_jumps = c.frame_jumps;
     s.rejected_nonfinite = c.rejected_nonfinite;
     s.rejected_quaternion = c.rejected_quaternion;
     s.rejected_too_fast = c.rejected_too_fast;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Head actuation is fresh and authorised (issue 27): both daemons and telex-sim-natnet as
-// processes; when the tracker stops, the remote's sim head stops where it is instead of going on
-// to the last pose the station had; the flags that guard it fail with clear messages.
+// processes; when the tracker stops, the remote's sim head stops where it was last commanded
+// instead of going on to the last pose the station had; the flags that guard it fail with clear
+// messages.
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -28,6 +29,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 struct HeadRow {
   std::int64_t t_ns = 0;
   double yaw_rad = 0;
+  double cmd_yaw_rad = 0;
   std::uint32_t sample_id = 0;
   std::int64_t sample_ns = 0;
   std::string hold;
@@ -38,9 +40,10 @@ std::vector<HeadRow> read_head_log(const std::filesystem::path& p, std::string* 
   if (header) *header = csv.header;
   std::vector<HeadRow> rows;
   for (const auto& r : csv.rows) {
-    if (r.size() != 13 || r[1] != "1") continue;  // a whole row with a measured pose
-    rows.push_back({std::stoll(r[0]), std::stod(r[2]), static_cast<std::uint32_t>(std::stoul(r[8])),
-                    std::stoll(r[9]), r[12]});
+    // A whole row with a measured pose and a command.
+    if (r.size() != 13 || r[1] != "1" || r[5].empty()) continue;
+    rows.push_back({std::stoll(r[0]), std::stod(r[2]), std::stod(r[5]),
+                    static_cast<std::uint32_t>(std::stoul(r[8])), std::stoll(r[9]), r[12]});
   }
   return rows;
 }
@@ -51,7 +54,9 @@ std::vector<HeadRow> read_head_log(const std::filesystem::path& p, std::string* 
 // of that sample. Measured in the remote's head log: the sample's time (the station's clock, the
 // same host's CLOCK_MONOTONIC as the log's) is the stale point; from 0.1 s after it the head may
 // move only by what its servo still lags its last command (1.6 deg at 20 deg/s with the sim's
-// 80 ms), and once held not at all. Without the hold it would go on at 20 deg/s toward 60 deg.
+// 80 ms) and the command's braking at 1800 deg/s^2 (0.1 deg), only toward where the command comes
+// to rest, and the command, once at rest, not at all. Without the hold it would go on at 20 deg/s
+// toward 60 deg.
 TEST(HeadFailsafe, StaleTrackingHoldsTheSimHeadWithinATenthOfASecond) {
   TELEX_REQUIRE_BINARIES("telex-remote", "telex-local", "telex-sim-natnet");
   const auto dir = scratch_dir("head_failsafe_stale");
@@ -122,14 +127,25 @@ TEST(HeadFailsafe, StaleTrackingHoldsTheSimHeadWithinATenthOfASecond) {
     if (rows[i].hold != "none") first_hold = i;
   ASSERT_LT(first_hold, rows.size()) << "the head never held after tracking stopped";
   const double after_0_1_s = yaw_at(t_stale + 100'000'000);
-  double moved_after_0_1_s = 0, moved_while_held = 0;
+  double moved_after_0_1_s = 0;
   for (const HeadRow& r : rows) {
     if (r.t_ns >= t_stale + 100'000'000)
       moved_after_0_1_s = std::max(moved_after_0_1_s, std::abs(r.yaw_rad - after_0_1_s));
   }
+  // The command brakes to rest (issue 49: where it was last commanded, without a jump) and stays
+  // there: the hold pose is fixed as the hold begins, whatever its reason after.
+  const double rest = rows.back().cmd_yaw_rad;
+  std::size_t at_rest = rows.size() - 1;
+  while (at_rest > first_hold && std::abs(rows[at_rest - 1].cmd_yaw_rad - rest) < 2e-6) --at_rest;
+  double turned_back = 0, past = 0;
+  const double toward = rest >= rows[first_hold].yaw_rad ? 1.0 : -1.0;
   for (std::size_t i = first_hold; i < rows.size(); ++i) {
-    moved_while_held =
-        std::max(moved_while_held, std::abs(rows[i].yaw_rad - rows[first_hold].yaw_rad));
+    if (i > first_hold) {
+      turned_back = std::max(turned_back, -toward * (rows[i].yaw_rad - rows[i - 1].yaw_rad));
+      turned_back =
+          std::max(turned_back, -toward * (rows[i].cmd_yaw_rad - rows[i - 1].cmd_yaw_rad));
+    }
+    past = std::max(past, -toward * (rest - rows[i].yaw_rad));
     if (rows[i].t_ns < station_stopped_ns)
       EXPECT_TRUE(rows[i].hold == "stale" || rows[i].hold == "repeat")
           << "row " << i << " holds for '" << rows[i].hold << "'";
@@ -139,18 +155,23 @@ TEST(HeadFailsafe, StaleTrackingHoldsTheSimHeadWithinATenthOfASecond) {
   const double before = yaw_at(t_stale - 200'000'000), at_stale = yaw_at(t_stale);
   std::printf(
       "HeadFailsafe stale: yaw %.2f deg 0.2 s before the last sample, %.2f at it; held %.1f ms "
-      "after it (%s); moved %.3f deg after +0.1 s and %.6f deg while held, %.2f deg short of the "
-      "60 deg target\n",
+      "after it (%s); moved %.3f deg after +0.1 s; the command at rest %.1f ms into the hold, "
+      "%.3f deg past where it was held; %.2f deg short of the 60 deg target\n",
       before / kDeg, at_stale / kDeg, static_cast<double>(rows[first_hold].t_ns - t_stale) * 1e-6,
-      rows[first_hold].hold.c_str(), moved_after_0_1_s / kDeg, moved_while_held / kDeg,
+      rows[first_hold].hold.c_str(), moved_after_0_1_s / kDeg,
+      static_cast<double>(rows[at_rest].t_ns - rows[first_hold].t_ns) * 1e-6,
+      std::abs(rest - rows[first_hold].cmd_yaw_rad) / kDeg,
       60.0 - std::abs(rows.back().yaw_rad) / kDeg);
   // The head was on its way when tracking stopped, far from where the stale target would take it.
   EXPECT_GT(std::abs(at_stale - before), 2 * kDeg);
   EXPECT_LT(std::abs(rows.back().yaw_rad), 45 * kDeg);
   // From 0.1 s after the last sample: at most the servo's lag behind its last command.
   EXPECT_LT(moved_after_0_1_s, 2 * kDeg);
-  // Held: not at all (the log's 1e-6 rad rounding).
-  EXPECT_LT(moved_while_held, 2e-6);
+  // Held: the command came to rest long before the log ends (braking takes 0.1 s), and neither it
+  // nor the head turned back or passed where it rests (the log's 1e-6 rad rounding).
+  EXPECT_GT(rows.back().t_ns - rows[at_rest].t_ns, 500'000'000);
+  EXPECT_LT(turned_back, 2e-6);
+  EXPECT_LT(past, 2e-6);
   // The station said so: its commands carried a stale sample, never a restamped one.
   const auto summary = summary_of(station);
   ASSERT_TRUE(summary.contains("head_samples_stale")) << station.stdout_text();

@@ -189,6 +189,85 @@ TEST(NatNetSource, SpoofedDatagramsOnTheMulticastDataPortAreIgnoredAndCounted) {
   srv.join();
 }
 
+// Issue 49 (5): a spoofer on the server's own host (127.0.0.1, the server's address) but another
+// port sends well-formed frames in the server's layout, the hand 0.35 m from where it is and
+// stamped far in the future of the server's clock. The old checks compared the address only and
+// took the speed check's dt from the sender's stamps: the spoofed hand was believed, and the real
+// frames after it were rejected as too fast. Only the server's own endpoints are read now: every
+// spoofed datagram is counted foreign, and the hand follows the server alone. Unicast (the spoofer
+// sends to the client's command port; the server streams from its command port) and multicast
+// (to the data port; the server streams from another port, which the client learns).
+void expect_same_host_spoofer_changes_nothing(bool multicast) {
+  const int data_port = test::free_port();
+  NatNetServerConfig scfg;
+  scfg.command_port = 0;
+  scfg.multicast = multicast;
+  scfg.data_port = data_port;
+  scfg.version = {3, 1};
+  scfg.rate_hz = 200.0;
+  NatNetServer server(scfg, [](double, natnet::Frame& f) { natnet_press_motion(0.0, f); });
+  std::thread srv([&] { server.run_for(30.0); });
+  NatNetClientConfig ccfg;
+  ccfg.multicast = multicast;
+  ccfg.local_address = "127.0.0.1";
+  ccfg.data_port = data_port;
+  ccfg.command_port = server.command_port();
+  ccfg.body_ids = {kSimHeadId, kSimRightHandId};
+  {
+    NatNetClient client(ccfg);
+    NatNetSample s;
+    ASSERT_TRUE(wait_sample(client, s));  // connected: the server's frames are arriving
+    std::vector<std::vector<std::uint8_t>> spoofed;
+    for (int i = 0; i < 50; ++i) {
+      natnet::Frame f;
+      natnet_press_motion(0.0, f);
+      f.frame_number = kSpoofFrame + static_cast<std::uint32_t>(i);
+      f.timestamp_s = 1e6 + 0.005 * i;  // eleven days ahead of the server's clock
+      f.rigid_bodies[1].p_m.z = -0.6f;  // the real hand is at -0.25 m
+      spoofed.push_back(natnet::encode_frame(f, {3, 1}));
+    }
+    const auto to = static_cast<std::uint16_t>(multicast ? data_port : client.command_port());
+    const std::size_t sent = test::udp_send_from("127.0.0.1", to, spoofed);
+    ASSERT_EQ(sent, 50u);
+    int samples = 0;
+    for (int i = 0; i < 2000 && (samples < 20 || client.stats().foreign_datagrams < sent); ++i) {
+      if (client.latest(s)) {
+        ++samples;
+        EXPECT_LT(s.frame_number, kSpoofFrame) << "a spoofed frame was published";
+        const auto* hand = s.find(kSimRightHandId);
+        ASSERT_NE(hand, nullptr);
+        EXPECT_TRUE(hand->valid) << "a real frame was rejected, frame " << s.frame_number;
+        if (hand->valid) {
+          EXPECT_NEAR(hand->pose.p_m.z, -0.25, 1e-6) << "not the server's hand";
+        }
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    const NatNetClientStats st = client.stats();
+    std::printf(
+        "NatNetSource same host, %s: %llu spoofed frames sent, %llu counted foreign, %llu frames "
+        "read, %llu rejected too fast\n",
+        multicast ? "multicast" : "unicast", static_cast<unsigned long long>(sent),
+        static_cast<unsigned long long>(st.foreign_datagrams),
+        static_cast<unsigned long long>(st.frames),
+        static_cast<unsigned long long>(st.rejected_too_fast));
+    EXPECT_GE(samples, 20) << "the real server's frames stopped";
+    EXPECT_EQ(st.foreign_datagrams, sent);
+    EXPECT_EQ(st.rejected_too_fast, 0u);
+    EXPECT_NE(client.last_error().find("127.0.0.1:"), std::string::npos) << client.last_error();
+  }
+  server.stop();
+  srv.join();
+}
+
+TEST(NatNetSource, ASpooferOnTheServersHostButAnotherPortChangesNothing) {
+  expect_same_host_spoofer_changes_nothing(false);
+}
+
+TEST(NatNetSource, ASpooferOnTheServersHostChangesNothingInMulticastEither) {
+  expect_same_host_spoofer_changes_nothing(true);
+}
+
 // The hand's pose over each 0.2 s cycle: good, then NaN position, a quaternion of length 1.2, a
 // NaN quaternion, a 1 m jump, good again. The good poses carry a quaternion of length 1.0005
 // (within the tolerance: normalised).

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // HeadCommands over the wire to a running RemoteDaemon with the sim head: a released dead-man and
-// a sample the station repeats as if new both hold the head where it is, read from the daemon's
-// --log-head rows; pressing again moves it on. And a daemon that stops leaves its head holding.
+// a sample the station repeats as if new both hold the head where it was last commanded (braking
+// to rest), read from the daemon's --log-head rows; pressing again moves it on. And a daemon that
+// stops leaves its head holding.
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -28,19 +29,22 @@ using namespace std::chrono_literals;
 struct LogRow {
   std::int64_t t_ns = 0;
   double yaw_rad = 0;
+  double cmd_yaw_rad = 0;
   std::string hold;
 };
 
 std::vector<LogRow> read_log(const std::filesystem::path& p) {
   std::vector<LogRow> rows;
   for (const auto& r : ::telex::test::read_csv_file(p).rows)
-    if (r.size() == 13 && r[1] == "1") rows.push_back({std::stoll(r[0]), std::stod(r[2]), r[12]});
+    if (r.size() == 13 && r[1] == "1" && !r[5].empty())
+      rows.push_back({std::stoll(r[0]), std::stod(r[2]), std::stod(r[5]), r[12]});
   return rows;
 }
 
-// Each run of rows holding for `reason`: the yaw must not move from the run's first row on, and
-// the head must have been moving in the 50 ms before it (so the hold stopped it). Returns how
-// many runs there were.
+// Each run of rows holding for `reason`: the head must have been moving in the 50 ms before it
+// (so the hold stopped it); the command brakes to rest within the run and stays there (the log's
+// 1e-6 rad rounding); the measured yaw only closes on it, never turning back or passing it (the
+// sim servo lags its command). Returns how many runs there were.
 int check_holds(const std::vector<LogRow>& rows, const std::string& reason) {
   int runs = 0;
   for (std::size_t i = 1; i < rows.size(); ++i) {
@@ -48,18 +52,28 @@ int check_holds(const std::vector<LogRow>& rows, const std::string& reason) {
     ++runs;
     std::size_t before = i;
     while (before > 0 && rows[before].t_ns > rows[i].t_ns - 50'000'000) --before;
-    double moved = 0;
     std::size_t end = i;
-    for (; end < rows.size() && rows[end].hold == reason; ++end)
-      moved = std::max(moved, std::abs(rows[end].yaw_rad - rows[i].yaw_rad));
+    while (end < rows.size() && rows[end].hold == reason) ++end;
+    const double rest = rows[end - 1].cmd_yaw_rad;
+    std::size_t at_rest = end - 1;
+    while (at_rest > i && std::abs(rows[at_rest - 1].cmd_yaw_rad - rest) < 2e-6) --at_rest;
+    const double toward = rest >= rows[i].yaw_rad ? 1.0 : -1.0;
+    double turned_back = 0, past = 0;
+    for (std::size_t k = i + 1; k < end; ++k) {
+      turned_back = std::max(turned_back, -toward * (rows[k].yaw_rad - rows[k - 1].yaw_rad));
+      past = std::max(past, -toward * (rest - rows[k].yaw_rad));
+    }
     std::printf(
-        "hold '%s': yaw %.4f rad, moving %.4f rad in the 50 ms before, %.6f rad while held "
-        "over %zu loops\n",
-        reason.c_str(), rows[i].yaw_rad, std::abs(rows[i].yaw_rad - rows[before].yaw_rad), moved,
-        end - i);
+        "hold '%s': yaw %.4f rad, moving %.4f rad in the 50 ms before; the command at rest at "
+        "%.4f rad after %.0f ms, the head %.4f rad from it at the end, over %zu loops\n",
+        reason.c_str(), rows[i].yaw_rad, std::abs(rows[i].yaw_rad - rows[before].yaw_rad), rest,
+        static_cast<double>(rows[at_rest].t_ns - rows[i].t_ns) * 1e-6,
+        std::abs(rows[end - 1].yaw_rad - rest), end - i);
     EXPECT_GT(std::abs(rows[i].yaw_rad - rows[before].yaw_rad), 0.01) << reason;
-    EXPECT_LT(moved, 2e-6) << reason;
     EXPECT_GT(end - i, 10u) << reason;
+    EXPECT_LT(at_rest + 2, end) << reason << ": the command never came to rest";
+    EXPECT_LT(turned_back, 2e-6) << reason;
+    EXPECT_LT(past, 2e-6) << reason;
   }
   return runs;
 }
@@ -94,7 +108,8 @@ TEST(HeadDaemon, AReleasedDeadManAndARepeatedSampleHoldTheSimHead) {
     }
   };
   using DS = proto::DeadmanState;
-  send_for(250, 1.0f, DS::Pressed, false);  // on its way to +1 rad (0.4 s of travel)
+  // On its way to +1 rad (0.4 s of travel): released midway, the command brakes short of it.
+  send_for(150, 1.0f, DS::Pressed, false);
   send_for(400, 1.0f, DS::Released, false);
   send_for(250, -1.0f, DS::Pressed, false);  // back toward -1 rad
   send_for(400, -1.0f, DS::Pressed, true);   // one sample resent as new

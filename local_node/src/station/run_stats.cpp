@@ -85,9 +85,10 @@ std::string RunStats::status_text(double fps, double build_ms, ClientState state
     const TrackerStats t = tracker->stats();
     const std::uint64_t rejected =
         t.rejected_nonfinite + t.rejected_quaternion + t.rejected_too_fast;
-    if (t.foreign_datagrams + rejected > 0)
+    if (t.foreign_datagrams + t.frame_jumps + rejected > 0)
       text += " | tracking dropped " + std::to_string(t.foreign_datagrams) +
-              " foreign datagrams, " + std::to_string(rejected) + " bad poses";
+              " foreign datagrams, " + std::to_string(t.frame_jumps) + " jumping frames, " +
+              std::to_string(rejected) + " bad poses";
   }
   return text;
 }

@@ -37,6 +37,7 @@ void HeadControllerConfig::validate() const {
   check_positive(link_timeout_s, "head link timeout");
   check_positive(max_sample_age_s, "head max sample age");
   check_positive(max_sample_repeat_s, "head max sample repeat");
+  check_positive(max_measured_age_s, "head max measured age");
 }
 
 HeadController::HeadController(HeadControllerConfig config) : config_(config) {
@@ -73,83 +74,104 @@ HeadHold HeadController::why_hold(std::int64_t now_ns) const {
   return HeadHold::None;
 }
 
-void HeadController::hold_at(std::int64_t now_ns) {
+void HeadController::count_hold(HeadHold why) {
+  switch (why) {
+    case HeadHold::Link:
+      ++stats_.link_losses;
+      break;
+    case HeadHold::Stale:
+      ++stats_.stale_holds;
+      break;
+    case HeadHold::Repeat:
+      ++stats_.repeat_holds;
+      break;
+    case HeadHold::Deadman:
+      ++stats_.deadman_holds;
+      break;
+    case HeadHold::None:
+      break;
+  }
+}
+
+std::optional<HeadAngles> HeadController::hold(std::int64_t now_ns) {
+  if (!last_command_) {
+    // Never commanded: the head is where it is measured now, if it was measured now. An older
+    // pose may be one a silent controller reported before the head was moved by hand or by it.
+    if (!last_measured_ ||
+        std::abs(now_ns - last_measured_->time_ns) > to_ns(config_.max_measured_age_s))
+      return std::nullopt;
+    HeadAngles h = last_measured_->joint_rad;
+    clamp_to_limits(h, config_.limits);
+    last_command_ = h;
+    velocity_rad_s_ = {};
+    last_update_ns_ = now_ns;
+  }
   if (!hold_) {
-    // Latched once, so a drifting or noisy reading does not move the head while it holds.
-    const std::optional<HeadAngles>& from = last_measured_ ? last_measured_ : last_command_;
-    if (!from) return;
-    HeadAngles h = *from;
+    // Fixed once, as the hold begins: where the command comes to rest braking at max_accel, the
+    // nearest pose to the last command that the command can stop at without a jump.
+    HeadAngles h = *last_command_;
+    for (std::size_t j = 0; j < kHeadJoints; ++j) {
+      const double v = velocity_rad_s_[j];
+      h[j] += v * std::abs(v) / (2.0 * config_.limits.joint[j].max_accel_rad_s2);
+    }
     clamp_to_limits(h, config_.limits);
     hold_ = h;
   }
-  last_command_ = hold_;
-  velocity_rad_s_ = {};
-  last_update_ns_ = now_ns;
+  advance(*hold_, now_ns);
+  return last_command_;
 }
 
 std::optional<HeadAngles> HeadController::update(const HeadPose& measured, std::int64_t now_ns) {
-  if (measured.valid && all_finite(measured.joint_rad)) last_measured_ = measured.joint_rad;
+  if (measured.valid && all_finite(measured.joint_rad)) last_measured_ = measured;
   const HeadHold why = why_hold(now_ns);
   if (why != HeadHold::None) {
     if (hold_reason_ == HeadHold::None) hold_.reset();
     // Counted as each reason begins: a link that goes silent is first a stale sample (100 ms),
     // then a lost link (200 ms), and both are counted.
-    if (why != hold_reason_) {
-      switch (why) {
-        case HeadHold::Link:
-          ++stats_.link_losses;
-          break;
-        case HeadHold::Stale:
-          ++stats_.stale_holds;
-          break;
-        case HeadHold::Repeat:
-          ++stats_.repeat_holds;
-          break;
-        case HeadHold::Deadman:
-          ++stats_.deadman_holds;
-          break;
-        case HeadHold::None:
-          break;
-      }
-    }
+    if (why != hold_reason_) count_hold(why);
     hold_reason_ = why;
-    hold_at(now_ns);
-    return hold_;
+    return hold(now_ns);
   }
   hold_reason_ = HeadHold::None;
   hold_.reset();
   if (!last_command_) {
-    HeadAngles start = last_measured_ ? *last_measured_ : HeadAngles{};
+    HeadAngles start = last_measured_ ? last_measured_->joint_rad : HeadAngles{};
     clamp_to_limits(start, config_.limits);
     last_command_ = start;
     velocity_rad_s_ = {};
     last_update_ns_ = now_ns;
   }
-  const double dt_s =
-      static_cast<double>(std::max<std::int64_t>(0, now_ns - last_update_ns_)) * 1e-9;
-  if (dt_s > 0) last_command_ = step(*last_command_, dt_s);
-  last_update_ns_ = std::max(last_update_ns_, now_ns);
+  // From the last command at its speed, hold or not: a move that resumes starts where the hold
+  // left the command, so it does not jump either.
+  advance(target_->joint_rad, now_ns);
   return last_command_;
 }
 
-// One joint's move toward the target over dt. The speed it may have now is the lesser of max_rate
-// and the speed from which it can still stop at the target: moving at v for this dt and braking
+void HeadController::advance(const HeadAngles& goal, std::int64_t now_ns) {
+  const double dt_s =
+      static_cast<double>(std::max<std::int64_t>(0, now_ns - last_update_ns_)) * 1e-9;
+  if (dt_s > 0) last_command_ = step(*last_command_, goal, dt_s);
+  last_update_ns_ = std::max(last_update_ns_, now_ns);
+}
+
+// One joint's move toward the goal over dt. The speed it may have now is the lesser of max_rate
+// and the speed from which it can still stop at the goal: moving at v for this dt and braking
 // at max_accel after must fit the distance, v dt + v^2 / 2a <= d. Then braking by max_accel * dt'
-// at every later step, whatever its dt', keeps that true, so the joint stops on the target without
+// at every later step, whatever its dt', keeps that true, so the joint stops on the goal without
 // ever braking harder than max_accel (the head loop's period wanders). The speed changes toward
-// that by at most max_accel * dt. Near the target the steps shrink quadratically; within 1e-9 rad
+// that by at most max_accel * dt. Near the goal the steps shrink quadratically; within 1e-9 rad
 // the joint lands on it.
-HeadAngles HeadController::step(const HeadAngles& from, double dt_s) {
+HeadAngles HeadController::step(const HeadAngles& from, const HeadAngles& goal, double dt_s) {
   constexpr double kLandRad = 1e-9;
   HeadAngles cmd = from;
   for (std::size_t j = 0; j < kHeadJoints; ++j) {
     const HeadJointLimits& lim = config_.limits.joint[j];
     const double a = lim.max_accel_rad_s2;
     const double dv_max = a * dt_s;
-    const double d = target_->joint_rad[j] - from[j];
+    const double d = goal[j] - from[j];
     double& v = velocity_rad_s_[j];
     if (std::abs(d) <= kLandRad && std::abs(v) <= dv_max) {
-      cmd[j] = target_->joint_rad[j];
+      cmd[j] = goal[j];
       v = d / dt_s;
       continue;
     }

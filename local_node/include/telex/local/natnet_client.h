@@ -65,6 +65,47 @@ std::string_view to_string(PoseVerdict v);
 PoseVerdict check_pose(const natnet::RigidBody& body, const PoseLimits& limits,
                        const Pose* previous, double dt_s, Pose& out);
 
+// A frame's place in the server's stream (its number and its server stamp, seconds) and when it
+// arrived here (steady clock).
+struct FrameStamp {
+  std::uint32_t frame_number = 0;
+  double timestamp_s = 0;
+  std::int64_t received_ns = 0;
+};
+
+// How a frame's number and stamp may move against the last accepted frame's (docs/HARDWARE.md,
+// "What the station checks"): forward, and by no more than the time between their arrivals here
+// allows, so a sender's own stamps never vouch for themselves.
+struct TimelineLimits {
+  // Motive's cameras run at 1000 Hz at most; twice that bounds how fast frame numbers advance.
+  double max_rate_hz = 2000.0;
+  // How far a frame's stamp (and its number, at max_rate_hz) may run ahead of the time between
+  // the arrivals: a server's jitter and a burst after a stalled network stay well within it.
+  double max_ahead_s = 0.25;
+  // No frame accepted for this long: the next one starts a new timeline (a restarted Motive
+  // counts from zero again, a take played in a loop goes back at each loop).
+  double resync_s = 0.5;
+  // The speed check's dt: the stamps' difference, but at most the arrivals' plus this (frames
+  // that queued in a stalled network arrive together yet moved for their stamps' dt).
+  double max_dt_over_arrival_s = 0.05;
+};
+
+enum class FrameVerdict { Ok, NewTimeline, Backwards, TooFarAhead };
+std::string_view to_string(FrameVerdict v);
+
+// `frame` against `previous`, the last accepted frame (pure). Backwards: its number is not above
+// the previous one's (a repeat included) or its stamp is below; TooFarAhead: either ran further
+// ahead than max_ahead_s past the arrivals' difference allows; NewTimeline: nothing was accepted
+// for resync_s, so anything goes.
+FrameVerdict check_frame(const FrameStamp& previous, const FrameStamp& frame,
+                         const TimelineLimits& limits);
+
+// The dt check_pose takes between a body's last accepted pose (in `previous`) and `frame`: the
+// stamps' difference, at most the arrivals' plus max_dt_over_arrival_s; the arrivals' alone when
+// the stamps went back (another timeline).
+double speed_check_dt_s(const FrameStamp& previous, const FrameStamp& frame,
+                        const TimelineLimits& limits);
+
 // "SERVER_IP[,multicast|,unicast][,local=IP][,cmd=PORT][,data=PORT][,version=X.Y]" (the
 // station's natnet: spec after its prefix, `telex calibrate body --natnet`) over `base`. Throws
 // std::invalid_argument starting with `what` and naming the valid options.
@@ -104,8 +145,12 @@ struct NatNetClientStats {
   std::uint64_t before_version = 0;  // frames dropped while the layout was still unknown
   std::uint64_t pings_sent = 0;
   std::uint64_t io_errors = 0;
-  // Datagrams from an address other than the configured server's: dropped unread.
+  // Datagrams not from the server's endpoints (another address, or another port of its address
+  // than its command port and its frames' learnt source): dropped, never believed.
   std::uint64_t foreign_datagrams = 0;
+  // Frames whose number or stamp went back, or ran further ahead than their arrival allows
+  // (check_frame): dropped whole.
+  std::uint64_t frame_jumps = 0;
   // Tracked bodies whose pose check_pose rejected, by reason (a frame with a non-finite
   // timestamp counts once under rejected_nonfinite).
   std::uint64_t rejected_nonfinite = 0, rejected_quaternion = 0, rejected_too_fast = 0;
@@ -114,9 +159,11 @@ struct NatNetClientStats {
 
 // Owns one thread running its io_context: the haptic thread only calls latest(), which never
 // blocks. The constructor opens and binds the sockets and throws std::runtime_error naming the
-// address and port when it cannot. Only datagrams from the configured server's address are read
-// (unicast replies and frames, and the multicast frames the server host sends); each tracked body
-// must pass check_pose. An exception on the receive thread stops it and is kept in thread_fault().
+// address and port when it cannot. Only the server's endpoints are read: its replies from its
+// command endpoint (SERVER_IP:cmd), its frames from that endpoint or from the one source port of
+// its address that the client learns and pins (natnet_client.cpp says how); each frame must pass
+// check_frame and each tracked body check_pose. An exception on the receive thread stops it and is
+// kept in thread_fault().
 class NatNetClient {
  public:
   explicit NatNetClient(NatNetClientConfig config);

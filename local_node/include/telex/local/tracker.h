@@ -94,10 +94,12 @@ struct TrackerStats {
   std::uint64_t frames_dropped = 0;  // frames overwritten before a poll took them
   std::uint64_t parse_errors = 0;    // malformed packets / reports rejected
   std::uint64_t io_errors = 0;       // socket or device read failures
-  // NatNet: datagrams from another address than the server's (dropped unread), tracked bodies
-  // whose pose failed the checks (NatNetClient, PoseLimits) by reason, and frames the tracker set
-  // aside because the head or the haptic hand was among those: the last good state stays, ageing.
+  // NatNet: datagrams not from the server's endpoints (dropped unread), frames whose number or
+  // stamp jumped (dropped whole), tracked bodies whose pose failed the checks (NatNetClient,
+  // PoseLimits) by reason, and frames the tracker set aside because the head or the haptic hand
+  // was among those: the last good state stays, ageing.
   std::uint64_t foreign_datagrams = 0;
+  std::uint64_t frame_jumps = 0;
   std::uint64_t rejected_nonfinite = 0, rejected_quaternion = 0, rejected_too_fast = 0;
   std::uint64_t frames_rejected = 0;
   std::uint64_t thread_faults = 0;  // exceptions that stopped a receive thread

@@ -133,6 +133,11 @@ struct HeadControllerConfig {
   // the network's jitter. Longer, the station is resending a sample that stopped changing, whatever
   // age it claims, and the head holds still.
   double max_sample_repeat_s = 0.05;
+  // A measured pose older than this (HeadPose::time_ns against the update's now) is not where
+  // the head is now: the head loop reads, then updates, within one 10 ms loop, and a --head udp
+  // controller's pose goes invalid only after 0.5 s. Only the pose before the first command is
+  // ever held (HeadController), and only a fresh one.
+  double max_measured_age_s = 0.05;
   // The lab requires a dead-man (telex-remote --require-deadman): a station without one ("not
   // used") holds the head as a released one does.
   bool require_deadman = false;
@@ -183,16 +188,21 @@ struct HeadControlStats {
 };
 
 // What the remote commands the head, whatever the driver (pure: time is passed in). Each update
-// moves the previous command toward the operator's newest target, clamped to the joint limits,
-// with each joint's speed at most max_rate_rad_s and its speed changing by at most
-// max_accel_rad_s2 * dt (it slows down in time to stop at the target). The head holds still when
-// there is no target for more than link_timeout_s (or before the first), when the target's
-// tracking sample is too old or has repeated too long, or when the dead-man input is released:
-// the command becomes the pose measured at that moment and stays there until a target may move
-// the head again (that pose is where the head already is, so the jump to it is not rate-limited:
-// stopping at once is the safe side, and a servo's own Profile Acceleration bounds how hard it
-// brakes; from there the command starts at rest). The first command starts from the first valid
-// measured pose; a head that never reported one is taken to be at zero.
+// moves the previous command toward a goal, clamped to the joint limits, with each joint's speed at
+// most max_rate_rad_s and its speed changing by at most max_accel_rad_s2 * dt (it slows down in
+// time to stop at the goal): the goal is the operator's newest target while it may move the head,
+// else the hold pose. The head holds when there is no target for more than link_timeout_s (or
+// before the first), when the target's tracking sample is too old or has repeated too long, or
+// when the dead-man input is released. The hold pose is where the last command comes to rest
+// braking at max_accel (v|v| / 2a past it; the last command itself when it was at rest), fixed
+// as the hold begins: the head holds where it was last commanded, and the move there obeys the
+// same limits as any other, so neither the hold nor the move that resumes after it jumps. (A
+// measured pose is no hold pose once the head has been commanded: it may be old, from a
+// controller that stopped answering, and the command to it would be a jump.) Before the first
+// command the head is held where it is measured now (no older than max_measured_age_s); without
+// such a pose there is nothing to command. The first move starts from the newest valid measured
+// pose (the head has not been moved since, by us); a head that never reported one is taken to be
+// at zero.
 class HeadController {
  public:
   explicit HeadController(HeadControllerConfig config = {});  // validates (throws)
@@ -205,6 +215,8 @@ class HeadController {
 
   bool holding() const { return hold_reason_ != HeadHold::None; }
   HeadHold hold_reason() const { return hold_reason_; }
+  // Where the head is held while holding (nullopt while moving, or with nothing to command).
+  const std::optional<HeadAngles>& hold_pose() const { return hold_; }
   // The newest target's tracking sample: its id and its age at `now_ns` (the age it was sent
   // with plus the time since it arrived); age -1 without a target.
   std::uint32_t sample_id() const { return target_ ? target_->sample_id : 0; }
@@ -216,8 +228,11 @@ class HeadController {
 
  private:
   HeadHold why_hold(std::int64_t now_ns) const;
-  void hold_at(std::int64_t now_ns);
-  HeadAngles step(const HeadAngles& from, double dt_s);
+  void count_hold(HeadHold why);
+  std::optional<HeadAngles> hold(std::int64_t now_ns);
+  // The command moved toward `goal` from the last one over the time since the last update.
+  void advance(const HeadAngles& goal, std::int64_t now_ns);
+  HeadAngles step(const HeadAngles& from, const HeadAngles& goal, double dt_s);
 
   HeadControllerConfig config_;
   HeadControlStats stats_;
@@ -225,10 +240,10 @@ class HeadController {
   std::int64_t target_ns_ = 0;        // when it arrived
   std::int64_t sample_first_ns_ = 0;  // when its sample first arrived (repeats keep it)
   std::optional<HeadAngles> last_command_;
-  HeadAngles velocity_rad_s_{};  // of the last command (zero while holding)
+  HeadAngles velocity_rad_s_{};  // of the last command (kept through holds: no jump to rest)
   std::int64_t last_update_ns_ = 0;
-  std::optional<HeadAngles> last_measured_;
-  std::optional<HeadAngles> hold_;  // the pose held
+  std::optional<HeadPose> last_measured_;  // the newest valid one, with its time
+  std::optional<HeadAngles> hold_;         // the pose held, fixed as the hold begins
   HeadHold hold_reason_ = HeadHold::Link;
 };
 
