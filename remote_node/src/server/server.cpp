@@ -234,6 +234,7 @@ void RemoteServer::Impl::arm_timer() {
       ++counters_.client_timeouts;
       end_session(SessionEnd::ClientSilent);
     }
+    if (active_) probe(active_);
     arm_timer();
   });
 }
