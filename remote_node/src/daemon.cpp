@@ -9,6 +9,7 @@
 #include <boost/asio.hpp>
 #include <iostream>
 #include <iterator>
+#include <limits>
 
 #include "telex/base/periodic.h"
 #include "telex/common/head_kinematics.h"
@@ -151,7 +152,8 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
       return head_rotation(config_.robot_head, p.joint_rad);
     };
     // The operator's head, from the network thread; the head loop commands it.
-    config_.server.on_head_command = [this](const proto::HeadCommand& c, std::int64_t now_ns) {
+    config_.server.on_head_command = [this](const proto::HeadCommand& c, std::int64_t now_ns,
+                                            std::optional<std::int64_t> station_now_ns) {
       std::lock_guard lock(head_mu_);
       HeadTarget t;
       t.joint_rad = {c.joint_rad[0], c.joint_rad[1], c.joint_rad[2]};
@@ -159,6 +161,10 @@ RemoteDaemon::RemoteDaemon(DaemonConfig config)
       t.sample_age_ns = static_cast<std::int64_t>(c.sample_age_us) * 1000;
       t.deadman = static_cast<Deadman>(c.deadman);  // the same values (PROTOCOL.md 2.3)
       t.sample_ns = static_cast<std::int64_t>(c.operator_ns);
+      // A stamp beyond int64 (a broken station) is as old as a sample can be.
+      if (station_now_ns)
+        t.arrival_age_ns = t.sample_ns < 0 ? std::numeric_limits<std::int64_t>::max() / 2
+                                           : *station_now_ns - t.sample_ns;
       head_control_.set_target(t, now_ns);
     };
   }

@@ -19,6 +19,7 @@
 
 #include "process.h"
 #include "telex/remote/daemon.h"
+#include "telex/remote/sources.h"
 #include "test_client.h"
 
 namespace telex::remote {
@@ -102,6 +103,7 @@ TEST(HeadDaemon, AReleasedDeadManAndARepeatedSampleHoldTheSimHead) {
       c.joint_rad = {yaw, 0.0f, 0.0f};
       c.sample_id = repeat ? id : ++id;
       c.sample_age_us = repeat ? 0 : 2000;  // a repeat claims to be new: the old station's bug
+      c.operator_ns = static_cast<std::uint64_t>(steady_now_ns() - c.sample_age_us * 1000);
       c.deadman = deadman;
       client.send(c);
       std::this_thread::sleep_for(5ms);
@@ -127,6 +129,71 @@ TEST(HeadDaemon, AReleasedDeadManAndARepeatedSampleHoldTheSimHead) {
   double lowest = 1.0;
   for (const LogRow& r : rows) lowest = std::min(lowest, r.yaw_rad);
   EXPECT_LT(lowest, 0.0);
+}
+
+// Issue 49 (8): a station whose send queue backed up delivers HeadCommands late, each judged
+// fresh (2 ms) when it was built but 400 ms old when it arrives. The remote judges a command's
+// age at its arrival, on the operator's clock (the offset its own heartbeat probes measure, which
+// the station answers): such commands hold the head. Fresh ones after them move it. The station
+// here is the test client on this host, whose steady clock is the station's clock.
+TEST(HeadDaemon, CommandsThatArriveOldHoldTheHeadWhateverAgeTheyWereSentWith) {
+  const auto dir = ::telex::test::scratch_dir("head_daemon_backlog");
+  DaemonConfig cfg;
+  cfg.depth_source = "synthetic:plane";
+  cfg.source_options.width = 160;
+  cfg.source_options.height = 120;
+  cfg.server.port = 0;
+  cfg.stats_line = false;
+  cfg.realtime = false;
+  cfg.head = "sim";
+  cfg.head_log_csv = dir / "head.csv";
+  RemoteDaemon d(cfg);
+  d.start();
+  test::TestClient client(d.port(), /*udp=*/false);
+  ASSERT_TRUE(client.run_until([&] { return client.accept_.has_value(); }, 10s));
+  std::uint32_t id = 0;
+  // One HeadCommand every 5 ms toward +1 rad for `ms`, its sample taken `late_ns` before it goes
+  // out yet claiming to be 2 ms old; between sends the client answers the remote's probes.
+  const auto send_for = [&](int ms, std::int64_t late_ns) {
+    for (int t = 0; t < ms; t += 5) {
+      proto::HeadCommand c;
+      c.joint_rad = {1.0f, 0.0f, 0.0f};
+      c.sample_id = ++id;
+      c.sample_age_us = 2000;
+      c.operator_ns = static_cast<std::uint64_t>(steady_now_ns() - late_ns);
+      client.send(c);
+      client.run_until([] { return false; }, 5ms);
+    }
+  };
+  send_for(600, 400'000'000);
+  const std::int64_t fresh_from_ns = steady_now_ns();
+  const DaemonStats held = d.stats();
+  send_for(300, 2'000'000);
+  client.close();
+  d.stop();
+
+  const std::vector<LogRow> rows = read_log(dir / "head.csv");
+  ASSERT_GT(rows.size(), 50u);
+  double moved_while_late = 0, moved_after = 0;
+  std::size_t late_rows = 0;
+  for (const LogRow& r : rows) {
+    if (r.t_ns < fresh_from_ns) {
+      ++late_rows;
+      moved_while_late = std::max(moved_while_late, std::abs(r.yaw_rad));
+      EXPECT_NE(r.hold, "none") << "moved by a command 400 ms old at " << r.t_ns;
+    } else {
+      moved_after = std::max(moved_after, std::abs(r.yaw_rad));
+    }
+  }
+  std::printf(
+      "backlog: %zu loops with commands 400 ms late, yaw at most %.6f rad (%llu stale holds); "
+      "then fresh ones: yaw %.4f rad\n",
+      late_rows, moved_while_late, static_cast<unsigned long long>(held.head_control.stale_holds),
+      moved_after);
+  EXPECT_GT(late_rows, 30u);
+  EXPECT_GT(held.head_control.targets, 50u);
+  EXPECT_LT(moved_while_late, 1e-6);
+  EXPECT_GT(moved_after, 0.05);
 }
 
 // A lab's head controller (--head udp) that never moves: it answers every target with the same
@@ -209,8 +276,9 @@ TEST(HeadDaemon, StoppingLeavesTheHeadHoldingWhereItIs) {
     c.joint_rad = {1.0f, 0.0f, 0.0f};
     c.sample_id = ++id;
     c.sample_age_us = 2000;
+    c.operator_ns = static_cast<std::uint64_t>(steady_now_ns() - 2'000'000);
     client.send(c);
-    std::this_thread::sleep_for(5ms);
+    client.run_until([] { return false; }, 5ms);  // and answers the remote's probes
   }
   d.stop();  // mid-move: the link is alive and the commands run ahead
   client.close();

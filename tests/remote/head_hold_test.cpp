@@ -17,10 +17,11 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr std::int64_t kMs = 1'000'000;
 
-// A fresh sample from the operator's head: a new id each call, 2 ms old, no dead-man.
+// A fresh sample from the operator's head: a new id each call, 2 ms old when sent and when it
+// arrived (the operator's clock known), no dead-man.
 HeadTarget fresh(const HeadAngles& joint_rad) {
   static std::uint32_t id = 0;
-  return {joint_rad, ++id, 2 * kMs, Deadman::NotUsed};
+  return {joint_rad, ++id, 2 * kMs, Deadman::NotUsed, 0, 2 * kMs};
 }
 
 // The sim head driven by the controller at the remote's 100 Hz, toward a yaw of 1 rad far ahead
@@ -116,7 +117,8 @@ TEST(HeadController, AStaleSampleHoldsTheSimHeadWithinATenthOfASecond) {
   // Each new sample older than 100 ms (a tracker 150 ms late) holds by the stale rule itself.
   std::uint32_t id = 1000;
   const HoldRun late = run_until_hold(stop_ms, 1500, [&](std::int64_t, const HeadTarget&) {
-    return std::optional<HeadTarget>(HeadTarget{{1.0, 0.0, 0.0}, ++id, 150 * kMs});
+    return std::optional<HeadTarget>(
+        HeadTarget{{1.0, 0.0, 0.0}, ++id, 150 * kMs, Deadman::NotUsed, 0, 150 * kMs});
   });
   EXPECT_EQ(late.reason, HeadHold::Stale);
   EXPECT_EQ(late.held_at_ns, stop_ms * kMs);
@@ -144,7 +146,7 @@ TEST(HeadController, ASampleRepeatedTooLongHolds) {
   std::uint32_t id = 5000;
   for (std::int64_t t = 0; t <= 2000 * kMs; t += 5 * kMs) {
     if (t % (30 * kMs) == 0) ++id;  // a new sample every 30 ms, resent every 5 ms
-    c.set_target({{0.5, 0.0, 0.0}, id, 0, Deadman::NotUsed}, t);
+    c.set_target({{0.5, 0.0, 0.0}, id, 0, Deadman::NotUsed, 0, 0}, t);
     c.update(HeadPose{{0, 0, 0}, t, true}, t);
     ASSERT_FALSE(c.holding()) << "at " << t * 1e-6 << " ms";
   }
@@ -372,6 +374,52 @@ TEST(HeadController, HoldsAndResumesWithinTheRateAndAccelerationLimits) {
   EXPECT_GE(s.link_losses, 5u);
   EXPECT_GE(s.stale_holds, 10u);
   EXPECT_EQ(s.repeat_holds, 10u);
+}
+
+// Issue 49 (8): the station judged a sample's age when it built the command; a command that then
+// waited in its send queue arrives old but says it is fresh. The remote takes the larger of that
+// age and the one it judges at arrival on the operator's clock: 400 ms old on arrival is stale,
+// whatever it was sent with, and its age goes on growing from there.
+TEST(HeadController, ATargetThatArrivesOldIsStaleWhateverAgeItWasSentWith) {
+  HeadController c;
+  const HeadPose at_zero{{0, 0, 0}, 0, true};
+  HeadTarget late = fresh({0.5, 0, 0});
+  late.arrival_age_ns = 400 * kMs;
+  c.set_target(late, 0);
+  EXPECT_EQ(c.update(at_zero, 0), (HeadAngles{0, 0, 0}));
+  EXPECT_EQ(c.hold_reason(), HeadHold::Stale);
+  EXPECT_EQ(c.sample_age_ns(10 * kMs), 410 * kMs);
+  EXPECT_EQ(c.stats().stale_holds, 1u);
+  // The station's claim wins when it is the older (the operator's clock a little off).
+  HeadTarget claims_older = fresh({0.5, 0, 0});
+  claims_older.sample_age_ns = 150 * kMs;
+  c.set_target(claims_older, 20 * kMs);
+  c.update(HeadPose{{0, 0, 0}, 20 * kMs, true}, 20 * kMs);
+  EXPECT_EQ(c.hold_reason(), HeadHold::Stale);
+  EXPECT_EQ(c.sample_age_ns(20 * kMs), 150 * kMs);
+  // Fresh on both counts: it moves.
+  c.set_target(fresh({0.5, 0, 0}), 30 * kMs);
+  c.update(HeadPose{{0, 0, 0}, 30 * kMs, true}, 30 * kMs);
+  const auto cmd = c.update(HeadPose{{0, 0, 0}, 40 * kMs, true}, 40 * kMs);
+  EXPECT_FALSE(c.holding());
+  EXPECT_GT((*cmd)[0], 0.0);
+}
+
+// Before the remote knows the operator's clock (no probe answered yet), a target's age at arrival
+// cannot be judged: it is no target yet, the head holds for the link.
+TEST(HeadController, ATargetWhoseAgeAtArrivalIsUnknownDoesNotMoveTheHead) {
+  HeadController c;
+  HeadTarget unjudged = fresh({0.5, 0, 0});
+  unjudged.arrival_age_ns.reset();
+  for (std::int64_t t = 0; t <= 100 * kMs; t += 10 * kMs) {
+    c.set_target(unjudged, t);
+    EXPECT_EQ(c.update(HeadPose{{0, 0, 0}, t, true}, t), (HeadAngles{0, 0, 0}));
+    EXPECT_EQ(c.hold_reason(), HeadHold::Link);
+  }
+  EXPECT_EQ(c.stats().link_losses, 0u);  // never had a link to lose
+  c.set_target(fresh({0.5, 0, 0}), 110 * kMs);
+  c.update(HeadPose{{0, 0, 0}, 110 * kMs, true}, 110 * kMs);
+  EXPECT_FALSE(c.holding());
 }
 
 }  // namespace

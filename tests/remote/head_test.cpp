@@ -191,10 +191,11 @@ TEST(HeadController, NothingToCommandUntilAPoseOrTarget) {
   EXPECT_EQ(*cmd, (HeadAngles{0.1, 0.0, 0.0}));  // holds where the head is
 }
 
-// A fresh sample from the operator's head: a new id each call, 2 ms old, no dead-man.
+// A fresh sample from the operator's head: a new id each call, 2 ms old when sent and when it
+// arrived (the operator's clock known), no dead-man.
 HeadTarget fresh(const HeadAngles& joint_rad) {
   static std::uint32_t id = 0;
-  return {joint_rad, ++id, 2 * kMs, Deadman::NotUsed};
+  return {joint_rad, ++id, 2 * kMs, Deadman::NotUsed, 0, 2 * kMs};
 }
 
 // The limits with an acceleration too high to matter, for the tests of the rate limit alone.

@@ -87,7 +87,7 @@ class TestClient {
   std::optional<proto::Accept> accept_;
   std::optional<proto::Reject> reject_;
   std::optional<proto::StreamConfig> config_;
-  std::vector<proto::Heartbeat> heartbeats_;
+  std::vector<proto::Heartbeat> heartbeats_;  // answers to this client's probes
   std::vector<proto::EncodedVideo> video_;
   std::map<std::uint32_t, ReceivedFrame> frames_;
   std::uint64_t decode_errors_ = 0;
@@ -177,7 +177,17 @@ class TestClient {
             if (frame_.rows != m.height || frame_.cols != m.width)
               frame_ = cv::Mat1w(m.height, m.width, std::uint16_t(0));
           } else if constexpr (std::is_same_v<T, proto::Heartbeat>) {
-            heartbeats_.push_back(m);
+            // The remote's own probes are answered as the station answers them (its clock is
+            // this host's steady clock); answers to ours are kept.
+            if (m.t2_ns == 0) {
+              const auto now = static_cast<std::uint64_t>(
+                  std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now().time_since_epoch())
+                      .count());
+              send(proto::Heartbeat{m.t1_ns, now, now, 0});
+            } else {
+              heartbeats_.push_back(m);
+            }
           } else if constexpr (std::is_same_v<T, proto::EncodedVideo>) {
             video_.push_back(m);
           } else if constexpr (std::is_same_v<T, proto::DepthTile>) {

@@ -51,6 +51,7 @@ void HeadController::set_target(const HeadTarget& target, std::int64_t now_ns) {
   }
   HeadTarget t = target;
   t.sample_age_ns = std::max<std::int64_t>(0, t.sample_age_ns);
+  if (t.arrival_age_ns) t.arrival_age_ns = std::max<std::int64_t>(0, *t.arrival_age_ns);
   stats_.clamped += clamp_to_limits(t.joint_rad, config_.limits);
   if (!target_ || target_->sample_id != t.sample_id) sample_first_ns_ = now_ns;
   target_ = t;
@@ -60,11 +61,14 @@ void HeadController::set_target(const HeadTarget& target, std::int64_t now_ns) {
 
 std::int64_t HeadController::sample_age_ns(std::int64_t now_ns) const {
   if (!target_) return -1;
-  return target_->sample_age_ns + std::max<std::int64_t>(0, now_ns - target_ns_);
+  return std::max(target_->sample_age_ns, target_->arrival_age_ns.value_or(0)) +
+         std::max<std::int64_t>(0, now_ns - target_ns_);
 }
 
 HeadHold HeadController::why_hold(std::int64_t now_ns) const {
-  if (!target_ || now_ns - target_ns_ > to_ns(config_.link_timeout_s)) return HeadHold::Link;
+  // A target whose age at arrival cannot be judged (no clock offset yet) is no target yet.
+  if (!target_ || !target_->arrival_age_ns || now_ns - target_ns_ > to_ns(config_.link_timeout_s))
+    return HeadHold::Link;
   if (target_->deadman == Deadman::Released ||
       (config_.require_deadman && target_->deadman != Deadman::Pressed))
     return HeadHold::Deadman;

@@ -217,6 +217,7 @@ void RemoteServer::Impl::arm_timer() {
       end_session(SessionEnd::ClientSilent);
     }
     sweep_pending(now);
+    if (active_) probe(active_);
     arm_timer();
   });
 }

@@ -22,6 +22,7 @@
 #include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
 #include "telex/proto/seal.h"
+#include "telex/remote/operator_clock.h"
 #include "telex/remote/repair_cache.h"
 #include "telex/remote/send_queue.h"
 #include "telex/remote/server.h"
@@ -69,6 +70,11 @@ struct Session {
   bool tcp_writing = false;    // one async_write in flight
   bool udp_sending = false;    // one async_send_to in flight
   std::string peer;
+  // The station's clock, from the remote's own heartbeat probes (one every kProbeInterval from
+  // Accept on): what a HeadCommand's age at arrival is judged on (PROTOCOL.md 2.6).
+  OperatorClock clock;
+  std::chrono::steady_clock::time_point last_probe{};
+  bool clock_logged = false;
 };
 
 // Bounds on connections before authentication (issue 49): an idle or half-open crowd can neither
@@ -83,6 +89,9 @@ inline constexpr auto kAcceptBackoff = std::chrono::milliseconds(100);  // after
 // Bounds on what a station that does not read can make the remote hold (issue 27).
 inline constexpr std::size_t kMaxControlQueue = 64;     // control messages waiting
 inline constexpr std::size_t kMaxHeartbeatBacklog = 4;  // a probe is answered only below this
+// The remote's own probes: the station's clock offset for HeadCommands' ages. Sent only while
+// fewer than kMaxHeartbeatBacklog control messages wait (a station that does not read gets none).
+inline constexpr std::chrono::milliseconds kProbeInterval{250};
 inline constexpr std::size_t kMaxQueuedRepairBytes = 512 * 1024;  // resends waiting to go out
 
 class RemoteServer::Impl {
@@ -145,6 +154,8 @@ class RemoteServer::Impl {
   // clear text on its socket (a peer that does not speak TLS), or not at all with `send` false.
   void refuse_session(const std::shared_ptr<Session>& s, proto::RejectReason reason,
                       std::string text, bool send = true, bool plain = false);
+  void probe(const std::shared_ptr<Session>& s);  // a heartbeat probe, when one is due
+  void on_probe_answer(const std::shared_ptr<Session>& s, const proto::Heartbeat& answer);
   void request_key_frame();
   void on_nack(const proto::TileNack& nack);
   void on_video_nack(const proto::VideoNack& nack);

@@ -75,7 +75,7 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
         using T = std::decay_t<decltype(m)>;
         if constexpr (std::is_same_v<T, proto::Heartbeat>) {
           // Only probes (t2 = 0) are answered: an answer to an answer would ping-pong forever.
-          if (m.t2_ns != 0) return;
+          if (m.t2_ns != 0) return on_probe_answer(a, m);
           // A station that probes but does not read would grow the control queue by one answer
           // per probe: answer only while few are waiting (an unanswered probe is a lost one).
           if (a->control.size() >= kMaxHeartbeatBacklog) {
@@ -102,7 +102,8 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
           on_video_nack(m);
         } else if constexpr (std::is_same_v<T, proto::HeadCommand>) {
           ++counters_.head_commands_in;
-          if (config_.on_head_command) config_.on_head_command(m, steady_now_ns());
+          const std::int64_t now = steady_now_ns();
+          if (config_.on_head_command) config_.on_head_command(m, now, a->clock.station_time(now));
         } else if constexpr (std::is_same_v<T, proto::PictureLoss>) {
           ++counters_.plis_in;
           if (config_.on_picture_loss) config_.on_picture_loss(m);
@@ -116,6 +117,34 @@ void RemoteServer::Impl::handle(const std::shared_ptr<Session>& a, const proto::
         }
       },
       env.message);
+}
+
+void RemoteServer::Impl::probe(const std::shared_ptr<Session>& a) {
+  const auto now = std::chrono::steady_clock::now();
+  if (!a->hello_done || now - a->last_probe < kProbeInterval ||
+      a->control.size() >= kMaxHeartbeatBacklog)
+    return;
+  a->last_probe = now;
+  proto::Heartbeat hb;
+  hb.t1_ns = static_cast<std::uint64_t>(steady_now_ns());
+  send_control(
+      make_buffer(proto::encode_stream(header(session_id_, 0, steady_now_ns(), false), hb)));
+}
+
+// An answer to one of our probes (it echoes our t1). Stamps that are no answer are not believed
+// (OperatorClock::add); the station answers as soon as it reads the probe (its t2, t3).
+void RemoteServer::Impl::on_probe_answer(const std::shared_ptr<Session>& a,
+                                         const proto::Heartbeat& m) {
+  const std::int64_t t4 = steady_now_ns();
+  const auto t1 = static_cast<std::int64_t>(m.t1_ns);
+  if (!a->clock.add(t1, static_cast<std::int64_t>(m.t2_ns), static_cast<std::int64_t>(m.t3_ns),
+                    t4) ||
+      a->clock_logged)
+    return;
+  a->clock_logged = true;
+  spdlog::info("station {}: its clock is {:+.3f} ms from ours (round trip {:.3f} ms)", a->peer,
+               static_cast<double>(*a->clock.offset_ns()) * 1e-6,
+               static_cast<double>(a->clock.delay_ns()) * 1e-6);
 }
 
 // Counts a rejected message and logs at most once a second. Authenticity is TLS's: whatever
@@ -191,6 +220,7 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
   acc.transport = a->over_udp ? proto::Transport::Udp : proto::Transport::Tcp;
   acc.udp_port = a->over_udp ? udp_.local_endpoint().port() : 0;
   send_control(make_buffer(proto::encode_stream(accept_header, acc)));
+  probe(a);  // the first one with the Accept: HeadCommands are judged from its answer on
   ++counters_.clients_accepted;
   std::lock_guard lock(mu_);
   connected_ = true;

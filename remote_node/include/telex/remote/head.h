@@ -123,8 +123,9 @@ struct HeadControllerConfig {
   HeadLimits limits = kDefaultHeadLimits;
   // No operator target for longer than this: the link is lost and the head holds still.
   double link_timeout_s = 0.2;
-  // A target whose tracking sample is older than this (its age as the station sent it plus the
-  // time since it arrived) is stale: the head holds still (docs/PROTOCOL.md 2.6).
+  // A target whose tracking sample is older than this is stale: the head holds still
+  // (docs/PROTOCOL.md 2.6). Its age is the larger of the age the station sent it with and its age
+  // at arrival on the operator's clock, plus the time since it arrived.
   double max_sample_age_s = 0.1;
   // One tracking sample may arrive in several targets (the station sends at 200 Hz, a tracker
   // may stream slower), but not for longer than this on the remote's own clock, from the first
@@ -159,15 +160,20 @@ struct HeadTarget {
   std::uint32_t sample_id = 0;     // the station's count of tracking samples: a repeat is the same
   std::int64_t sample_age_ns = 0;  // the sample's age when the station sent it (>= 0)
   Deadman deadman = Deadman::NotUsed;
-  // When the sample was taken on the station's clock (HeadCommand.operator_ns): logged, never
-  // compared with the remote's clock (another machine's).
+  // When the sample was taken on the station's clock (HeadCommand.operator_ns).
   std::int64_t sample_ns = 0;
+  // The sample's age when the command arrived, judged on the operator's clock: the arrival on the
+  // remote's clock plus the offset of the remote's heartbeat probes, less sample_ns (negative
+  // values, the offset's error, count as 0). It catches what the station's own age cannot: a
+  // command that waited in a queue after it was built (issue 49). nullopt while no offset is
+  // known: such a target may not move the head (HeadHold::Link).
+  std::optional<std::int64_t> arrival_age_ns;
 };
 
 // Why the head holds still (HeadController::hold_reason).
 enum class HeadHold : std::uint8_t {
   None = 0,  // moving toward the operator's target
-  Link,      // no target yet, or none for link_timeout_s
+  Link,      // no target yet, none for link_timeout_s, or none whose age at arrival is known
   Stale,     // the target's tracking sample is older than max_sample_age_s
   Repeat,    // the same tracking sample for longer than max_sample_repeat_s
   Deadman,   // the operator's dead-man input is released
@@ -217,8 +223,9 @@ class HeadController {
   HeadHold hold_reason() const { return hold_reason_; }
   // Where the head is held while holding (nullopt while moving, or with nothing to command).
   const std::optional<HeadAngles>& hold_pose() const { return hold_; }
-  // The newest target's tracking sample: its id and its age at `now_ns` (the age it was sent
-  // with plus the time since it arrived); age -1 without a target.
+  // The newest target's tracking sample: its id and its age at `now_ns` (the larger of the age it
+  // was sent with and its age at arrival, plus the time since it arrived); age -1 without a
+  // target.
   std::uint32_t sample_id() const { return target_ ? target_->sample_id : 0; }
   std::int64_t sample_age_ns(std::int64_t now_ns) const;
   std::int64_t sample_ns() const { return target_ ? target_->sample_ns : 0; }

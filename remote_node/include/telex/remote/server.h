@@ -43,8 +43,12 @@ struct ServerConfig {
   // Neither: plain TCP and UDP.
   proto::TlsConfig tls;
   // The operator's head as joint targets (PROTOCOL.md 2.6), with the time it was received (steady
-  // clock): called on the network thread, so it must not block. Unset: counted and dropped.
-  std::function<void(const proto::HeadCommand&, std::int64_t received_ns)> on_head_command;
+  // clock) and that time on the station's clock (the offset the remote's own heartbeat probes
+  // measure, OperatorClock; nullopt until the station answered one): called on the network
+  // thread, so it must not block. Unset: counted and dropped.
+  std::function<void(const proto::HeadCommand&, std::int64_t received_ns,
+                     std::optional<std::int64_t> station_received_ns)>
+      on_head_command;
   // The station's Picture Loss Indications and receiver reports (PROTOCOL.md 2.7), on the network
   // thread (must not block): the eyes' encoder makes an intra pair; a rate controller reads the
   // reports. Unset: counted only.
