@@ -9,11 +9,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
+#include <utility>
 
 #include "telex/base/realtime.h"
 #include "telex/cli/cli.h"
 #include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
+#include "telex/local/glove.h"
+#include "telex/local/natnet_client.h"
 #include "telex/local/tracker.h"
 #include "telex/local/view_window.h"
 
@@ -48,6 +51,35 @@ void check_view_dir(const std::string& view_spec) {
     throw CLI::ValidationError("--view", "png:" + v.dir.string() +
                                              ": cannot create the directory (" +
                                              (ec ? ec.message() : "not a directory") + ")");
+}
+
+// --hand, --glove, --other-glove and --natnet-multicast: their grammar and addresses, and gloves
+// only where they are used (a NatNet hand's wrist takes their finger bends).
+void check_tracking_specs(const StationFlags& f) {
+  const auto checked = [](const char* flag, const auto& check) {
+    try {
+      check();
+    } catch (const std::invalid_argument& e) {
+      throw CLI::ValidationError(flag, e.what());
+    }
+  };
+  const std::string& hand = f.cfg.hand_spec;
+  checked("--hand", [&] { check_hand_spec(hand); });
+  const bool natnet = hand.rfind("natnet:", 0) == 0;
+  for (const auto& [flag, spec] : {std::pair<const char*, const std::string&>{"--glove", f.glove},
+                                   {"--other-glove", f.cfg.tracker.other_glove_spec}}) {
+    if (spec.empty()) continue;
+    checked(flag, [&] { check_glove_spec(spec); });
+    if (!natnet)
+      throw CLI::ValidationError(
+          flag,
+          spec + " gives finger bends to a NatNet hand (--hand natnet:SERVER), and --hand " + hand +
+              " has none" +
+              (flag == std::string("--glove") ? " (a glove alone: --hand " + spec + ")" : ""));
+  }
+  if (natnet)
+    checked("--natnet-multicast",
+            [&] { check_multicast_group(f.cfg.tracker.natnet_multicast_group); });
 }
 
 // The remote, the rig and the depth link.
@@ -320,11 +352,7 @@ void resolve_station_flags(StationFlags& f) {
     throw CLI::ValidationError(e.what());
   }
   // Every spec is checked before anything starts (a remote connects, a device opens).
-  try {
-    check_hand_spec(f.cfg.hand_spec);
-  } catch (const std::invalid_argument& e) {
-    throw CLI::ValidationError("--hand", e.what());
-  }
+  check_tracking_specs(f);
   check_view_dir(f.cfg.view_spec);
   if (f.cfg.haptic_cpu != -1 && !cpu_usable(f.cfg.haptic_cpu))
     throw CLI::ValidationError("--haptic-cpu",

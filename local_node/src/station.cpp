@@ -69,6 +69,7 @@ class Station::Run {
  private:
   void connect();
   bool wait_first_surface();
+  void make_tracker_now();
   void start_haptics();
   void main_loop();
   void stop_threads();
@@ -143,6 +144,9 @@ Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
 }
 
 StationSummary Station::Run::execute() {
+  // A tracking device (NatNet's sockets, a glove) opens before anything connects, so a missing
+  // one is named first; a script aims at the first surface, so it is made once that is here.
+  if (cfg_.hand_spec.rfind("script:", 0) != 0) make_tracker_now();
   connect();
   if (wait_first_surface()) {
     start_haptics();  // a bad tracker spec or device is a start-up error, thrown as it is
@@ -240,7 +244,7 @@ bool Station::Run::wait_first_surface() {
   return !stop_.load();
 }
 
-void Station::Run::start_haptics() {
+void Station::Run::make_tracker_now() {
   TrackerConfig tracker_cfg = cfg_.tracker;
   tracker_cfg.realtime_priority = cfg_.realtime ? kStationPathPriority : 0;
   if (surface_.first_centre_depth_m() > 0)
@@ -248,9 +252,15 @@ void Station::Run::start_haptics() {
   if (faults_.hooked())
     tracker_cfg.natnet_receive_hook = [this] { faults_.check(StationLoop::Tracking); };
   if (cfg_.head_source == "hmd") tracker_cfg.head_from_hmd = view_.hmd_head_source();
-  if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
   haptic_.set_tracker(make_tracker(cfg_.hand_spec, tracker_cfg));
-  spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}", tracker_cfg.surface_depth_m,
+}
+
+void Station::Run::start_haptics() {
+  if (!haptic_.tracker()) make_tracker_now();
+  if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
+  spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}",
+               surface_.first_centre_depth_m() > 0 ? surface_.first_centre_depth_m()
+                                                   : cfg_.tracker.surface_depth_m,
                haptic_.tracker()->name(), display_->name());
   haptic_thread_ = std::jthread([this](std::stop_token st) { haptic_.run(st); });
   name_thread(haptic_thread_.native_handle(), "telex-haptic");

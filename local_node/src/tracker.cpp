@@ -297,8 +297,10 @@ void check_hand_spec(const std::string& spec) {
     parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", {});
     return;
   }
-  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0) return;
-  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) return;
+  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0) {
+    check_glove_spec(spec);
+    return;
+  }
   throw std::invalid_argument("tracker spec '" + spec + "' is not one of " + kHandForms);
 }
 
