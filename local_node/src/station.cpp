@@ -17,6 +17,7 @@
 #include "station/faults.h"
 #include "station/haptic_loop.h"
 #include "station/head_sender.h"
+#include "station/input_watch.h"
 #include "station/run_stats.h"
 #include "station/session_log.h"
 #include "station/station_view.h"
@@ -70,6 +71,8 @@ class Station::Run {
   void connect();
   bool wait_first_surface();
   void make_tracker_now();
+  // The tracker's inputs into tracker_inputs_, ten times a second.
+  void watch_tracker_inputs();
   void start_haptics();
   void main_loop();
   void stop_threads();
@@ -110,6 +113,8 @@ class Station::Run {
   std::int64_t last_status_ns_ = 0;
   std::uint64_t eyes_at_last_status_ = 0;
   std::string last_status_ = "starting";
+  InputWatch tracker_inputs_;
+  std::int64_t next_input_watch_ns_ = 0;
   int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
 
   // ---- last: stopped and joined first on destruction ----
@@ -223,6 +228,7 @@ bool Station::Run::wait_first_surface() {
       (duration_first ? t_start_ns_ : monotonic_ns()) + static_cast<std::int64_t>(wait_s * 1e9);
   while (surface_.surfaces_built() == 0 && !stop_.load()) {
     if (poll_thread_faults()) break;
+    watch_tracker_inputs();
     if (view_.window() && view_.pump_window(stop_)) break;
     if (xr_ended()) break;
     if (monotonic_ns() > deadline) {
@@ -253,6 +259,14 @@ void Station::Run::make_tracker_now() {
     tracker_cfg.natnet_receive_hook = [this] { faults_.check(StationLoop::Tracking); };
   if (cfg_.head_source == "hmd") tracker_cfg.head_from_hmd = view_.hmd_head_source();
   haptic_.set_tracker(make_tracker(cfg_.hand_spec, tracker_cfg));
+  tracker_inputs_.update(monotonic_ns(), haptic_.tracker()->inputs());
+}
+
+void Station::Run::watch_tracker_inputs() {
+  const std::int64_t now = monotonic_ns();
+  if (!haptic_.tracker() || now < next_input_watch_ns_) return;
+  next_input_watch_ns_ = now + 100'000'000;
+  tracker_inputs_.update(now, haptic_.tracker()->inputs());
 }
 
 void Station::Run::start_haptics() {
@@ -310,6 +324,7 @@ void Station::Run::main_loop() {
     drain();
     drain_bodies();
     drain_stage_poses();
+    watch_tracker_inputs();
     const std::int64_t now = monotonic_ns();
     head_.send(now, haptic_.head_out(), *client_);
     if (cfg_.view_at_s >= 0.0 && !view_at_written) {
@@ -393,6 +408,7 @@ void Station::Run::print_status() {
                                 " | eyes none (no video from the remote: its --stereo "
                                 "source ended or never delivered, see its stats line)");
   text += photon_status(view_.photon_recent());
+  text += tracker_inputs_.status(now_ns);
   if (cfg_.status_line) {
     std::string forces;
     const TickSample& last = stats_.last();
@@ -423,6 +439,7 @@ StationSummary Station::Run::summarize() {
   s.memory_lock = memory.description;
   s.thread_scheduling = thread_scheduling_;
   if (haptic_.tracker()) s.tracker = haptic_.tracker()->stats();
+  s.tracker_silent = tracker_inputs_.summary(monotonic_ns());
   const ClientStats& cs = client_->stats();
   s.auth_failed = cs.auth_failed.load();
   s.unsealed = cs.unsealed.load();
