@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
@@ -16,6 +17,7 @@
 #include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
 #include "telex/local/glove.h"
+#include "telex/local/hand_script.h"
 #include "telex/local/natnet_client.h"
 #include "telex/local/tracker.h"
 #include "telex/local/view_window.h"
@@ -23,9 +25,14 @@
 namespace telex::local {
 
 void load_station_rig(int argc, char** argv, StationFlags& f) {
-  if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
-    f.rig_file = rig_path->string();
-    apply_rig(telex::load_rig(*rig_path), f.cfg);
+  if (const auto rig = cli::rig_before_flags(argc, argv)) {
+    f.rig_file = rig->value;
+    try {
+      apply_rig(telex::load_rig(f.rig_file), f.cfg);
+    } catch (const std::exception& e) {
+      if (rig->file.empty()) throw;
+      throw std::runtime_error(e.what() + rig->note("rig"));
+    }
     // The options below are added after this, so --help shows the rig's values as defaults.
     spdlog::info(
         "rig {}: marker bodies, head-to-camera offset, body, hands, gloves, eyes and "
@@ -332,6 +339,23 @@ void add_security_options(CLI::App& app, StationFlags& f) {
                "the network can then move the robot head and watch its cameras and depth");
 }
 
+// The keys whose value is a path (a spec's file or folder too): in a --config file they are
+// relative to its folder. Device nodes (/dev/...) are given whole.
+void add_config_paths(CLI::App& app) {
+  cli::config_paths(app, {"rig", "glove-calibration", "gg-config", "log-forces", "log-tracking",
+                          "record-hmd-poses", "record", "psk", "cert", "key", "ca"});
+  cli::config_paths(app, {"haptics"}, cli::spec_paths_in({{"sim", 1}}));
+  cli::config_paths(app, {"view"}, cli::spec_paths_in({{"png", 1}}));
+  // script:press|stroke|tap are built in; script:FILE is a file.
+  cli::config_paths(app, {"hand"}, [](const std::string& value, const std::filesystem::path& dir) {
+    const auto names = HandScript::builtin_names();
+    if (value.rfind("script:", 0) == 0 &&
+        std::find(names.begin(), names.end(), value.substr(7)) != names.end())
+      return value;
+    return cli::spec_paths_in({{"script", 1}})(value, dir);
+  });
+}
+
 }  // namespace
 
 void add_station_options(CLI::App& app, StationFlags& f) {
@@ -341,6 +365,7 @@ void add_station_options(CLI::App& app, StationFlags& f) {
   add_surface_options(app, f);
   add_output_options(app, f);
   add_security_options(app, f);
+  add_config_paths(app);
 }
 
 void resolve_station_flags(StationFlags& f) {
@@ -449,10 +474,11 @@ std::optional<int> parse_station_command_line(int argc, char** argv, StationFlag
   cli::prepare(app, "telex-local");
   add_station_options(app, flags);
   if (const auto rc = cli::parse(app, argc, argv)) return rc;
+  flags.config = cli::config_origin(app, argc, argv);
   try {
     resolve_station_flags(flags);
   } catch (const CLI::ParseError& e) {
-    spdlog::error("{}", e.what());
+    spdlog::error("{}{}", e.what(), flags.config.note(e.what()));
     return cli::kUsageExit;
   }
   return std::nullopt;
