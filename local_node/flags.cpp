@@ -10,20 +10,29 @@
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
+#include <utility>
 
 #include "telex/base/realtime.h"
 #include "telex/cli/cli.h"
 #include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
+#include "telex/local/glove.h"
+#include "telex/local/hand_script.h"
+#include "telex/local/natnet_client.h"
 #include "telex/local/tracker.h"
 #include "telex/local/view_window.h"
 
 namespace telex::local {
 
 void load_station_rig(int argc, char** argv, StationFlags& f) {
-  if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
-    f.rig_file = rig_path->string();
-    apply_rig(telex::load_rig(*rig_path), f.cfg);
+  if (const auto rig = cli::rig_before_flags(argc, argv)) {
+    f.rig_file = rig->value;
+    try {
+      apply_rig(telex::load_rig(f.rig_file), f.cfg);
+    } catch (const std::exception& e) {
+      if (rig->file.empty()) throw;
+      throw std::runtime_error(e.what() + rig->note("rig"));
+    }
     // The options below are added after this, so --help shows the rig's values as defaults.
     spdlog::info(
         "rig {}: marker bodies, head-to-camera offset, body, hands, gloves, eyes and "
@@ -49,6 +58,35 @@ void check_view_dir(const std::string& view_spec) {
     throw CLI::ValidationError("--view", "png:" + v.dir.string() +
                                              ": cannot create the directory (" +
                                              (ec ? ec.message() : "not a directory") + ")");
+}
+
+// --hand, --glove, --other-glove and --natnet-multicast: their grammar and addresses, and gloves
+// only where they are used (a NatNet hand's wrist takes their finger bends).
+void check_tracking_specs(const StationFlags& f) {
+  const auto checked = [](const char* flag, const auto& check) {
+    try {
+      check();
+    } catch (const std::invalid_argument& e) {
+      throw CLI::ValidationError(flag, e.what());
+    }
+  };
+  const std::string& hand = f.cfg.hand_spec;
+  checked("--hand", [&] { check_hand_spec(hand); });
+  const bool natnet = hand.rfind("natnet:", 0) == 0;
+  for (const auto& [flag, spec] : {std::pair<const char*, const std::string&>{"--glove", f.glove},
+                                   {"--other-glove", f.cfg.tracker.other_glove_spec}}) {
+    if (spec.empty()) continue;
+    checked(flag, [&] { check_glove_spec(spec); });
+    if (!natnet)
+      throw CLI::ValidationError(
+          flag,
+          spec + " gives finger bends to a NatNet hand (--hand natnet:SERVER), and --hand " + hand +
+              " has none" +
+              (flag == std::string("--glove") ? " (a glove alone: --hand " + spec + ")" : ""));
+  }
+  if (natnet)
+    checked("--natnet-multicast",
+            [&] { check_multicast_group(f.cfg.tracker.natnet_multicast_group); });
 }
 
 // The remote, the rig and the depth link.
@@ -301,6 +339,23 @@ void add_security_options(CLI::App& app, StationFlags& f) {
                "the network can then move the robot head and watch its cameras and depth");
 }
 
+// The keys whose value is a path (a spec's file or folder too): in a --config file they are
+// relative to its folder. Device nodes (/dev/...) are given whole.
+void add_config_paths(CLI::App& app) {
+  cli::config_paths(app, {"rig", "glove-calibration", "gg-config", "log-forces", "log-tracking",
+                          "record-hmd-poses", "record", "psk", "cert", "key", "ca"});
+  cli::config_paths(app, {"haptics"}, cli::spec_paths_in({{"sim", 1}}));
+  cli::config_paths(app, {"view"}, cli::spec_paths_in({{"png", 1}}));
+  // script:press|stroke|tap are built in; script:FILE is a file.
+  cli::config_paths(app, {"hand"}, [](const std::string& value, const std::filesystem::path& dir) {
+    const auto names = HandScript::builtin_names();
+    if (value.rfind("script:", 0) == 0 &&
+        std::find(names.begin(), names.end(), value.substr(7)) != names.end())
+      return value;
+    return cli::spec_paths_in({{"script", 1}})(value, dir);
+  });
+}
+
 }  // namespace
 
 void add_station_options(CLI::App& app, StationFlags& f) {
@@ -310,6 +365,7 @@ void add_station_options(CLI::App& app, StationFlags& f) {
   add_surface_options(app, f);
   add_output_options(app, f);
   add_security_options(app, f);
+  add_config_paths(app);
 }
 
 void resolve_station_flags(StationFlags& f) {
@@ -321,11 +377,7 @@ void resolve_station_flags(StationFlags& f) {
     throw CLI::ValidationError(e.what());
   }
   // Every spec is checked before anything starts (a remote connects, a device opens).
-  try {
-    check_hand_spec(f.cfg.hand_spec);
-  } catch (const std::invalid_argument& e) {
-    throw CLI::ValidationError("--hand", e.what());
-  }
+  check_tracking_specs(f);
   check_view_dir(f.cfg.view_spec);
   if (f.cfg.haptic_cpu != -1 && !cpu_usable(f.cfg.haptic_cpu))
     throw CLI::ValidationError("--haptic-cpu",
@@ -428,10 +480,11 @@ std::optional<int> parse_station_command_line(int argc, char** argv, StationFlag
   cli::prepare(app, "telex-local");
   add_station_options(app, flags);
   if (const auto rc = cli::parse(app, argc, argv)) return rc;
+  flags.config = cli::config_origin(app, argc, argv);
   try {
     resolve_station_flags(flags);
   } catch (const CLI::ParseError& e) {
-    spdlog::error("{}", e.what());
+    spdlog::error("{}{}", e.what(), flags.config.note(e.what()));
     return cli::kUsageExit;
   }
   return std::nullopt;

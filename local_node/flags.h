@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "telex/cli/command_line.h"
 #include "telex/local/station.h"
 
 namespace CLI {
@@ -31,6 +32,8 @@ struct StationFlags {
   bool full_frame = false, roi_flag = false, no_fill_here = false;
   int bilateral_radius = 0;  // set from the configuration when the options are added
   bool no_frame_parts = false, no_repair = false;
+  // What the --config file set, for the messages of errors after parsing.
+  cli::ConfigOrigin config;
 };
 
 // telex-local's command line, as main runs it: the rig (--rig) first, then every flag parsed and

@@ -78,11 +78,15 @@ int main(int argc, char** argv) {
   using namespace telex::local;
   StationFlags flags;
   if (const auto rc = parse_station_command_line(argc, argv, flags)) return *rc;
+  // A start-up error about a value the --config file gave names that file too.
+  const auto fail = [&](const std::exception& e, int code) {
+    spdlog::error("{}{}", e.what(), flags.config.note(e.what()));
+    return code;
+  };
   try {
     apply_security_flags(flags);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return fail(e, 2);
   }
   StationConfig& cfg = flags.cfg;
   if (cfg.insecure) spdlog::warn("{}", telex::proto::insecure_warning());
@@ -93,8 +97,7 @@ int main(int argc, char** argv) {
       supervisor = start_display_supervisor(zero_channel_for(cfg.haptics_spec, cfg.display),
                                             {.realtime = !flags.no_realtime});
     } catch (const std::exception& e) {
-      spdlog::error("{}", e.what());
-      return dynamic_cast<const std::invalid_argument*>(&e) != nullptr ? 2 : 1;
+      return fail(e, dynamic_cast<const std::invalid_argument*>(&e) != nullptr ? 2 : 1);
     }
     cfg.supervisor_heartbeat = supervisor.heartbeat();
   }
@@ -104,10 +107,8 @@ int main(int argc, char** argv) {
   try {
     return run_station(cfg, flags.json_summary, supervisor);
   } catch (const std::invalid_argument& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return fail(e, 2);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 1;
+    return fail(e, 1);
   }
 }

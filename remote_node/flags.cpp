@@ -225,9 +225,14 @@ std::string describe_rig(const Rig& rig) {
 }
 
 void load_remote_rig(int argc, char** argv, RemoteFlags& f) {
-  if (const auto rig_path = telex::rig_path_in_args(argc, argv)) {
-    f.rig = telex::load_rig(*rig_path);
-    f.rig_file = rig_path->string();
+  if (const auto rig = cli::rig_before_flags(argc, argv)) {
+    f.rig_file = rig->value;
+    try {
+      f.rig = telex::load_rig(f.rig_file);
+    } catch (const std::exception& e) {
+      if (rig->file.empty()) throw;
+      throw std::runtime_error(e.what() + rig->note("rig"));
+    }
   }
 }
 
@@ -381,6 +386,15 @@ void add_security_options(CLI::App& app, RemoteFlags& f) {
                "the network can then move the robot head and watch its cameras and depth");
 }
 
+// The keys whose value is a path (a source's files too): in a --config file they are relative to
+// its folder. Device nodes (/dev/...) are given whole.
+void add_config_paths(CLI::App& app) {
+  telex::cli::config_paths(app, {"rig", "log-head", "psk", "cert", "key", "ca"});
+  telex::cli::config_paths(app, {"source"},
+                           telex::cli::spec_paths_in({{"oni", 1}, {"files", 1}, {"bag", 1}}));
+  telex::cli::config_paths(app, {"stereo"}, telex::cli::spec_paths_in({{"files", 2}, {"bag", 1}}));
+}
+
 }  // namespace
 
 void add_remote_options(CLI::App& app, RemoteFlags& f) {
@@ -394,6 +408,7 @@ void add_remote_options(CLI::App& app, RemoteFlags& f) {
   add_run_options(app, f);
   add_head_options(app, f);
   add_security_options(app, f);
+  add_config_paths(app);
   if (f.rig) show_rig_defaults(app, *f.rig);
 }
 
@@ -507,11 +522,12 @@ std::optional<int> parse_remote_command_line(int argc, char** argv, RemoteFlags&
   cli::prepare(app, "telex-remote");
   add_remote_options(app, flags);
   if (const auto rc = cli::parse(app, argc, argv)) return rc;
+  flags.config = cli::config_origin(app, argc, argv);
   if (flags.rig) spdlog::info("{}", describe_rig(*flags.rig));
   try {
     resolve_remote_flags(app, flags);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
+    spdlog::error("{}{}", e.what(), flags.config.note(e.what()));
     return cli::kUsageExit;
   }
   return std::nullopt;

@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 
+#include "telex/cli/command_line.h"
 #include "telex/common/rig.h"
 #include "telex/remote/daemon.h"
 #include "telex/remote/pipeline.h"
@@ -33,6 +34,8 @@ struct RemoteFlags {
   bool fill = false, no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
   std::string psk_file, cert_file, key_file, ca_file;
   bool insecure = false;
+  // What the --config file set, for the messages of errors after parsing.
+  cli::ConfigOrigin config;
 };
 
 // telex-remote's whole command line, as main runs it: the rig (--rig) first, then every flag parsed

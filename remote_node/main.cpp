@@ -37,24 +37,26 @@ int main(int argc, char** argv) {
   RemoteFlags flags;
   if (const auto rc = parse_remote_command_line(argc, argv, flags)) return *rc;
   const DaemonConfig& cfg = flags.cfg;
+  // A start-up error about a value the --config file gave names that file too.
+  const auto fail = [&](const std::exception& e, int code) {
+    spdlog::error("{}{}", e.what(), flags.config.note(e.what()));
+    return code;
+  };
 
   std::unique_ptr<RemoteDaemon> daemon;
   try {
     daemon = std::make_unique<RemoteDaemon>(cfg);  // bad source specs are bad flags
   } catch (const std::invalid_argument& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return fail(e, 2);
   }
   // Before the daemon's threads start: nothing on the depth path or the servo loop faults a page.
   if (!flags.no_realtime) telex::lock_memory();
   try {
     daemon->start();
   } catch (const std::invalid_argument& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return fail(e, 2);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 1;
+    return fail(e, 1);
   }
   log_started(*daemon, cfg);
   spdlog::info("{}", telex::memory_lock_status().description);

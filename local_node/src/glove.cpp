@@ -447,27 +447,44 @@ class Serial5dtGlove final : public GloveDevice {
 
 }  // namespace
 
-std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
-                                        const std::string& calibration_path,
-                                        const std::optional<GloveRange>& range) {
-  if (spec == "5dt-usb") return std::make_unique<Usb5dtGlove>("", calibration_path, range);
-  if (spec.rfind("5dt-usb:", 0) == 0)
-    return std::make_unique<Usb5dtGlove>(spec.substr(8), calibration_path, range);
+namespace {
+
+struct GloveSpec {
+  bool serial = false;
+  std::string path;  // the HID path (empty: the first glove) or the serial device
+  bool wireless = false;
+};
+
+GloveSpec parse_glove_spec(const std::string& spec) {
+  if (spec == "5dt-usb") return {};
+  if (spec.rfind("5dt-usb:", 0) == 0) return {false, spec.substr(8), false};
   if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) {
-    std::string dev = spec.substr(11);
-    bool wireless = false;
-    if (const auto comma = dev.find(','); comma != std::string::npos) {
-      if (dev.substr(comma + 1) != "wireless" || comma == 0)
+    GloveSpec g{true, spec.substr(11), false};
+    if (const auto comma = g.path.find(','); comma != std::string::npos) {
+      if (g.path.substr(comma + 1) != "wireless" || comma == 0)
         throw std::invalid_argument("glove spec '" + spec +
                                     "': expected 5dt-serial:DEV or 5dt-serial:DEV,wireless");
-      wireless = true;
-      dev.resize(comma);
+      g.wireless = true;
+      g.path.resize(comma);
     }
-    return std::make_unique<Serial5dtGlove>(dev, wireless, calibration_path, range);
+    return g;
   }
   throw std::invalid_argument(
       "glove spec '" + spec +
       "' is not one of 5dt-usb, 5dt-usb:HIDPATH, 5dt-serial:DEV, 5dt-serial:DEV,wireless");
+}
+
+}  // namespace
+
+void check_glove_spec(const std::string& spec) { parse_glove_spec(spec); }
+
+std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
+                                        const std::string& calibration_path,
+                                        const std::optional<GloveRange>& range) {
+  const GloveSpec g = parse_glove_spec(spec);
+  if (g.serial)
+    return std::make_unique<Serial5dtGlove>(g.path, g.wireless, calibration_path, range);
+  return std::make_unique<Usb5dtGlove>(g.path, calibration_path, range);
 }
 
 }  // namespace telex::local

@@ -434,6 +434,15 @@ NatNetClientStats NatNetClient::stats() const {
   return s;
 }
 
+void check_multicast_group(const std::string& group) {
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address_v4(group, ec);
+  if (ec || !address.is_multicast())
+    throw std::invalid_argument("'" + group +
+                                "' is not an IPv4 multicast address (Motive's default is " +
+                                natnet::kMulticastGroup + ")");
+}
+
 NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& what,
                                      NatNetClientConfig c) {
   const auto port = [&](std::string_view p) {
@@ -454,6 +463,12 @@ NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& w
         throw std::invalid_argument(what +
                                     ": give the Motive server's IP first, e.g. 192.168.1.10");
       c.server_ip = std::string(item);
+      boost::system::error_code ec;
+      asio::ip::make_address(c.server_ip, ec);
+      if (ec)
+        throw std::invalid_argument(what + ": '" + c.server_ip +
+                                    "' is not an IPv4 or IPv6 address (give the Motive PC's IP, "
+                                    "e.g. 192.168.1.10)");
       first = false;
     } else if (item == "multicast") {
       c.multicast = true;
@@ -461,6 +476,12 @@ NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& w
       c.multicast = false;
     } else if (item.rfind("local=", 0) == 0) {
       c.local_address = std::string(item.substr(6));
+      boost::system::error_code ec;
+      asio::ip::make_address_v4(c.local_address, ec);
+      if (ec)
+        throw std::invalid_argument(what + ": local=" + c.local_address +
+                                    " is not an IPv4 address (the address of this station's "
+                                    "interface facing the Motive PC)");
     } else if (item.rfind("cmd=", 0) == 0) {
       c.command_port = port(item.substr(4));
     } else if (item.rfind("data=", 0) == 0) {

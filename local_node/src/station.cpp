@@ -17,6 +17,7 @@
 #include "station/faults.h"
 #include "station/haptic_loop.h"
 #include "station/head_sender.h"
+#include "station/input_watch.h"
 #include "station/run_stats.h"
 #include "station/session_log.h"
 #include "station/station_view.h"
@@ -72,6 +73,9 @@ class Station::Run {
  private:
   void connect();
   bool wait_first_surface();
+  void make_tracker_now();
+  // The tracker's inputs into tracker_inputs_, ten times a second.
+  void watch_tracker_inputs();
   void start_haptics();
   void main_loop();
   void stop_threads();
@@ -113,6 +117,8 @@ class Station::Run {
   std::int64_t last_status_ns_ = 0;
   std::uint64_t eyes_at_last_status_ = 0;
   std::string last_status_ = "starting";
+  InputWatch tracker_inputs_;
+  std::int64_t next_input_watch_ns_ = 0;
   int statuses_since_insecure_warning_ = 0;  // print_status runs once a second
   std::uint64_t supervisor_zeroings_ = 0;
 
@@ -148,6 +154,9 @@ Station::Run::Run(const StationConfig& cfg, std::atomic<bool>& stop)
 }
 
 StationSummary Station::Run::execute() {
+  // A tracking device (NatNet's sockets, a glove) opens before anything connects, so a missing
+  // one is named first; a script aims at the first surface, so it is made once that is here.
+  if (cfg_.hand_spec.rfind("script:", 0) != 0) make_tracker_now();
   connect();
   if (wait_first_surface()) {
     start_haptics();  // a bad tracker spec or device is a start-up error, thrown as it is
@@ -228,6 +237,7 @@ bool Station::Run::wait_first_surface() {
       (duration_first ? t_start_ns_ : monotonic_ns()) + static_cast<std::int64_t>(wait_s * 1e9);
   while (surface_.surfaces_built() == 0 && !stop_.load()) {
     if (poll_thread_faults()) break;
+    watch_tracker_inputs();
     if (view_.window() && view_.pump_window(stop_)) break;
     if (xr_ended()) break;
     // Keys or certificates that do not match do not heal by retrying: three refusals end it.
@@ -250,7 +260,7 @@ bool Station::Run::wait_first_surface() {
   return !stop_.load();
 }
 
-void Station::Run::start_haptics() {
+void Station::Run::make_tracker_now() {
   TrackerConfig tracker_cfg = cfg_.tracker;
   tracker_cfg.realtime_priority = cfg_.realtime ? kStationPathPriority : 0;
   if (surface_.first_centre_depth_m() > 0)
@@ -258,9 +268,23 @@ void Station::Run::start_haptics() {
   if (faults_.hooked())
     tracker_cfg.natnet_receive_hook = [this] { faults_.check(StationLoop::Tracking); };
   if (cfg_.head_source == "hmd") tracker_cfg.head_from_hmd = view_.hmd_head_source();
-  if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
   haptic_.set_tracker(make_tracker(cfg_.hand_spec, tracker_cfg));
-  spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}", tracker_cfg.surface_depth_m,
+  tracker_inputs_.update(monotonic_ns(), haptic_.tracker()->inputs());
+}
+
+void Station::Run::watch_tracker_inputs() {
+  const std::int64_t now = monotonic_ns();
+  if (!haptic_.tracker() || now < next_input_watch_ns_) return;
+  next_input_watch_ns_ = now + 100'000'000;
+  tracker_inputs_.update(now, haptic_.tracker()->inputs());
+}
+
+void Station::Run::start_haptics() {
+  if (!haptic_.tracker()) make_tracker_now();
+  if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
+  spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}",
+               surface_.first_centre_depth_m() > 0 ? surface_.first_centre_depth_m()
+                                                   : cfg_.tracker.surface_depth_m,
                haptic_.tracker()->name(), display_->name());
   haptic_thread_ = std::jthread([this](std::stop_token st) { haptic_.run(st); });
   name_thread(haptic_thread_.native_handle(), "telex-haptic");
@@ -311,6 +335,7 @@ void Station::Run::main_loop() {
     drain_bodies();
     drain_stage_poses();
     report_supervisor_zeroings();
+    watch_tracker_inputs();
     const std::int64_t now = monotonic_ns();
     head_.send(now, haptic_.head_out(), *client_);
     if (cfg_.view_at_s >= 0.0 && !view_at_written) {
@@ -407,6 +432,7 @@ void Station::Run::print_status() {
                                 " | eyes none (no video from the remote: its --stereo "
                                 "source ended or never delivered, see its stats line)");
   text += photon_status(view_.photon_recent());
+  text += tracker_inputs_.status(now_ns);
   if (cfg_.status_line) {
     std::string forces;
     const TickSample& last = stats_.last();
@@ -437,6 +463,7 @@ StationSummary Station::Run::summarize() {
   s.memory_lock = memory.description;
   s.thread_scheduling = thread_scheduling_;
   if (haptic_.tracker()) s.tracker = haptic_.tracker()->stats();
+  s.tracker_silent = tracker_inputs_.summary(monotonic_ns());
   const ClientStats& cs = client_->stats();
   s.auth_failed = cs.auth_failed.load();
   s.unsealed = cs.unsealed.load();

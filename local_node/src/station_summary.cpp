@@ -20,8 +20,9 @@ double StationSummary::depth_mbit_per_s() const {
 
 namespace {
 
-nlohmann::json tracker_json(const TrackerStats& t) {
+nlohmann::json tracker_json(const TrackerStats& t, const std::string& silent) {
   return {{"frames_in", t.frames_in},
+          {"silent", silent},
           {"frames_dropped", t.frames_dropped},
           {"parse_errors", t.parse_errors},
           {"io_errors", t.io_errors},
@@ -153,7 +154,7 @@ nlohmann::json StationSummary::to_json() const {
                    {"tile_age_all_max_frames", tile_age_all_max},
                    {"head_commands_invalid", head_commands_invalid},
                    // The tracker's frames and what its checks dropped (docs/HARDWARE.md, NatNet).
-                   {"tracker", tracker_json(tracker)}};
+                   {"tracker", tracker_json(tracker, tracker_silent)}};
   j.update(video_json(*this));
   if (!record_file.empty())
     j["record"] = {{"file", record_file},
@@ -183,17 +184,18 @@ nlohmann::json StationSummary::to_json() const {
 }
 
 std::string StationSummary::done_text() const {
+  const std::string silent = tracker_silent.empty() ? "" : "; " + tracker_silent;
   // Stopped before the first surface (Ctrl-C while connecting): no rates to report.
   if (ticks == 0)
-    return fmt::format("done: stopped before the haptic loop started ({} surfaces received)",
-                       surfaces);
+    return fmt::format("done: stopped before the haptic loop started ({} surfaces received){}",
+                       surfaces, silent);
   return fmt::format(
       "done: {} ticks at {:.2f} Hz (p99 jitter {:.0f} us, {} missed), {} surfaces, "
       "capture-to-force latency median {:.2f} ms p99 {:.2f} ms (in contact: median {:.2f} ms "
-      "p99 {:.2f} ms over {}), peak pressure {:.2f} N, peak shear {:.2f} N",
+      "p99 {:.2f} ms over {}), peak pressure {:.2f} N, peak shear {:.2f} N{}",
       ticks, haptic_rate_hz, period_p99_jitter_us, missed_ticks, surfaces, latency_median_ms,
       latency_p99_ms, contact_latency_median_ms, contact_latency_p99_ms, contact_latency_samples,
-      peak_pressure_N, peak_shear_N);
+      peak_pressure_N, peak_shear_N, silent);
 }
 
 std::string StationSummary::record_text() const {

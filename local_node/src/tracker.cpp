@@ -18,6 +18,37 @@ namespace telex::local {
 
 namespace {
 
+// The NatNet stream as a tracker input: where frames should come from, and what keeps them away.
+TrackerInput natnet_input(const NatNetClientConfig& c, int local_command_port) {
+  TrackerInput in;
+  const std::string cmd = std::to_string(c.command_port);
+  if (c.multicast) {
+    in.what = "NatNet frames from " + c.server_ip + " (multicast group " + c.multicast_group +
+              ", data port " + std::to_string(c.data_port) + " on interface " + c.local_address +
+              "; command port " + cmd + ")";
+    in.check =
+        "is Motive streaming there (Streaming pane: Broadcast Frame Data on, transmission "
+        "type Multicast, that group)? Is local=IP this station's interface facing the "
+        "Motive PC (0.0.0.0 lets the system choose)? Does a firewall drop UDP ports " +
+        cmd + " and " + std::to_string(c.data_port) + "? Or try natnet:" + c.server_ip + ",unicast";
+  } else {
+    in.what = "NatNet frames from " + c.server_ip + " (unicast, command port " + cmd + ")";
+    in.check =
+        "is Motive running there and streaming (Streaming pane: Broadcast Frame Data on, "
+        "transmission type Unicast)? Is " +
+        c.server_ip + " the Motive PC's address? Does a firewall drop UDP between them (port " +
+        cmd + " there, " + std::to_string(local_command_port) + " here)?";
+  }
+  return in;
+}
+
+// A glove as a tracker input.
+TrackerInput glove_input(const GloveDevice& glove) {
+  return {glove.reports(), "reports from the " + glove.name(),
+          "is the glove switched on (a wireless one paired with its kit) and its cable or "
+          "receiver plugged in?"};
+}
+
 // NatNet rigid bodies + hand model; finger bends from a glove when one is attached. The haptic
 // hand gives the fingertips; both hands, shoulders and elbows that have body ids are tracked for
 // the view's body (HandState::arms).
@@ -49,7 +80,9 @@ class NatNetTracker final : public HandTracker {
         bends[f] = {cfg.default_bend[f], cfg.default_bend[f], cfg.default_bend[f]};
     name_ = "natnet:" + ccfg.server_ip + (glove_ ? "+" + glove_->name() : "") +
             (other_glove_ ? "+" + other_glove_->name() : "");
+    const NatNetClientConfig kept = ccfg;
     client_ = std::make_unique<NatNetClient>(std::move(ccfg));
+    natnet_input_ = natnet_input(kept, client_->command_port());
   }
 
   bool poll(std::int64_t now_ns, HandState& out) override {
@@ -154,6 +187,20 @@ class NatNetTracker final : public HandTracker {
 
   std::string name() const override { return name_; }
   std::string scheduling() const override { return client_->scheduling(); }
+  std::vector<TrackerInput> inputs() const override {
+    std::vector<TrackerInput> in{natnet_input_};
+    in[0].frames = client_->stats().frames;
+    // A server that answers the connect request but sends no frame is another case.
+    if (const auto info = client_->server_info())
+      in[0].check = "Motive answered the connect request (NatNet " +
+                    std::to_string(info->natnet_version.major) + "." +
+                    std::to_string(info->natnet_version.minor) +
+                    ") but no frame came: is Broadcast Frame Data on in its Streaming pane? " +
+                    in[0].check;
+    for (const auto* gl : {glove_.get(), other_glove_.get()})
+      if (gl != nullptr) in.push_back(glove_input(*gl));
+    return in;
+  }
   std::optional<ThreadFaultReport> thread_fault() const override {
     if (auto f = client_->thread_fault()) return f;
     for (const auto* gl : {glove_.get(), other_glove_.get()})
@@ -198,6 +245,7 @@ class NatNetTracker final : public HandTracker {
   std::array<JointBends, 2> bend_{};  // each joint's bend by Side: the glove's, or the default
   HandState previous_;
   std::string name_;
+  TrackerInput natnet_input_;  // its text; frames filled in by inputs()
   TrackerCounters stats_;
 };
 
@@ -245,6 +293,7 @@ class GloveTracker final : public HandTracker {
     return s;
   }
   std::optional<ThreadFaultReport> thread_fault() const override { return glove_->thread_fault(); }
+  std::vector<TrackerInput> inputs() const override { return {glove_input(*glove_)}; }
 
  private:
   std::unique_ptr<GloveDevice> glove_;
@@ -298,8 +347,10 @@ void check_hand_spec(const std::string& spec) {
     parse_natnet_spec(std::string_view(spec).substr(7), "tracker spec '" + spec + "'", {});
     return;
   }
-  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0) return;
-  if (spec.rfind("5dt-serial:", 0) == 0 && spec.size() > 11) return;
+  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0) {
+    check_glove_spec(spec);
+    return;
+  }
   throw std::invalid_argument("tracker spec '" + spec + "' is not one of " + kHandForms);
 }
 

@@ -112,6 +112,14 @@ TEST(StationSpecs, AreCheckedBeforeAnythingStarts) {
       {{"--hand", "script:no_such_script.csv"}, "no file no_such_script.csv"},
       {{"--view", "png:/proc/nope/x"}, "--view: png:/proc/nope/x: cannot create"},
       {{"--view", "goggles"}, "--view"},
+      // Not an address: a flag's mistake (exit 2), not a device's.
+      {{"--hand", "natnet:999.1.1.1"}, "'999.1.1.1' is not an IPv4 or IPv6 address"},
+      {{"--hand", "natnet:127.0.0.1,local=eth0"}, "local=eth0"},
+      {{"--hand", "5dt-serial:/dev/ttyUSB0,wired"}, "5dt-serial:DEV,wireless"},
+      // A glove gives a NatNet wrist its fingers; with another hand it would be ignored.
+      {{"--glove", "5dt-usb"}, "--glove: 5dt-usb gives finger bends to a NatNet hand"},
+      {{"--hand", "natnet:127.0.0.1", "--glove", "5dt-bluetooth"}, "glove spec '5dt-bluetooth'"},
+      {{"--other-glove", "5dt-usb"}, "--other-glove"},
   };
   for (const auto& [args, says] : cases) {
     std::vector<std::string> argv = args;
@@ -120,6 +128,27 @@ TEST(StationSpecs, AreCheckedBeforeAnythingStarts) {
     EXPECT_EQ(o.exit_code, 2) << args[1] << ": " << o.err;
     EXPECT_NE(o.err.find(says), std::string::npos) << args[1] << ": " << o.err;
     EXPECT_EQ(o.err.find("connecting"), std::string::npos) << args[1] << ": started anyway";
+  }
+}
+
+TEST(StationDevices, AMissingGloveIsNamedBeforeAnythingConnects) {
+  // No remote is listening and no glove is plugged in: the glove is what the station must name
+  // (exit 1, a device's failure), before it tries to connect.
+  const std::string absent_tty = test::scratch_file("ttyUSB-absent").string();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--hand", "natnet:127.0.0.1,unicast", "--glove", "5dt-usb"}, "5DT USB glove"},
+      {{"--hand", "5dt-usb"}, "5DT USB glove"},
+      {{"--hand", "5dt-serial:" + absent_tty}, "5DT serial glove: cannot open " + absent_tty},
+  };
+  for (const auto& [args, says] : cases) {
+    std::vector<std::string> argv = args;
+    argv.insert(argv.end(), {"--connect", "127.0.0.1:1", "--duration", "5", "--no-supervisor"});
+    const Outcome o = run("telex-local", argv);
+    EXPECT_EQ(o.exit_code, 1) << args.back() << ": " << o.err;
+    EXPECT_NE(o.err.find(says), std::string::npos) << args.back() << ": " << o.err;
+    EXPECT_EQ(o.err.find("connecting"), std::string::npos) << args.back() << ": " << o.err;
+    EXPECT_EQ(o.err.find("is telex-remote running"), std::string::npos)
+        << args.back() << ": " << o.err;
   }
 }
 

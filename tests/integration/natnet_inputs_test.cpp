@@ -173,5 +173,41 @@ TEST(NatNetInputs, ThePressWithReachTouchesTheSurfaceAtThatDepth) {
   EXPECT_EQ(without, 0.0) << "the fixed path reaches 0.8 m after all: the control is wrong";
 }
 
+// A station tracking a NatNet server that is not there (nothing listens on its command port)
+// says so: a warning naming the server, its port and what to check, the status line while it
+// lasts, and the line that ends the run, not only `tracker.frames_in` 0 in the JSON summary.
+TEST(NatNetInputs, AServerThatSendsNothingIsNamedWhileTheStationRunsAndAtTheEnd) {
+  TELEX_REQUIRE_BINARIES("telex-local", "telex-remote");
+  const auto dir = scratch_dir("natnet_inputs_silent_server");
+  RemoteProcess remote(dir, {"--source", "synthetic:plane"});
+  const std::string cmd_port = std::to_string(free_port());
+  Process local(
+      local_args(remote.port, dir,
+                 {"--hand", "natnet:127.0.0.1,unicast,cmd=" + cmd_port, "--duration", "6"}),
+      dir / "local.out", dir / "local.err");
+  // Said 2 s after the tracker starts; the bound leaves a loaded machine's start-up its time.
+  EXPECT_TRUE(eventually(5s, [&] {
+    return local.stderr_text().find("[warning] no NatNet frames") != std::string::npos;
+  })) << local.stderr_text();
+  const auto rc = local.wait(60s);
+  ASSERT_EQ(rc.value_or(-1), 0) << local.stderr_text();
+  const std::string err = local.stderr_text();
+  const std::size_t warning = err.find("[warning] no NatNet frames");
+  ASSERT_NE(warning, std::string::npos) << err;
+  const std::string warning_line = err.substr(warning, err.find('\n', warning) - warning);
+  for (const std::string& says : {std::string("127.0.0.1"), "command port " + cmd_port,
+                                  std::string("Motive"), std::string("firewall")})
+    EXPECT_NE(warning_line.find(says), std::string::npos) << says << ": " << warning_line;
+  // The status line says it too, and the line that ends the run.
+  EXPECT_NE(err.find("streaming | no NatNet frames"), std::string::npos) << err;
+  const std::size_t done = err.find("[info] done:");
+  ASSERT_NE(done, std::string::npos) << err;
+  EXPECT_NE(err.find("no NatNet frames", done), std::string::npos) << err.substr(done);
+  const nlohmann::json j = summary_of(local);
+  EXPECT_EQ(j["tracker"]["frames_in"].get<std::uint64_t>(), 0u) << j.dump();
+  EXPECT_NE(j["tracker"].value("silent", std::string()).find("no NatNet frames"), std::string::npos)
+      << j.dump();
+}
+
 }  // namespace
 }  // namespace telex::test

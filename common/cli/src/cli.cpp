@@ -141,17 +141,6 @@ void given_as_defaults(CLI::App& app) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) given_as_defaults(*sub);
 }
 
-// " (set in FILE)" when the option the message names came from the config file, not argv.
-std::string config_origin(const CLI::App& app, const std::string& message, int argc,
-                          const char* const* argv) {
-  const std::string file = config_file(app);
-  if (file.empty() || message.rfind("--", 0) != 0) return {};
-  const std::string flag = message.substr(0, message.find(':'));
-  for (int i = 1; i < argc; ++i)
-    if (std::string(argv[i]).rfind(flag, 0) == 0) return {};
-  return " (key '" + flag.substr(2) + "' in " + file + ")";
-}
-
 }  // namespace
 
 std::optional<int> load_before_flags(const std::string& program,
@@ -243,7 +232,7 @@ std::optional<int> parse(CLI::App& app, int argc, const char* const* argv) {
   } catch (const CLI::ParseError& e) {
     const CLI::App* at = deepest_parsed(app);
     const std::string what = reword(at, e.what());
-    std::cerr << program_name(*at) << ": " << what << config_origin(app, what, argc, argv)
+    std::cerr << program_name(*at) << ": " << what << config_origin(app, argc, argv).note(what)
               << "\n(run " << program_name(*at) << " --help for the options)\n";
     return kUsageExit;
   }

@@ -1,13 +1,28 @@
 // SPDX-License-Identifier: MIT
 // The strict config loader: TOML (CLI11's reader) or JSON; unknown keys and wrong shapes are
-// errors.
+// errors; paths in it are relative to its folder.
+#include <algorithm>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "telex/cli/cli.h"
+#include "telex/common/rig.h"
 
 namespace telex::cli {
 namespace {
+
+// JSON by the extension (.json) or else the first character ('{'); TOML otherwise.
+bool is_json(const std::string& file, const std::string& text) {
+  const auto first = text.find_first_not_of(" \t\r\n");
+  return (file.size() > 5 && file.substr(file.size() - 5) == ".json") ||
+         (first != std::string::npos && text[first] == '{');
+}
+
+// The folder a config file's relative paths are taken from.
+std::filesystem::path folder_of(const std::string& file) {
+  return std::filesystem::absolute(file).lexically_normal().parent_path();
+}
 
 class StrictConfig : public CLI::Config {
  public:
@@ -22,11 +37,8 @@ class StrictConfig : public CLI::Config {
     const std::string file = config_file(*app_);
     const std::string text((std::istreambuf_iterator<char>(input)),
                            std::istreambuf_iterator<char>());
-    const auto first = text.find_first_not_of(" \t\r\n");
-    const bool json = (file.size() > 5 && file.substr(file.size() - 5) == ".json") ||
-                      (first != std::string::npos && text[first] == '{');
     std::vector<CLI::ConfigItem> items;
-    if (json) {
+    if (is_json(file, text)) {
       nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
       if (j.is_discarded() || !j.is_object())
         throw CLI::ConfigError(file + ": not a JSON object (keys = long option names)");
@@ -43,6 +55,7 @@ class StrictConfig : public CLI::Config {
         items.push_back(std::move(item));
       }
     }
+    resolve_paths(file, items);
     values_.clear();
     for (const auto& item : items) {
       std::string v;
@@ -53,8 +66,19 @@ class StrictConfig : public CLI::Config {
   }
 
   std::vector<std::pair<std::string, std::string>> values() const { return values_; }
+  void add_paths(const std::vector<std::string>& keys, const ConfigPath& how) {
+    for (const auto& k : keys) paths_[k] = how;
+  }
+  bool is_path(const std::string& key) const { return paths_.count(key) > 0; }
 
  private:
+  void resolve_paths(const std::string& file, std::vector<CLI::ConfigItem>& items) const {
+    const std::filesystem::path dir = folder_of(file);
+    for (auto& item : items)
+      if (const auto how = paths_.find(item.name); how != paths_.end())
+        for (auto& in : item.inputs) in = how->second(in, dir);
+  }
+
   const CLI::Option* option_for(const std::string& file, const std::string& key) const {
     const CLI::Option* opt = app_->get_option_no_throw("--" + key);
     if (opt == nullptr || opt == app_->get_config_ptr() || key == "help" || key == "help-json") {
@@ -90,14 +114,138 @@ class StrictConfig : public CLI::Config {
   }
 
   const CLI::App* app_;
+  std::map<std::string, ConfigPath> paths_;
   mutable std::vector<std::pair<std::string, std::string>> values_;
 };
 
+std::shared_ptr<StrictConfig> strict_config_of(const CLI::App& app) {
+  return std::dynamic_pointer_cast<StrictConfig>(
+      std::const_pointer_cast<CLI::Config>(app.get_config_formatter()));
+}
+
+// The value of `key` in a config file's text, without the strict checks; "" when it has none or
+// the text does not parse.
+std::string raw_value(const std::string& file, const std::string& text, const std::string& key) {
+  if (is_json(file, text)) {
+    const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+    if (j.is_discarded() || !j.is_object() || !j.contains(key) || !j[key].is_string()) return {};
+    return j[key].get<std::string>();
+  }
+  try {
+    std::istringstream toml(text);
+    for (const auto& item : CLI::ConfigTOML().from_config(toml))
+      if (item.parents.empty() && item.name == key && item.inputs.size() == 1)
+        return item.inputs.front();
+  } catch (const CLI::Error&) {
+  }
+  return {};
+}
+
 }  // namespace
+
+std::string path_in(const std::string& value, const std::filesystem::path& dir) {
+  if (value.empty() || std::filesystem::path(value).is_absolute()) return value;
+  return (dir / value).lexically_normal().string();
+}
+
+ConfigPath spec_paths_in(std::map<std::string, int> path_items_by_kind) {
+  return [kinds = std::move(path_items_by_kind)](const std::string& value,
+                                                 const std::filesystem::path& dir) {
+    const auto colon = value.find(':');
+    const auto kind = kinds.find(value.substr(0, colon));
+    if (colon == std::string::npos || kind == kinds.end()) return value;
+    std::string out = value.substr(0, colon + 1);
+    std::size_t at = colon + 1;
+    for (int i = 0; at <= value.size(); ++i) {
+      const std::size_t comma = std::min(value.find(',', at), value.size());
+      const std::string item = value.substr(at, comma - at);
+      out += (i > 0 ? "," : "") + (i < kind->second ? path_in(item, dir) : item);
+      at = comma + 1;
+    }
+    return out;
+  };
+}
+
+void config_paths(CLI::App& app, const std::vector<std::string>& keys, const ConfigPath& how) {
+  const auto strict = strict_config_of(app);
+  if (!strict) throw std::logic_error("config_paths: call add_strict_config first");
+  strict->add_paths(keys, how);
+}
+
+std::optional<ConfigValue> config_path_before_flags(int argc, const char* const* argv,
+                                                    const std::string& key) {
+  std::string file;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a == "--") break;
+    if (a == "--config" && i + 1 < argc) file = argv[++i];
+    if (a.starts_with("--config=")) file = std::string(a.substr(9));
+  }
+  std::ifstream in(file);
+  if (file.empty() || !in) return std::nullopt;
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string value = raw_value(file, text, key);
+  if (value.empty()) return std::nullopt;
+  return ConfigValue{path_in(value, folder_of(file)), file};
+}
+
+std::string ConfigValue::note(const std::string& key) const {
+  return file.empty() ? std::string() : " (key '" + key + "' in " + file + ")";
+}
+
+std::optional<ConfigValue> rig_before_flags(int argc, const char* const* argv) {
+  if (const auto path = rig_path_in_args(argc, argv)) return ConfigValue{path->string(), ""};
+  return config_path_before_flags(argc, argv, "rig");
+}
+
+ConfigOrigin config_origin(const CLI::App& app, int argc, const char* const* argv) {
+  ConfigOrigin origin;
+  origin.file = config_file(app);
+  const auto strict = strict_config_of(app);
+  if (origin.file.empty() || !strict) return origin;
+  for (const auto& [key, value] : strict->values()) {
+    // A flag given on the command line wins over the file's value.
+    bool given = false;
+    for (int i = 1; i < argc && !given; ++i) {
+      const std::string_view a = argv[i];
+      given = a == "--" + key || a.starts_with("--" + key + "=");
+    }
+    if (!given) origin.entries.push_back({key, value, strict->is_path(key)});
+  }
+  return origin;
+}
+
+std::string ConfigOrigin::note(std::string_view message) const {
+  const auto names_flag = [&](const std::string& key) {
+    const std::string flag = "--" + key;
+    return message.starts_with(flag) &&
+           (message.size() == flag.size() ||
+            std::string_view(": ='").find(message[flag.size()]) != std::string_view::npos);
+  };
+  // An absolute path among the value's items (a spec's too) that the message quotes.
+  const auto names_path = [&](const std::string& value) {
+    std::size_t at = 0;
+    while (at < value.size()) {
+      const std::size_t end = std::min(value.find_first_of(":,", at), value.size());
+      const std::string_view item = std::string_view(value).substr(at, end - at);
+      if (item.size() > 1 && item.front() == '/' && message.find(item) != std::string_view::npos)
+        return true;
+      at = end + 1;
+    }
+    return false;
+  };
+  for (const Entry& e : entries)
+    if (names_flag(e.key) || (e.path && names_path(e.value)))
+      return " (key '" + e.key + "' in " + file + ")";
+  return {};
+}
 
 void add_strict_config(CLI::App& app, const std::string& help) {
   app.config_formatter(std::make_shared<StrictConfig>(&app));
-  app.set_config("--config", "", help + " [TOML or JSON file; keys = long option names]");
+  app.set_config("--config", "",
+                 help +
+                     " [TOML or JSON file; keys = long option names; relative paths in it are "
+                     "relative to its folder]");
   app.allow_config_extras(CLI::config_extras_mode::error);
 }
 
@@ -108,7 +256,7 @@ std::string config_file(const CLI::App& app) {
 }
 
 std::vector<std::pair<std::string, std::string>> config_values(const CLI::App& app) {
-  const auto strict = std::dynamic_pointer_cast<const StrictConfig>(app.get_config_formatter());
+  const auto strict = strict_config_of(app);
   return strict ? strict->values() : std::vector<std::pair<std::string, std::string>>{};
 }
 

@@ -161,4 +161,8 @@ std::unique_ptr<GloveDevice> open_glove(const std::string& spec,
                                         const std::string& calibration_path,
                                         const std::optional<GloveRange>& range = std::nullopt);
 
+// open_glove's spec grammar alone, before anything starts (no device is opened): throws
+// std::invalid_argument as open_glove would.
+void check_glove_spec(const std::string& spec);
+
 }  // namespace telex::local

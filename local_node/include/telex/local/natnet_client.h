@@ -112,6 +112,9 @@ double speed_check_dt_s(const FrameStamp& previous, const FrameStamp& frame,
 NatNetClientConfig parse_natnet_spec(std::string_view text, const std::string& what,
                                      NatNetClientConfig base = {});
 
+// --natnet-multicast's group: throws std::invalid_argument unless it is an IPv4 multicast address.
+void check_multicast_group(const std::string& group);
+
 // The latency a server reports for a frame, from the cameras' mid-exposure to its transmission
 // (ns, pure): NatNet 3.0+'s stamps over the server's high-resolution clock (`high_res_clock_hz`,
 // from its SERVERINFO), 2.x's software latency. 0 when the frame says nothing usable: no clock

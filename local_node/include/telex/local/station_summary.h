@@ -122,6 +122,9 @@ struct StationSummary {
   std::uint64_t head_commands_invalid = 0;
   // The tracker's counters: frames, and what its checks dropped (foreign senders, bad poses).
   TrackerStats tracker;
+  // Its inputs silent at the end (InputWatch: a NatNet server that sent nothing, and what to
+  // check); empty when all delivered. In the JSON object `tracker` as "silent" and in done_text.
+  std::string tracker_silent;
   // --view openxr (JSON "openxr", absent otherwise): the runtime, the eyes' swapchain size, the
   // frames submitted, why the session ended, the haptic ticks whose force the headset's focus
   // gate zeroed, and the gate's closed windows (CLOCK_MONOTONIC ns; 0 = closed at the end).
@@ -142,7 +145,7 @@ struct StationSummary {
   double depth_mbit_per_s() const;
   // telex-local --json-summary: every key once, here (docs/BENCHMARKS.md and the tests read them).
   nlohmann::json to_json() const;
-  // The run in one line: ticks, rate, jitter, latencies, peak forces.
+  // The run in one line: ticks, rate, jitter, latencies, peak forces, a silent tracker input.
   std::string done_text() const;
   // --record: what the bag got and what was dropped (and a failure); empty when not recording.
   std::string record_text() const;

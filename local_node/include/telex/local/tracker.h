@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "telex/base/thread_fault.h"
 #include "telex/common/rig.h"
@@ -105,6 +106,14 @@ struct TrackerStats {
   std::uint64_t thread_faults = 0;  // exceptions that stopped a receive thread
 };
 
+// One device input of a tracker (the NatNet stream, a glove): the frames it has delivered, what
+// it is ("NatNet frames from 10.0.0.5 (multicast ...)") and, for when it delivers none, what to
+// check ("is Motive streaming ...?"). The station says it when an input falls silent.
+struct TrackerInput {
+  std::uint64_t frames = 0;
+  std::string what, check;
+};
+
 // The counters a tracker updates on the polling (haptic) thread, read from any other (the
 // station's status line) without a lock.
 struct TrackerCounters {
@@ -172,6 +181,8 @@ class HandTracker {
   virtual TrackerStats stats() const = 0;
   // Its receive thread's scheduling (try_realtime's description); empty without a thread.
   virtual std::string scheduling() const { return {}; }
+  // Its device inputs (none for a script), read from any thread as stats() is.
+  virtual std::vector<TrackerInput> inputs() const { return {}; }
   // The first of its threads (NatNet, gloves) that an exception stopped; empty while all run.
   virtual std::optional<ThreadFaultReport> thread_fault() const { return std::nullopt; }
 };

@@ -4,7 +4,9 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -46,7 +48,43 @@ CLI::Validator odd_in(int lo, int hi);
 // "--"; an unknown key or a value of the wrong shape is a usage error naming the key and the file.
 void add_strict_config(CLI::App& app, const std::string& help);
 
-// The values a config file set, as (key, value) pairs in file order (empty before parse()).
+// A path-valued key's value as a config file gives it, made absolute against `dir`, the file's
+// folder: a relative path in a config file is relative to that file, not to the working directory
+// (a daemon started by systemd runs in /).
+using ConfigPath =
+    std::function<std::string(const std::string& value, const std::filesystem::path& dir)>;
+// A plain FILE or DIR: "telex.key" -> dir/telex.key; an absolute path and "" stay as they are.
+std::string path_in(const std::string& value, const std::filesystem::path& dir);
+// A spec KIND:PATH[,PATH][,options] ("sim:forces.csv", "files:L*.png,R*.png,loop"): for each kind
+// listed, its number of leading comma-separated items are paths (path_in); other kinds stay.
+ConfigPath spec_paths_in(std::map<std::string, int> path_items_by_kind);
+
+// Marks `keys` of the --config file (add_strict_config, before) as paths, read with `how`.
+void config_paths(CLI::App& app, const std::vector<std::string>& keys,
+                  const ConfigPath& how = path_in);
+
+// Before the flags are parsed (the rig is read first): the value the --config file in argv gives
+// `key`, as a path relative to the file's folder, and the file as given. Nothing when argv names
+// no config file or it does not set the key; a file that cannot be read or parsed is left for
+// parse() to report.
+struct ConfigValue {
+  std::string value, file;  // file: "" when the value came from the command line
+  // " (key 'KEY' in FILE)" for a message about the value when a config file gave it, else "".
+  std::string note(const std::string& key) const;
+};
+std::optional<ConfigValue> config_path_before_flags(int argc, const char* const* argv,
+                                                    const std::string& key);
+
+// The rig file both daemons read before their flags (docs/RIG.md): --rig FILE in argv, else the
+// config file's `rig` key (relative to its folder). Nothing when neither names one; throws
+// telex::RigError for a --rig without a file.
+std::optional<ConfigValue> rig_before_flags(int argc, const char* const* argv);
+
+// After parse(): what the config file set that the command line did not give again.
+ConfigOrigin config_origin(const CLI::App& app, int argc, const char* const* argv);
+
+// The values a config file set, as (key, value) pairs in file order (empty before parse()); a
+// path-valued key's value resolved against the file's folder.
 std::vector<std::pair<std::string, std::string>> config_values(const CLI::App& app);
 
 // The config file given, or "" (after parse()).

@@ -25,6 +25,21 @@ namespace telex::cli {
 
 inline constexpr int kUsageExit = 2;
 
+// What a --config file set, for the messages after parsing (a key file that cannot be read, a
+// log that cannot be opened): one that names an option the file set, by its flag or by the path
+// the file gave it, gets " (key 'K' in FILE)".
+struct ConfigOrigin {
+  struct Entry {
+    std::string key, value;  // the value as used: a path relative to the file's folder resolved
+    bool path = false;
+  };
+  std::string file;  // as given to --config; empty when none was
+  std::vector<Entry> entries;
+  // " (key 'psk' in cfg/remote.toml)" when `message` starts with "--psk" or holds the absolute
+  // path that key was given; empty otherwise.
+  std::string note(std::string_view message) const;
+};
+
 // A CLI11 validator, made by the functions below.
 class Check {
  public:
