@@ -45,8 +45,9 @@ Check IsMember(std::vector<std::string> values);
 Check IsMember(std::initializer_list<int> values);
 // CLI::Validator(check, description): `check` returns "" for a good value, else what is wrong.
 Check Predicate(std::function<std::string(std::string&)> check, const std::string& description);
-// CLI::ExistingFile, CLI::PositiveNumber.
+// CLI::ExistingFile.
 Check ExistingFile();
+// A number > 0 ("--flag: 0 is out of range (valid: > 0)" otherwise).
 Check PositiveNumber();
 
 // One option (CLI::Option*); `->` chains as on CLI11's pointer.

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: MIT
+// The small things a newcomer reads (issue 50, point 9): each message says what is valid, names
+// the flag, suggests the nearest name or a spec of the right kind, and prints numbers as typed.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "process.h"
+#include "test_support.h"
+
+namespace telex {
+namespace {
+
+using namespace std::chrono_literals;
+
+struct Outcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+Outcome run(const std::string& binary, const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {test::built_binary(binary).string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  test::Process p(argv, test::scratch_file("out.txt"), test::scratch_file("err.txt"));
+  const auto rc = p.wait(60s);
+  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
+}
+
+TEST(Messages, APositiveOnlyFlagStatesItsRangeTruly) {
+  const Outcome o = run("telex", {"calibrate", "depth-eye", "--square-mm", "0"});
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  test::expect_contains(o.err, "--square-mm: 0 is out of range (valid: > 0)");
+  EXPECT_EQ(o.err.find(">= 0"), std::string::npos) << o.err;
+}
+
+}  // namespace
+}  // namespace telex
