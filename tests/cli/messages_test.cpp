@@ -36,5 +36,12 @@ TEST(Messages, APositiveOnlyFlagStatesItsRangeTruly) {
   EXPECT_EQ(o.err.find(">= 0"), std::string::npos) << o.err;
 }
 
+TEST(Messages, AMistypedNatNetMotionSuggestsTheNearestName) {
+  const Outcome o = run("telex-sim-natnet", {"--motion", "pres", "--duration", "0.1"});
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  test::expect_contains(o.err, "--motion");
+  test::expect_contains(o.err, "did you mean press?");
+}
+
 }  // namespace
 }  // namespace telex
