@@ -43,5 +43,15 @@ TEST(Messages, AMistypedNatNetMotionSuggestsTheNearestName) {
   test::expect_contains(o.err, "did you mean press?");
 }
 
+TEST(Messages, CalibrateGloveSuggestsAGloveSpecNotAHand) {
+  const Outcome o =
+      run("telex", {"calibrate", "glove", "--glove", "5dt-usb", "--sensors", "5", "--side", "right",
+                    "--out", test::scratch_file("rig.json").string()});
+  // Exit 1 (the device is missing), not 2: the flags are right.
+  EXPECT_EQ(o.exit_code, 1) << "a 5DT glove is plugged in here? " << o.err;
+  EXPECT_EQ(o.err.find("script:"), std::string::npos) << o.err;
+  test::expect_contains(o.err, "5dt-serial:");
+}
+
 }  // namespace
 }  // namespace telex
