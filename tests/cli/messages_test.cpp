@@ -53,5 +53,13 @@ TEST(Messages, CalibrateGloveSuggestsAGloveSpecNotAHand) {
   test::expect_contains(o.err, "5dt-serial:");
 }
 
+TEST(Messages, ATruncatedJsonConfigNamesLineAndColumn) {
+  const auto file = test::scratch_file("truncated.json");
+  std::ofstream(file) << "{\n  \"stiffness\": 500,\n";
+  const Outcome o = run("telex-local", {"--config", file.string(), "--duration", "0.1"});
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  test::expect_contains(o.err, file.string() + " line 3, column 1:");
+}
+
 }  // namespace
 }  // namespace telex
