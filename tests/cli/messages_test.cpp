@@ -61,5 +61,11 @@ TEST(Messages, ATruncatedJsonConfigNamesLineAndColumn) {
   test::expect_contains(o.err, file.string() + " line 3, column 1:");
 }
 
+TEST(Messages, DuplicateDynamixelIdsAreRefused) {
+  const Outcome o = run("telex-sim-dynamixel", {"--ids", "1,1,2", "--duration", "0.1"});
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  test::expect_contains(o.err, "--ids '1,1,2': id 1 is given twice");
+}
+
 }  // namespace
 }  // namespace telex
