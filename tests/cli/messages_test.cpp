@@ -67,5 +67,15 @@ TEST(Messages, DuplicateDynamixelIdsAreRefused) {
   test::expect_contains(o.err, "--ids '1,1,2': id 1 is given twice");
 }
 
+TEST(Messages, NatNetSimulatorPrintsItsDurationAsTyped) {
+  for (const auto& [typed, printed] :
+       std::vector<std::pair<std::string, std::string>>{{"0.5", "for 0.5 s"}, {"1", "for 1 s"}}) {
+    const Outcome o = run("telex-sim-natnet", {"--duration", typed, "--command-port", "0"});
+    EXPECT_EQ(o.exit_code, 0) << o.err;
+    test::expect_contains(o.err, printed);
+    EXPECT_EQ(o.err.find(".000000"), std::string::npos) << o.err;
+  }
+}
+
 }  // namespace
 }  // namespace telex

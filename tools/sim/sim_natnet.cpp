@@ -113,9 +113,12 @@ int main(int argc, char** argv) {
               << (cfg.multicast
                       ? "multicast " + cfg.multicast_group + ":" + std::to_string(cfg.data_port)
                       : std::string("unicast"))
-              << ", " << cfg.rate_hz << " Hz "
-              << (duration_s > 0 ? "for " + std::to_string(duration_s) + " s" : "until stopped")
-              << "\n";
+              << ", " << cfg.rate_hz << " Hz ";
+    // As typed: "12 s", "12.5 s".
+    if (duration_s > 0)
+      std::cerr << "for " << duration_s << " s\n";
+    else
+      std::cerr << "until stopped\n";
     std::atomic<bool> done{false};
     std::thread streamer([&] {
       server.run_for(duration_s);
