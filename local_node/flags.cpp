@@ -427,14 +427,7 @@ cv::Size parse_eye_size(const std::string& text) {
 void apply_security_flags(StationFlags& f) {
   ClientConfig& client = f.cfg.client;
   proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
-  if (!f.psk_file.empty()) {
-    try {
-      proto::check_key_file_permissions(f.psk_file);
-      client.tls.psk = proto::load_key_file(f.psk_file);
-    } catch (const std::exception& e) {
-      throw std::invalid_argument(std::string("--psk: ") + e.what());
-    }
-  }
+  if (!f.psk_file.empty()) client.tls.psk = proto::load_psk_flag(f.psk_file);
   if (!f.cert_file.empty()) {
     proto::check_key_file_permissions(f.key_file, "private key file");
     client.tls.cert = f.cert_file;

@@ -471,14 +471,7 @@ void resolve_registration(const CLI::App& app, RemoteFlags& f) {
 void resolve_security(RemoteFlags& f) {
   ServerConfig& server = f.cfg.server;
   proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
-  if (!f.psk_file.empty()) {
-    try {
-      proto::check_key_file_permissions(f.psk_file);
-      server.tls.psk = proto::load_key_file(f.psk_file);
-    } catch (const std::exception& e) {
-      throw std::invalid_argument(std::string("--psk: ") + e.what());
-    }
-  }
+  if (!f.psk_file.empty()) server.tls.psk = proto::load_psk_flag(f.psk_file);
   if (!f.cert_file.empty()) {
     proto::check_key_file_permissions(f.key_file, "private key file");
     server.tls.cert = f.cert_file;

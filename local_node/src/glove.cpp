@@ -287,7 +287,8 @@ class Usb5dtGlove final : public GloveDevice {
               ? "5DT USB glove: no HID device with vendor 0x5D70 and a glove product id "
                 "(0x00-0x03, 0x06, 0x07, 0x10-0x13, 0x16, 0x17) found. Is it plugged in (lsusb | "
                 "grep 5d70)? Can your "
-                "user read /dev/hidraw* (udev rule, docs/HARDWARE.md)? Or use script:press."
+                "user read /dev/hidraw* (udev rule, docs/HARDWARE.md)? Or name the glove: "
+                "5dt-usb:/dev/hidrawN, or a serial one: 5dt-serial:/dev/ttyUSB0."
               : "5DT USB glove: cannot open " + path +
                     ": no 5DT glove (vendor 0x5D70) at that HID path. Check it exists (ls -l " +
                     path +

@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "telex/haptics/hand_kinematics.h"
+#include "telex/haptics/haptic_surface.h"
 
 namespace telex::local {
 
@@ -89,6 +90,7 @@ HandScript HandScript::builtin(std::string_view name, double surface_depth_m) {
                                 "' (valid: press, stroke, tap, or a script file path)");
   }
   s.duration_s_ = k.back().t_s;
+  s.planned_depth_m_ = d;
   return s;
 }
 
@@ -219,6 +221,7 @@ bool ScriptTracker::poll(std::int64_t now_ns, HandState& out) {
   } else if (now_ns <= last_ns_ || finished_) {
     return false;
   }
+  const double dt_s = now_ns > start_ns_ ? static_cast<double>(now_ns - last_ns_) * 1e-9 : 0.0;
   last_ns_ = now_ns;
   double t_s = static_cast<double>(now_ns - start_ns_) * 1e-9;
   if (repeat_ && script_.duration_s() > 0.0) {
@@ -228,10 +231,43 @@ bool ScriptTracker::poll(std::int64_t now_ns, HandState& out) {
     finished_ = true;
   }
   script_.sample(t_s, out);
+  if (script_.planned_surface_depth_m()) aim(dt_s, out);
   out.time_ns = out.motion_ns = now_ns;
   ++stats_.updates;
   ++stats_.frames_in;
   return true;
+}
+
+void ScriptTracker::aim(double dt_s, HandState& out) {
+  const auto lead = std::find_if(out.tips.begin(), out.tips.end(),
+                                 [](const Fingertip& tip) { return tip.valid; });
+  if (lead == out.tips.end()) return;
+  const glm::dvec3 p = lead->p_CameraFingertip + glm::dvec3(0.0, 0.0, offset_m_);
+  double rate_mps = 0.0;
+  if (surface_ != nullptr && p.z > 0.0 && dt_s > 0.0) {
+    const Intrinsics& k = surface_->intrinsics;
+    const std::optional<double> z =
+        depth_at(*surface_, k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+    // Where the gesture would meet the surface under it as planned. Toward a deeper surface
+    // always (the scene moved away); back toward a nearer one only from in front of it, so a
+    // press is never chased by what it presses.
+    const double want_m = z ? *z - *script_.planned_surface_depth_m() : offset_m_;
+    if (z && (want_m > offset_m_ || p.z < *z)) {
+      const double step_m = kFollowSpeedMps * dt_s;
+      const double move_m = std::clamp(want_m - offset_m_, -step_m, step_m);
+      offset_m_ += move_m;
+      rate_mps = move_m / dt_s;
+    }
+  }
+  const glm::dvec3 shift{0.0, 0.0, offset_m_};
+  for (auto& tip : out.tips) {
+    if (!tip.valid) continue;
+    tip.p_CameraFingertip += shift;
+    tip.v_CameraFingertip.z += rate_mps;
+  }
+  for (auto& finger : out.joints_camera)
+    for (auto& joint : finger) joint += shift;
+  out.wrist_camera += shift;
 }
 
 }  // namespace telex::local

@@ -483,12 +483,16 @@ class RecordedSurfaces {
 }  // namespace
 
 ReplayResult replay_session(const std::string& bag_path, const HapticParams& haptic,
-                            const SurfaceOptions& surface_in) {
+                            const SurfaceOptions& surface_in, const ReplayProgress& progress) {
   haptic.validate();
   bag::Reader ticks(bag_path), forces(bag_path);
+  std::uint64_t tick_messages = 0, ticks_read = 0;
   for (const char* needed : {kFingertipsTopic, kDepthTopic}) {
     bool found = false;
-    for (const auto& t : ticks.topics()) found = found || t.topic == needed;
+    for (const auto& t : ticks.topics()) {
+      found = found || t.topic == needed;
+      if (t.topic == kFingertipsTopic) tick_messages = t.messages;
+    }
     if (!found)
       throw std::runtime_error(fmt::format("bag {} has no {} to replay (it holds {})", bag_path,
                                            needed, ticks.describe_topics()));
@@ -513,7 +517,10 @@ ReplayResult replay_session(const std::string& bag_path, const HapticParams& hap
       if (topic == force_topic(i)) return i;
     return -1;
   };
+  const std::uint64_t progress_every = std::max<std::uint64_t>(1, tick_messages / 100);
   while (ticks.next(tick)) {
+    if (progress && ++ticks_read % progress_every == 0 && ticks_read < tick_messages)
+      progress(static_cast<double>(ticks_read) / static_cast<double>(tick_messages));
     if (tick.kind != bag::Message::Kind::PoseArray || tick.poses.size() != kFingerCount) continue;
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& p = tick.poses[static_cast<std::size_t>(i)];
@@ -549,6 +556,7 @@ ReplayResult replay_session(const std::string& bag_path, const HapticParams& hap
   }
   r.surfaces = surfaces.built();
   r.rms_diff_N = r.rows ? std::sqrt(sum_sq / static_cast<double>(r.rows)) : 0.0;
+  if (progress) progress(1.0);
   return r;
 }
 

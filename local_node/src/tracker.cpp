@@ -366,11 +366,18 @@ std::unique_ptr<HandTracker> make_tracker(const std::string& spec, const Tracker
     return std::make_unique<ScriptTracker>(HandScript::load(what), spec, config.repeat);
   }
   if (spec.rfind("natnet:", 0) == 0) return make_natnet(spec, config);
-  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0)
-    return std::make_unique<GloveTracker>(
-        open_glove(spec, config.glove_calibration_path,
-                   config.glove_range[index_of(config.use_left_hand ? Side::Left : Side::Right)]),
-        config);
+  if (spec == "5dt-usb" || spec.rfind("5dt-usb:", 0) == 0 || spec.rfind("5dt-serial:", 0) == 0) {
+    std::unique_ptr<GloveDevice> glove;
+    try {
+      glove =
+          open_glove(spec, config.glove_calibration_path,
+                     config.glove_range[index_of(config.use_left_hand ? Side::Left : Side::Right)]);
+    } catch (const std::runtime_error& e) {
+      // The hand can do without a glove: say how.
+      throw std::runtime_error(std::string(e.what()) + " Without a glove: --hand script:press.");
+    }
+    return std::make_unique<GloveTracker>(std::move(glove), config);
+  }
   throw std::invalid_argument("tracker spec '" + spec + "' is not one of " + kHandForms);
 }
 

@@ -66,6 +66,15 @@ AuthKey load_key_file(const std::filesystem::path& path) {
   }
 }
 
+AuthKey load_psk_flag(const std::filesystem::path& path) {
+  try {
+    check_key_file_permissions(path);
+    return load_key_file(path);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument(std::string("--psk: ") + e.what());
+  }
+}
+
 void check_key_file_permissions(const std::filesystem::path& path, const char* what) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0)

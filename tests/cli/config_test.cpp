@@ -54,7 +54,7 @@ TEST(RemoteConfig, UnknownKeysAndWrongShapesExitTwoNamingKeyAndFile) {
       {"negative.toml", "duration = -1\n", "duration"},
       {"negative.json", R"({"duration": -1})", "duration"},
       {"not_a_number.toml", "duration = \"soon\"\n", "duration"},
-      {"broken.json", "{\"duration\": ", "not a JSON object"},
+      {"broken.json", "{\"duration\": ", "line 1, column 14: not valid JSON"},
   };
   for (const auto& c : cases) {
     const std::string file = write_file(c.file_name, c.text);

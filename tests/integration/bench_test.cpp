@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
@@ -112,7 +113,11 @@ TEST(BenchTool, QuickRunWritesFiniteCsvMarkdownAndPlots) {
   std::ifstream md(out / "bench.md");
   std::stringstream text;
   text << md.rdbuf();
-  EXPECT_NE(text.str().find("| default **(default)**"), std::string::npos);
+  // The baseline is named for what it is, and the daemons' defaults are marked and explained.
+  EXPECT_NE(text.str().find("| default **(baseline)**"), std::string::npos);
+  EXPECT_NE(text.str().find("| kinfu_r6_roi_fill_station **(daemons' defaults)**"),
+            std::string::npos);
+  EXPECT_NE(text.str().find("`default` is the grid's baseline"), std::string::npos);
   EXPECT_NE(text.str().find("Static against moving"), std::string::npos);
   for (const char* png : {"normal_error_vs_ms.png", "force_error_vs_ms.png", "depth_rmse_vs_ms.png",
                           "bytes_vs_encode_ms.png"}) {
@@ -121,6 +126,26 @@ TEST(BenchTool, QuickRunWritesFiniteCsvMarkdownAndPlots) {
     EXPECT_GT(img.cols, 400) << png;
   }
   fs::remove_all(out);
+}
+
+// The interleaved timing's rows build what they name: the full frame builds every pixel, the
+// region of interest only the fingertip's window. Work is counted in pixels, never timed.
+TEST(BenchTool, InterleavedFullFrameBuildDoesMoreWorkThanTheRoiBuild) {
+  const fs::path out = ::telex::test::scratch_dir("bench_interleaved");
+  telex::test::Process p({telex::test::built_binary("telex").string(), "bench", "--quick", "--json",
+                          "--config", "roi", "--real", "", "--out", out.string()},
+                         out / "stdout.txt", out / "stderr.txt");
+  ASSERT_EQ(p.wait(std::chrono::minutes(5)), 0) << p.stderr_text();
+  const auto j = nlohmann::json::parse(p.stdout_text(), nullptr, false);
+  ASSERT_TRUE(j.is_object() && j.contains("roi_interleaved")) << p.stdout_text();
+  const auto& t = j["roi_interleaved"];
+  ASSERT_TRUE(t.contains("full_pixels") && t.contains("roi_pixels")) << t.dump();
+  const auto full = t["full_pixels"].get<std::size_t>();
+  const auto roi = t["roi_pixels"].get<std::size_t>();
+  EXPECT_EQ(full, 640u * 480u) << "the full-frame row does not build the whole frame";
+  EXPECT_GT(roi, 0u);
+  EXPECT_EQ(roi, t["window_px"].get<std::size_t>());
+  EXPECT_GT(full, 10 * roi);
 }
 
 // The real desk frames, and the same frames as a recorded session (telex-local --record's

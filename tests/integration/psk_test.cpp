@@ -256,6 +256,9 @@ TEST(PskKeyFile, ErrorsExitTwoWithAMessageNamingTheFix) {
       EXPECT_NE(p.stderr_text().find(c.says), std::string::npos)
           << daemon << " " << c.file << ": " << p.stderr_text();
       EXPECT_NE(p.stderr_text().find(c.file.filename().string()), std::string::npos);
+      // The message names the flag the file came from.
+      EXPECT_NE(p.stderr_text().find("--psk: "), std::string::npos)
+          << daemon << " " << c.file << ": " << p.stderr_text();
     }
     // --psk from a --config file is read the same way.
     const auto cfg = dir / (std::string(daemon) + ".ini");

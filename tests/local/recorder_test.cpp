@@ -5,15 +5,21 @@
 #include "telex/local/recorder.h"
 
 #include <gtest/gtest.h>
+#include <pty.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <glm/geometric.hpp>
+#include <string>
+#include <vector>
 
 #include "process.h"
 #include "telex/bag/bag.h"
 #include "telex/common/synthetic.h"
+#include "test_support.h"
 
 namespace telex::local {
 namespace {
@@ -143,6 +149,57 @@ TEST(SessionRecorder, EveryTopicIsThereInStandardTypesAndTheForcesAreThoseTheMod
   }
   EXPECT_EQ(tf_messages, s.ticks);
   EXPECT_NEAR(static_cast<double>(thumb_frames), 2000.0, 2.0);
+}
+
+TEST(SessionRecorder, ReplayTellsItsProgressUpToTheEnd) {
+  const auto path = temp_bag("progress.bag").string();
+  HapticParams haptic;
+  SurfaceOptions surface;
+  surface.roi = false;  // this harness builds surfaces without fingertip windows
+  record_stroke(path, haptic, surface, 100.0);
+  std::vector<double> told;
+  replay_session(path, haptic, surface, [&](double done) { told.push_back(done); });
+  ASSERT_GE(told.size(), 50u);
+  EXPECT_LE(told.size(), 102u) << "about every per cent";
+  EXPECT_GT(told.front(), 0.0);
+  for (std::size_t i = 1; i < told.size(); ++i) EXPECT_GT(told[i], told[i - 1]);
+  EXPECT_EQ(told.back(), 1.0);
+}
+
+// What `telex replay` writes to stderr: its progress on a terminal (a pty here), nothing of it
+// into a file.
+TEST(SessionRecorder, TelexReplayShowsProgressOnlyOnATerminal) {
+  TELEX_REQUIRE_BINARIES("telex");
+  const auto path = temp_bag("shown.bag").string();
+  HapticParams haptic;
+  SurfaceOptions surface;
+  surface.roi = false;
+  record_stroke(path, haptic, surface, 100.0);
+  const std::string telex = ::telex::test::built_binary("telex").string();
+  {
+    ::telex::test::Process file({telex, "replay", path}, temp_bag("replay.out"),
+                                temp_bag("replay.err"));
+    ASSERT_EQ(file.wait(std::chrono::seconds(60)), 0) << file.stderr_text();
+    EXPECT_EQ(file.stderr_text().find('%'), std::string::npos) << file.stderr_text();
+  }
+  int master = -1;
+  const pid_t pid = ::forkpty(&master, nullptr, nullptr, nullptr);
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::execl(telex.c_str(), telex.c_str(), "replay", path.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  std::string shown;
+  char buf[4096];
+  for (ssize_t n; (n = ::read(master, buf, sizeof buf)) > 0;)
+    shown.append(buf, static_cast<std::size_t>(n));
+  ::close(master);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << shown;
+  ::telex::test::expect_contains(shown, "telex replay: ");
+  ::telex::test::expect_contains(shown, " s left)");
+  ::telex::test::expect_contains(shown, "force samples compared");  // the result follows
 }
 
 TEST(SessionRecorder, ReplayWithTheRecordedParametersGivesTheRecordedForcesAndOthersDiffer) {

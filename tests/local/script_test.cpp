@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include "process.h"
+#include "telex/haptics/haptic_surface.h"
 #include "telex/local/hand_script.h"
 
 namespace telex::local {
@@ -157,6 +160,65 @@ TEST(Script, TrackerRunsOnceOrRepeats) {
   ASSERT_TRUE(loop.poll(7'200'000'000 + 1'000'000'000, st));  // one period + 1 s
   EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.6, 1e-9);
   EXPECT_FALSE(loop.finished());
+}
+
+Surface plane_at(double z_m) {
+  const Intrinsics k = kinect_v1_intrinsics();
+  return make_surface(cv::Mat1f(k.height, k.width, static_cast<float>(z_m)), k, 0, 1);
+}
+
+// A press planned against 0.8 m meets a plane at 1.2 m: the gesture slides toward it while the
+// fingertip is in front, never faster than the follow speed, and presses 10 mm into it.
+TEST(Script, PressAimsAtTheSurfaceItIsShown) {
+  const Surface plane = plane_at(1.2);
+  ScriptTracker tracker(HandScript::builtin("press", 0.8), "script:press", false);
+  const HandScript planned = HandScript::builtin("press", 0.8);
+  HandState st;
+  double z_max = 0.0, prev_offset = 0.0;
+  for (std::int64_t i = 0; i <= 7200; ++i) {
+    tracker.see_surface(&plane);
+    ASSERT_TRUE(tracker.poll(i * 1'000'000, st));
+    const double z = st.tips[1].p_CameraFingertip.z;
+    z_max = std::max(z_max, z);
+    EXPECT_NEAR(z - planned.position(1, i * 1e-3).z, tracker.aim_offset_m(), 1e-12);
+    EXPECT_LE(std::abs(tracker.aim_offset_m() - prev_offset),
+              ScriptTracker::kFollowSpeedMps * 1e-3 + 1e-12)
+        << "at " << i << " ms";
+    prev_offset = tracker.aim_offset_m();
+  }
+  EXPECT_NEAR(z_max, 1.2 + 0.010, 1e-6);
+  EXPECT_NEAR(tracker.aim_offset_m(), 0.4, 1e-6);
+}
+
+// A surface that comes at the pressing fingertip does not push the gesture back; one that moves
+// away is followed until the press is as deep as planned.
+TEST(Script, PressHoldsWhileTouchingAndFollowsASurfaceThatMovedAway) {
+  const Surface plane = plane_at(0.8), nearer = plane_at(0.7), farther = plane_at(0.9);
+  ScriptTracker tracker(HandScript::builtin("press", 0.8), "script:press", false);
+  HandState st;
+  std::int64_t t_ms = 0;
+  auto run_until = [&](std::int64_t end_ms, const Surface& s) {
+    for (; t_ms <= end_ms; ++t_ms) {
+      tracker.see_surface(&s);
+      ASSERT_TRUE(tracker.poll(t_ms * 1'000'000, st));
+    }
+  };
+  // Depths are floats in a surface: 1e-6 m is their rounding at 1 m.
+  run_until(3500, plane);  // pressing 10 mm in, as planned
+  EXPECT_NEAR(tracker.aim_offset_m(), 0.0, 1e-6);
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.81, 1e-6);
+  const double pressing_offset_m = tracker.aim_offset_m();
+  run_until(3600, nearer);  // the surface came at the fingertip: the press holds
+  EXPECT_EQ(tracker.aim_offset_m(), pressing_offset_m);
+  run_until(3700, farther);  // the surface moved away: 100 ms at the follow speed
+  EXPECT_NEAR(tracker.aim_offset_m(), ScriptTracker::kFollowSpeedMps * 0.1, 1e-6);
+  run_until(4100, farther);  // until the fingertip is 10 mm in again, as planned
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.91, 1e-6);
+  // A tracker shown no surface plays the script as planned.
+  ScriptTracker blind(HandScript::builtin("press", 0.8), "script:press", false);
+  ASSERT_TRUE(blind.poll(0, st));
+  ASSERT_TRUE(blind.poll(3'500'000'000, st));
+  EXPECT_NEAR(st.tips[1].p_CameraFingertip.z, 0.81, 1e-12);
 }
 
 TEST(Script, MakeTrackerResolvesNamesAndFiles) {

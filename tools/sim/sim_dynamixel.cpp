@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-dynamixel: emulated DYNAMIXEL X-series servos on a pseudo-terminal, for --head
 // dynamixel.
+#include <algorithm>
 #include <csignal>
 #include <ctime>
 #include <iostream>
@@ -42,6 +43,10 @@ int main(int argc, char** argv) {
       }
       if (used != item.size() || id < 0 || id > 252)
         throw std::invalid_argument("--ids '" + ids_text + "': '" + item + "' is not an id 0..252");
+      // One bus cannot hold two servos of one id: both would answer every instruction.
+      if (std::find(ids.begin(), ids.end(), id) != ids.end())
+        throw std::invalid_argument("--ids '" + ids_text + "': id " + std::to_string(id) +
+                                    " is given twice");
       ids.push_back(static_cast<std::uint8_t>(id));
     }
     if (ids.empty()) throw std::invalid_argument("--ids is empty");

@@ -1,12 +1,36 @@
 // SPDX-License-Identifier: MIT
 // telex-sim-natnet: a NatNet server that answers connect requests and streams a hand motion.
+#include <algorithm>
 #include <atomic>
 #include <csignal>
+#include <filesystem>
 #include <iostream>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "telex/cli/command_line.h"
 #include "telex/sim/natnet_server.h"
+
+namespace {
+
+// --motion: a built-in name or a file; a typo of a name gets the nearest one.
+telex::cli::Check motion_check() {
+  return telex::cli::Predicate(
+      [](std::string& text) -> std::string {
+        const std::vector<std::string> builtin{"press", "head-turns"};
+        if (std::find(builtin.begin(), builtin.end(), text) != builtin.end() ||
+            std::filesystem::is_regular_file(text))
+          return {};
+        const std::string near = telex::cli::closest_name(text, builtin);
+        return "'" + text + "' is neither a built-in motion nor a file" +
+               (near.empty() ? "" : " (did you mean " + near + "?)") +
+               " (valid: press, head-turns, or a CSV file)";
+      },
+      "press|head-turns|FILE");
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace telex::local;
@@ -53,7 +77,8 @@ int main(int argc, char** argv) {
                  "(press, the head turning as the OpenXR simulator's \"head_path\": \"turns\", "
                  "through a fixed stage and headset offset: telex/sim/head_turns.h) or a CSV "
                  "file time_s,body_id,x,y,z,qx,qy,qz,qw")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(motion_check());
   app.add_flag("!--no-loop", loop, "play a CSV recording once instead of looping");
   double reach_m = 0.0;
   app.add_option("--reach", reach_m,
@@ -88,9 +113,12 @@ int main(int argc, char** argv) {
               << (cfg.multicast
                       ? "multicast " + cfg.multicast_group + ":" + std::to_string(cfg.data_port)
                       : std::string("unicast"))
-              << ", " << cfg.rate_hz << " Hz "
-              << (duration_s > 0 ? "for " + std::to_string(duration_s) + " s" : "until stopped")
-              << "\n";
+              << ", " << cfg.rate_hz << " Hz ";
+    // As typed: "12 s", "12.5 s".
+    if (duration_s > 0)
+      std::cerr << "for " << duration_s << " s\n";
+    else
+      std::cerr << "until stopped\n";
     std::atomic<bool> done{false};
     std::thread streamer([&] {
       server.run_for(duration_s);

@@ -55,9 +55,13 @@ struct Config {
 };
 
 extern const std::vector<std::string> kGroups;
+// The grid's row that runs as both daemons do with no flags (make_grid checks it against
+// local::SurfaceOptions' defaults). The row named "default" is the grid's baseline instead.
+inline constexpr const char* kDaemonsDefault = "kinfu_r6_roi_fill_station";
 int group_index(const std::string& g);
-// One factor at a time around the default (the shipping defaults at 640x480), plus a few
-// combinations: a full Cartesian grid would be thousands of chains for little extra insight.
+// One factor at a time around the baseline row "default" (radius 2 over the whole frame, the remote
+// filling: the shipping defaults before issue 16), plus a few combinations, kDaemonsDefault among
+// them: a full Cartesian grid would be thousands of chains for little extra insight.
 std::vector<Config> make_grid(bool quick);
 // The grid's configurations named in `names` (all when empty); throws std::invalid_argument
 // naming an unknown one.
@@ -183,7 +187,15 @@ struct RoiTiming {
   double roi_snapshot_ms = kNaN;  // of roi_ms: taking the snapshot from the pool, clearing it
   int window_px = 0;
   std::size_t recycled = 0;
+  // Pixels filtered and given normals per build (SurfaceBuildStats::pixels_processed).
+  std::size_t full_pixels = 0, roi_pixels = 0;
+  // The station's settings both rows ran with (telex-local's defaults).
+  int bilateral_radius_px = 0;
+  bool fill_here = false;
 };
+// telex-local's surface options with no flags, or with --full-frame; timed by the thread's CPU
+// clock.
+local::SurfaceOptions station_surface_options(bool full_frame);
 // The station's per-frame surface work on one desk frame, interleaved (see bench_chain.cpp).
 RoiTiming measure_roi_timing(bool quick);
 

@@ -353,60 +353,78 @@ SkipRow measure_fill_skip(const std::string& what, const cv::Mat1w& depth, int r
   return r;
 }
 
-// The station's per-frame surface work on one desk frame (fingertip windows, snapshot from the
-// pool, bilateral, normals), interleaved so that machine load hits all three alike: the full
-// frame, the windows of one fingertip 1 cm above the surface, and a fingertip far away (no
-// windows at all). Each keeps the station's ring of 8 retired snapshots, so the pool recycles
-// snapshots 8 frames old, as in the station.
+namespace {
+
+// One interleaved row: the station's surface thread's work for one frame, as SurfaceStage does it
+// (the fingertip windows, then build_surface with a pool and 8 retired snapshots kept).
+struct StationBuild {
+  StationBuild(const local::SurfaceOptions& o, const local::HandState& h) : options(o), hand(h) {}
+  local::SurfaceOptions options;
+  local::HandState hand;
+  local::SurfacePool pool;
+  std::deque<std::shared_ptr<const Surface>> retired;
+  std::vector<double> ms, snapshot_ms;
+  std::vector<cv::Rect> windows;  // the last frame's
+  std::size_t pixels = 0;         // the last frame's SurfaceBuildStats::pixels_processed
+
+  void run(const local::AssembledFrame& af) {
+    local::SurfaceBuildStats stats;
+    const double t0 = thread_cpu_ms();
+    windows = local::fingertip_windows(hand, af.depth_mm, af.intrinsics, options);
+    auto s = local::build_surface(af, options, windows, &stats, &pool);
+    ms.push_back(thread_cpu_ms() - t0);
+    snapshot_ms.push_back(stats.snapshot_ms);
+    pixels = stats.pixels_processed;
+    retired.push_back(std::move(s));
+    if (retired.size() > 8) retired.pop_front();
+  }
+};
+
+}  // namespace
+
+local::SurfaceOptions station_surface_options(bool full_frame) {
+  local::SurfaceOptions o;  // telex-local's defaults
+  o.roi = !full_frame;      // as `telex-local --full-frame` sets it
+  o.clock_ms = thread_cpu_ms;
+  return o;
+}
+
+// The station's per-frame surface work on one desk frame at telex-local's defaults, interleaved so
+// that machine load hits all three alike: the whole frame (--full-frame), the windows of one
+// fingertip 1 cm above the surface, and a fingertip far away (no windows at all). Each keeps the
+// station's ring of 8 retired snapshots, so the pool recycles snapshots 8 frames old.
 RoiTiming measure_roi_timing(bool quick) {
-  RoiTiming t;
   const Intrinsics k = kinect_v1_intrinsics();
   const Frame f =
       synthetic_frame(synth::render(synth::Scene::named("desk"), k, synth::SensorModel{}), 0);
   local::HandState far_hand;
   far_hand.tips[1].valid = true;
   far_hand.tips[1].p_CameraFingertip = {0.0, 0.0, 0.2};  // far in front of the desk
-  local::SurfaceOptions full, roi;
-  full.clock_ms = roi.clock_ms = thread_cpu_ms;
-  roi.roi = true;
+  StationBuild full{station_surface_options(true), f.script.hand};
+  StationBuild near{station_surface_options(false), f.script.hand};
+  StationBuild none{station_surface_options(false), far_hand};
   const local::AssembledFrame af{f.depth_mm, k, 0, 0, 0, true, local::AssembledPart::Whole, {}, {}};
-  std::vector<double> full_ms, roi_ms, none_ms, roi_snapshot_ms;
-  local::SurfacePool full_pool, near_pool, none_pool;
-  std::deque<std::shared_ptr<const Surface>> full_ring, near_ring, none_ring;
-  auto retire = [](std::deque<std::shared_ptr<const Surface>>& ring,
-                   std::shared_ptr<const Surface> s) {
-    ring.push_back(std::move(s));
-    if (ring.size() > 8) ring.pop_front();
-  };
   for (int i = 0; i < (quick ? 15 : 61); ++i) {
-    double t0 = thread_cpu_ms();
-    auto a = local::build_surface(af, full, {}, nullptr, &full_pool);
-    full_ms.push_back(thread_cpu_ms() - t0);
-    local::SurfaceBuildStats near_stats;
-    t0 = thread_cpu_ms();
-    const auto near = local::fingertip_windows(f.script.hand, f.depth_mm, k, roi);
-    auto b = local::build_surface(af, roi, near, &near_stats, &near_pool);
-    roi_ms.push_back(thread_cpu_ms() - t0);
-    roi_snapshot_ms.push_back(near_stats.snapshot_ms);
-    t0 = thread_cpu_ms();
-    const auto none = local::fingertip_windows(far_hand, f.depth_mm, k, roi);
-    auto c = local::build_surface(af, roi, none, nullptr, &none_pool);
-    none_ms.push_back(thread_cpu_ms() - t0);
-    if (near.size() != 1 || !none.empty() || !a || !b || !c)
+    full.run(af);
+    near.run(af);
+    none.run(af);
+    if (near.windows.size() != 1 || !none.windows.empty())
       throw std::logic_error("expected one window for the near fingertip, none for the far one");
-    t.window_px = near[0].area();
-    retire(full_ring, std::move(a));
-    retire(near_ring, std::move(b));
-    retire(none_ring, std::move(c));
   }
   // The first 8 frames fill the pools (fresh allocations); the rest recycle.
-  for (auto* v : {&full_ms, &roi_ms, &none_ms, &roi_snapshot_ms})
+  for (auto* v : {&full.ms, &near.ms, &none.ms, &near.snapshot_ms})
     v->erase(v->begin(), v->begin() + 9);
-  t.full_ms = median(full_ms);
-  t.roi_ms = median(roi_ms);
-  t.none_ms = median(none_ms);
-  t.roi_snapshot_ms = median(roi_snapshot_ms);
-  t.recycled = near_pool.recycled();
+  RoiTiming t;
+  t.full_ms = median(full.ms);
+  t.roi_ms = median(near.ms);
+  t.none_ms = median(none.ms);
+  t.roi_snapshot_ms = median(near.snapshot_ms);
+  t.window_px = near.windows[0].area();
+  t.recycled = near.pool.recycled();
+  t.full_pixels = full.pixels;
+  t.roi_pixels = near.pixels;
+  t.bilateral_radius_px = near.options.bilateral_options.radius_px;
+  t.fill_here = near.options.fill_here;
   return t;
 }
 

@@ -38,6 +38,26 @@ int group_index(const std::string& g) {
   return static_cast<int>(it - kGroups.begin());
 }
 
+namespace {
+
+// The row named as the daemons' defaults builds the surface as telex-local does with no flags
+// (telex-remote sends unfilled depth unless run with --fill).
+void demand_daemons_default(const std::vector<Config>& grid) {
+  const auto it = std::find_if(grid.begin(), grid.end(),
+                               [](const Config& c) { return c.name == kDaemonsDefault; });
+  if (it == grid.end())
+    throw std::logic_error("the grid has no row " + std::string(kDaemonsDefault));
+  const local::SurfaceOptions row = surface_options(*it), station;
+  if (row.roi != station.roi || row.fill_here != station.fill_here ||
+      row.bilateral != station.bilateral ||
+      row.bilateral_options.radius_px != station.bilateral_options.radius_px ||
+      row.normal_options.smooth_radius_px != station.normal_options.smooth_radius_px || it->fill)
+    throw std::logic_error(std::string(kDaemonsDefault) +
+                           " no longer builds the surface as telex-local's defaults do");
+}
+
+}  // namespace
+
 std::vector<Config> make_grid(bool quick) {
   std::vector<Config> out;
   const Config base{.name = "default", .group = "default"};
@@ -122,11 +142,12 @@ std::vector<Config> make_grid(bool quick) {
       "combo", "kinfu_r6_roi_fill_off",
       [](Config& c) { c.bilateral_options.radius_px = 6, c.roi = true, c.fill = false; }, false);
   add(
-      "combo", "kinfu_r6_roi_fill_station",
+      "combo", kDaemonsDefault,
       [](Config& c) {
         c.bilateral_options.radius_px = 6, c.roi = true, c.fill = false, c.station_fill = true;
       },
-      false);
+      true);
+  demand_daemons_default(out);
   return out;
 }
 

@@ -3,6 +3,7 @@
 // and defaults can be compared at a glance (docs/FLAGS.md is this command's output).
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -72,13 +73,45 @@ void markdown(const nlohmann::json& j, std::ostream& out) {
   for (const auto& s : j.at("subcommands")) markdown(s, out);
 }
 
+// The programs docs/FLAGS.md holds besides telex, in its order: both daemons and the simulators.
+const std::vector<std::string> kSiblings = {"telex-remote", "telex-local", "telex-sim-natnet",
+                                            "telex-sim-dynamixel", "telex-sim-impair"};
+
+// The sibling programs beside this telex (one build or install directory); none when one is
+// absent, which `missing` then names.
+std::vector<std::string> sibling_programs(std::string& missing) {
+  std::error_code ec;
+  const std::filesystem::path dir =
+      std::filesystem::read_symlink("/proc/self/exe", ec).parent_path();
+  std::vector<std::string> out;
+  for (const auto& name : kSiblings) {
+    const std::filesystem::path p = dir / name;
+    if (ec || !std::filesystem::is_regular_file(p)) {
+      missing = (dir / name).string();
+      return {};
+    }
+    out.push_back(p.string());
+  }
+  return out;
+}
+
 int run(const Options& o, const CLI::App& telex) {
   if (!o.markdown) {
     std::cerr << "telex flags: nothing to do: give --markdown\n";
     return 2;
   }
+  std::vector<std::string> programs = o.programs;
+  if (programs.empty()) {
+    std::string missing;
+    programs = sibling_programs(missing);
+    if (programs.empty()) {
+      std::cerr << "telex flags: " << missing
+                << " not found beside telex: build it, or name each program with --program PATH\n";
+      return 2;
+    }
+  }
   std::vector<nlohmann::json> docs;
-  for (const auto& p : o.programs) docs.push_back(help_json_of(p));
+  for (const auto& p : programs) docs.push_back(help_json_of(p));
   docs.push_back(cli::help_json(telex));
   std::cout
       << "# Flags of every program\n\n"
@@ -96,7 +129,8 @@ const RegisterCommand kRegister{
       app.add_flag("--markdown", o->markdown, "Print the Markdown table");
       app.add_option("--program", o->programs,
                      "Another program (path) whose --help-json joins the table, before telex's; "
-                     "repeatable");
+                     "repeatable. Default: telex-remote, telex-local and the simulators beside "
+                     "this telex (docs/FLAGS.md)");
       const CLI::App* top = app.get_parent();
       return [o, top] { return run(*o, *top); };
     }};

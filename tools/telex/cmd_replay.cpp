@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 // `telex replay FILE.bag`: re-runs the surface build and the force model on a recorded session
 // (telex-local --record) with its own parameters or others, and compares with what was recorded.
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -23,6 +26,24 @@ struct Options {
   bool bilateral_radius_given = false;
   bool no_bilateral = false;
 };
+
+// On a terminal (stderr a tty): one line rewritten in place, "telex replay: 42 % (12 s left)",
+// cleared at the end. Elsewhere (a log, a pipe, a test) nothing.
+local::ReplayProgress progress_line() {
+  if (::isatty(STDERR_FILENO) == 0) return {};
+  const auto start = std::chrono::steady_clock::now();
+  return [start](double done) {
+    if (done >= 1.0) {
+      std::fprintf(stderr, "\r\033[K");
+      return;
+    }
+    const double elapsed_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double left_s = done > 0.0 ? elapsed_s * (1.0 - done) / done : 0.0;
+    std::fprintf(stderr, "\r\033[Ktelex replay: %.0f %% (%.0f s left)", 100.0 * done, left_s);
+    std::fflush(stderr);
+  };
+}
 
 int run(const Options& o) {
   HapticParams haptic;
@@ -49,7 +70,7 @@ int run(const Options& o) {
     std::cerr << "telex replay: " << e.what() << "\n";
     return 2;
   }
-  const local::ReplayResult r = local::replay_session(o.bag, haptic, surface);
+  const local::ReplayResult r = local::replay_session(o.bag, haptic, surface, progress_line());
   if (o.json) {
     nlohmann::json j{{"rows", r.rows},
                      {"rms_diff_N", r.rms_diff_N},

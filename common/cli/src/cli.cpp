@@ -185,24 +185,31 @@ CLI::Validator odd_in(int lo, int hi) {
       "ODD " + std::to_string(lo) + ".." + std::to_string(hi));
 }
 
-std::string suggest(const CLI::App& app, std::string_view unknown) {
-  std::string word(unknown);
+std::string closest_name(std::string_view typed, const std::vector<std::string>& names) {
+  std::string word(typed);
   while (!word.empty() && word.front() == '-') word.erase(word.begin());
   std::string best;
   std::size_t best_d = std::max<std::size_t>(2, word.size() / 3) + 1;
-  const auto consider = [&](const std::string& name, const std::string& shown) {
+  for (const auto& shown : names) {
+    std::string_view name = shown;
+    while (!name.empty() && name.front() == '-') name.remove_prefix(1);
     // A cut-short name ("--usb" for "--usb-id") counts as one edit away.
     const bool prefix = word.size() >= 3 && name.rfind(word, 0) == 0;
     const std::size_t d = prefix ? 1 : edit_distance(word, name);
     if (d < best_d) best_d = d, best = shown;
-  };
-  for (const CLI::App* a = &app; a != nullptr; a = a->get_parent()) {
-    for (const CLI::Option* opt : a->get_options())
-      for (const auto& l : opt->get_lnames()) consider(l, "--" + l);
-    if (a == &app)
-      for (const CLI::App* s : subcommands_of(*a)) consider(s->get_name(), s->get_name());
   }
   return best;
+}
+
+std::string suggest(const CLI::App& app, std::string_view unknown) {
+  std::vector<std::string> names;
+  for (const CLI::App* a = &app; a != nullptr; a = a->get_parent()) {
+    for (const CLI::Option* opt : a->get_options())
+      for (const auto& l : opt->get_lnames()) names.push_back("--" + l);
+    if (a == &app)
+      for (const CLI::App* s : subcommands_of(*a)) names.push_back(s->get_name());
+  }
+  return closest_name(unknown, names);
 }
 
 std::optional<int> parse(CLI::App& app, int argc, const char* const* argv) {

@@ -4,6 +4,7 @@
 #include "telex/cli/command_line.h"
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <utility>
 
 #include "telex/cli/cli.h"
@@ -23,7 +24,18 @@ Check Predicate(std::function<std::string(std::string&)> check, const std::strin
   return Check(CLI::Validator(std::move(check), description));
 }
 Check ExistingFile() { return Check(CLI::ExistingFile); }
-Check PositiveNumber() { return Check(CLI::PositiveNumber); }
+// Not CLI::PositiveNumber: that is a range from DBL_MIN, whose message prints the bound as 0
+// ("valid: >= 0") although 0 is refused.
+Check PositiveNumber() {
+  return Check(CLI::Validator(
+      [](std::string& text) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(text, v))
+          return "'" + text + "' is not a number (valid: > 0)";
+        return v > 0.0 && std::isfinite(v) ? std::string() : text + " is out of range (valid: > 0)";
+      },
+      "POSITIVE"));
+}
 
 const Flag& Flag::check(const Check& check) const {
   option_->check(check.validator());

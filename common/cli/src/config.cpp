@@ -5,6 +5,8 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <string_view>
 
 #include "telex/cli/cli.h"
 #include "telex/common/rig.h"
@@ -24,6 +26,26 @@ std::filesystem::path folder_of(const std::string& file) {
   return std::filesystem::absolute(file).lexically_normal().parent_path();
 }
 
+// "line L, column C" of the character at 1-based byte offset `byte` (nlohmann's parse_error::byte,
+// the last character read; one past the end at a truncated end), both counted from 1.
+std::string line_and_column(std::string_view text, std::size_t byte) {
+  const std::size_t at = std::min(byte > 0 ? byte - 1 : 0, text.size());
+  const std::string_view before = text.substr(0, at);
+  const std::size_t line =
+      1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
+  const std::size_t nl = before.rfind('\n');
+  const std::size_t column = at - (nl == std::string_view::npos ? 0 : nl + 1) + 1;
+  return "line " + std::to_string(line) + ", column " + std::to_string(column);
+}
+
+// What nlohmann says is wrong, without its own prefix and position.
+std::string reason_of(const nlohmann::json::parse_error& e) {
+  const std::string what = e.what();
+  for (const char* start : {"syntax error", "invalid"})
+    if (const auto at = what.find(start); at != std::string::npos) return what.substr(at);
+  return what;
+}
+
 class StrictConfig : public CLI::Config {
  public:
   explicit StrictConfig(const CLI::App* app) : app_(app) {}
@@ -39,8 +61,14 @@ class StrictConfig : public CLI::Config {
                            std::istreambuf_iterator<char>());
     std::vector<CLI::ConfigItem> items;
     if (is_json(file, text)) {
-      nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-      if (j.is_discarded() || !j.is_object())
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(text);
+      } catch (const nlohmann::json::parse_error& e) {
+        throw CLI::ConfigError(file + " " + line_and_column(text, e.byte) + ": not valid JSON (" +
+                               reason_of(e) + ")");
+      }
+      if (!j.is_object())
         throw CLI::ConfigError(file + ": not a JSON object (keys = long option names)");
       for (auto it = j.begin(); it != j.end(); ++it)
         items.push_back(json_item(file, it.key(), *it));

@@ -93,6 +93,8 @@ void HapticLoop::ticks(std::stop_token stop) {
       model_.restart_output();
     }
     if (prev == 0) t0_ns_.store(now, std::memory_order_release);
+    surfaces_.take(newest);
+    tracker_->see_surface(newest.get());  // a scripted hand aims at what it will be felt against
     if (tracker_->poll(now, hand)) {
       hand_for_surface_.publish(hand);
       hand_for_view_.publish(hand);
@@ -102,7 +104,6 @@ void HapticLoop::ticks(std::stop_token stop) {
         head_out_.publish({hand.time_ns, ++head_samples_, hand.R_BaseCamera});
       if (hand.bodies_fresh && hand.body_count > 0) bodies_.push(hand);
     }
-    surfaces_.take(newest);
     const bool fresh = now - hand.time_ns <= tracking_stale_ns;
     const glm::dmat3 from_model = model_tick(now, newest, hand, fresh, in, out);
     for (int i = 0; i < kFingerCount; ++i) {

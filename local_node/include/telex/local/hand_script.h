@@ -5,6 +5,7 @@
 #include <array>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -37,6 +38,9 @@ class HandScript {
   static HandScript load(const std::filesystem::path& path);
 
   double duration_s() const { return duration_s_; }
+  // The surface depth a built-in script was planned for; nothing for a file (its positions are
+  // where the file puts them).
+  std::optional<double> planned_surface_depth_m() const { return planned_depth_m_; }
   bool has_finger(int finger) const { return !keys_[finger].empty(); }
   glm::dvec3 position(int finger, double t_s) const;  // clamped to the finger's first/last key
   // Tips at t: positions, velocities by a 1 ms backward finite difference, axis (1,0,1)/sqrt2 (the
@@ -49,14 +53,25 @@ class HandScript {
  private:
   std::array<std::vector<ScriptKey>, kFingerCount> keys_{};
   double duration_s_ = 0;
+  std::optional<double> planned_depth_m_;
 };
 
 // Runs a script on the caller's clock from its first poll. Once (returns false after the final
 // state has been delivered, so the daemon sees the tracker stop and releases forces) or repeated.
+// A built-in script aims at the surface it is shown (see_surface): the whole gesture slides along
+// the optical axis (at most kFollowSpeedMps) so that it meets the surface under its fingertip as
+// planned, so a press planned against the first frame's centre still reaches a scene that moved,
+// or whose centre lay elsewhere. It slides toward a deeper surface always, toward a nearer one only
+// while the fingertip is in front of it: a press is never chased by what it presses.
 class ScriptTracker final : public HandTracker {
  public:
+  static constexpr double kFollowSpeedMps = 0.2;
+
   ScriptTracker(HandScript script, std::string name, bool repeat);
   bool poll(std::int64_t now_ns, HandState& out) override;
+  void see_surface(const Surface* newest) override { surface_ = newest; }
+  // How far (m, along +z) the gesture has slid from where it was planned.
+  double aim_offset_m() const { return offset_m_; }
   std::string name() const override { return name_; }
   TrackerStats stats() const override { return stats_.snapshot(); }
   bool finished() const { return finished_; }
@@ -70,6 +85,10 @@ class ScriptTracker final : public HandTracker {
   std::int64_t start_ns_ = 0;
   std::int64_t last_ns_ = 0;
   TrackerCounters stats_;
+  // Aiming (built-in scripts only).
+  void aim(double dt_s, HandState& out);
+  const Surface* surface_ = nullptr;
+  double offset_m_ = 0.0;
 };
 
 }  // namespace telex::local

@@ -7,6 +7,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -160,9 +161,13 @@ std::vector<RecordedSurface> read_session_depth(const std::string& bag_path,
 void read_session_config(const std::string& bag_path, HapticParams& haptic, SurfaceOptions& surface,
                          double& rate_hz);
 
+// Told the fraction (0..1] of a session's recorded ticks a replay has re-run: about every per cent,
+// and 1 at the end.
+using ReplayProgress = std::function<void(double done)>;
+
 // Re-runs the surface build (over the whole frame) and the force model, tick by tick, on the
 // recorded depth and fingertips, and compares with the recorded forces.
 ReplayResult replay_session(const std::string& bag_path, const HapticParams& haptic,
-                            const SurfaceOptions& surface);
+                            const SurfaceOptions& surface, const ReplayProgress& progress = {});
 
 }  // namespace telex::local

@@ -17,6 +17,10 @@
 #include "telex/haptics/body.h"
 #include "telex/local/hand_model.h"
 
+namespace telex {
+struct Surface;  // telex/haptics/haptic_surface.h
+}  // namespace telex
+
 namespace telex::local {
 
 inline constexpr int kFingerCount = 5;  // 0 thumb, 1 index, 2 middle, 3 ring, 4 little
@@ -130,8 +134,9 @@ struct TrackerCounters {
 
 // Everything a tracker spec may need beyond its own string.
 struct TrackerConfig {
-  // Depth (m) of the surface at the image centre; scripted hands aim at it. The daemon sets it
-  // from the first received surface before creating a script tracker.
+  // Depth (m) of the surface at the image centre; built-in scripts are planned against it, then
+  // aim at the surface they are shown (ScriptTracker). The daemon sets it from the first received
+  // surface before creating a script tracker.
   double surface_depth_m = 0.8;
   bool repeat = false;  // scripts: loop instead of running once
 
@@ -177,6 +182,10 @@ class HandTracker {
   // Non-blocking: fills `out` with the newest state and returns true when a state newer than the
   // last one returned is available. Never throws, never allocates on the steady path.
   virtual bool poll(std::int64_t now_ns, HandState& out) = 0;
+  // The surface the fingertips are felt against now (null: none yet), given on the polling thread
+  // before each poll and valid until the next call. A scripted hand aims at it; a tracked one
+  // follows the operator and ignores it.
+  virtual void see_surface(const Surface* /*newest*/) {}
   virtual std::string name() const = 0;
   virtual TrackerStats stats() const = 0;
   // Its receive thread's scheduling (try_realtime's description); empty without a thread.

@@ -45,6 +45,10 @@ void write_new_key_file(const std::filesystem::path& path);
 void check_key_file_permissions(const std::filesystem::path& path,
                                 const char* what = "pre-shared key file");
 
+// `--psk FILE` as both daemons read it: the permissions checked, then the key loaded. Throws
+// std::invalid_argument "--psk: <what is wrong>" for any of the errors above.
+AuthKey load_psk_flag(const std::filesystem::path& path);
+
 // 64 bits from the operating system's random source (session ids).
 std::uint64_t random_u64();
 

@@ -60,8 +60,13 @@ Check IsMember(std::vector<std::string> values);
 Check IsMember(std::initializer_list<int> values);
 // CLI::Validator(check, description): `check` returns "" for a good value, else what is wrong.
 Check Predicate(std::function<std::string(std::string&)> check, const std::string& description);
-// CLI::ExistingFile, CLI::PositiveNumber.
+// The name among `names` closest to `typed` (a typo or a cut-short name), "" when none is close;
+// leading dashes are ignored on both sides. cli::suggest's rule, for a flag's values.
+std::string closest_name(std::string_view typed, const std::vector<std::string>& names);
+
+// CLI::ExistingFile.
 Check ExistingFile();
+// A number > 0 ("--flag: 0 is out of range (valid: > 0)" otherwise).
 Check PositiveNumber();
 
 // One option (CLI::Option*); `->` chains as on CLI11's pointer.
