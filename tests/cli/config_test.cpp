@@ -19,18 +19,8 @@ namespace {
 
 using namespace std::chrono_literals;
 
-struct Outcome {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-Outcome run(const std::string& binary, const std::vector<std::string>& args) {
-  std::vector<std::string> argv = {test::built_binary(binary).string()};
-  argv.insert(argv.end(), args.begin(), args.end());
-  test::Process p(argv, test::scratch_file("out.txt"), test::scratch_file("err.txt"));
-  const auto rc = p.wait(60s);
-  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
-}
+using test::Outcome;
+using test::run;
 
 std::string write_file(const std::string& name, const std::string& text) {
   const auto path = test::scratch_file(name);

@@ -226,4 +226,12 @@ CsvFile read_csv_file(const std::filesystem::path& p) {
   return csv;
 }
 
+Outcome run(const std::string& binary, const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {built_binary(binary).string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Process p(argv, scratch_file("out.txt"), scratch_file("err.txt"));
+  const auto rc = p.wait(std::chrono::seconds(60));
+  return {rc.value_or(-1), p.stdout_text(), p.stderr_text()};
+}
+
 }  // namespace telex::test

@@ -69,6 +69,13 @@ void udp_blurt(std::uint16_t port, const std::vector<std::uint8_t>& bytes);
 // address cannot be bound.
 std::size_t udp_send_from(const std::string& from_address, std::uint16_t port,
                           const std::vector<std::vector<std::uint8_t>>& datagrams);
+// A built program (test::built_binary) run with `args` to its end (at most 60 s; exit_code -1 if
+// it did not end), its output kept in this test's folder.
+struct Outcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+Outcome run(const std::string& binary, const std::vector<std::string>& args);
 // Polls `pred` every 20 ms until it holds or the timeout passes.
 bool eventually(std::chrono::milliseconds timeout, const std::function<bool()>& pred);
 

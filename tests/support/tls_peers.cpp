@@ -166,14 +166,12 @@ void ConnectionCrowd::run() {
         if (::poll(&p, 1, 0) == 1 && ::recv(fd, &c, 1, MSG_DONTWAIT) <= 0) {
           ::close(fd);
           fd = -1;
-          --open_;
         }
       }
       if (fd < 0 && !stop_) {
         fd = connect_from(sources_[next_source++ % sources_.size()], port_);
         if (fd < 0) continue;
         ++connects_;
-        ++open_;
         if (kind_ == Kind::HalfOpen)
           (void)!::send(fd, kPartialRecord, sizeof kPartialRecord, MSG_NOSIGNAL);
       }

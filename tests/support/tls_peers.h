@@ -59,7 +59,6 @@ class ConnectionCrowd {
   ConnectionCrowd(std::uint16_t port, int count, Kind kind, std::vector<std::string> sources);
   ~ConnectionCrowd();
   long connects() const { return connects_.load(); }  // including the first ones
-  int open_now() const { return open_.load(); }
 
  private:
   void run();
@@ -69,7 +68,6 @@ class ConnectionCrowd {
   std::vector<std::string> sources_;
   std::atomic<bool> stop_{false};
   std::atomic<long> connects_{0};
-  std::atomic<int> open_{0};
   std::thread thread_;
 };
 
