@@ -58,6 +58,7 @@ const std::vector<ProgramCase>& cases() {
        {"--operating-mode", "x"},
        {{"--operating-mode", "99"}}},
       {"telex-sim-impair", {}, "--bogus", "", {"--loss", "x"}, {{"--loss", "2"}}},
+      {"telex-sim-display", {}, "--apend", "--append", {"--duration", "x"}, {{"--duration", "-1"}}},
       {"telex",
        {"bench"},
        "--quik",

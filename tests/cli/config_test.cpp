@@ -164,7 +164,7 @@ TEST(JsonSummary, StdoutIsOneJsonDocument) {
 
 TEST(HelpJson, EveryProgramDescribesItsOptionsAsJson) {
   for (const char* program : {"telex-remote", "telex-local", "telex", "telex-sim-natnet",
-                              "telex-sim-dynamixel", "telex-sim-impair"}) {
+                              "telex-sim-dynamixel", "telex-sim-impair", "telex-sim-display"}) {
     const Outcome o = run(program, {"--help-json"});
     ASSERT_EQ(o.exit_code, 0) << program << ": " << o.err;
     nlohmann::json j;

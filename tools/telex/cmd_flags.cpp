@@ -74,8 +74,9 @@ void markdown(const nlohmann::json& j, std::ostream& out) {
 }
 
 // The programs docs/FLAGS.md holds besides telex, in its order: both daemons and the simulators.
-const std::vector<std::string> kSiblings = {"telex-remote", "telex-local", "telex-sim-natnet",
-                                            "telex-sim-dynamixel", "telex-sim-impair"};
+const std::vector<std::string> kSiblings = {"telex-remote",     "telex-local",
+                                            "telex-sim-natnet", "telex-sim-dynamixel",
+                                            "telex-sim-impair", "telex-sim-display"};
 
 // The sibling programs beside this telex (one build or install directory); none when one is
 // absent, which `missing` then names.
