@@ -18,16 +18,16 @@ namespace {
 telex::cli::Check motion_check() {
   return telex::cli::Predicate(
       [](std::string& text) -> std::string {
-        const std::vector<std::string> builtin{"press", "head-turns"};
+        const std::vector<std::string> builtin{"press", "hold", "head-turns"};
         if (std::find(builtin.begin(), builtin.end(), text) != builtin.end() ||
             std::filesystem::is_regular_file(text))
           return {};
         const std::string near = telex::cli::closest_name(text, builtin);
         return "'" + text + "' is neither a built-in motion nor a file" +
                (near.empty() ? "" : " (did you mean " + near + "?)") +
-               " (valid: press, head-turns, or a CSV file)";
+               " (valid: press, hold, head-turns, or a CSV file)";
       },
-      "press|head-turns|FILE");
+      "press|hold|head-turns|FILE");
 }
 
 }  // namespace
@@ -72,11 +72,13 @@ int main(int argc, char** argv) {
   app.add_option("--data-port", cfg.data_port, "multicast data port")->capture_default_str();
   app.add_option("--interface", cfg.multicast_interface, "multicast outbound interface")
       ->capture_default_str();
-  app.add_option("--motion", motion,
-                 "'press' (hand pushes toward the scene and back, 4 s period), 'head-turns' "
-                 "(press, the head turning as the OpenXR simulator's \"head_path\": \"turns\", "
-                 "through a fixed stage and headset offset: telex/sim/head_turns.h) or a CSV "
-                 "file time_s,body_id,x,y,z,qx,qy,qz,qw")
+  app.add_option(
+         "--motion", motion,
+         "'press' (hand pushes toward the scene and back, 4 s period), 'hold' (with --reach: "
+         "the index tip held 2 cm into the surface), 'head-turns' "
+         "(press, the head turning as the OpenXR simulator's \"head_path\": \"turns\", "
+         "through a fixed stage and headset offset: telex/sim/head_turns.h) or a CSV "
+         "file time_s,body_id,x,y,z,qx,qy,qz,qw")
       ->capture_default_str()
       ->check(motion_check());
   app.add_flag("!--no-loop", loop, "play a CSV recording once instead of looping");
@@ -88,15 +90,20 @@ int main(int argc, char** argv) {
                  "path")
       ->check(telex::cli::Range(0.35, 5.0));
   if (const auto rc = program.parse(argc, argv)) return *rc;
-  if (reach_m > 0.0 && motion != "press") {
+  if (reach_m > 0.0 && motion != "press" && motion != "hold") {
     std::cerr << "telex-sim-natnet: --reach moves the press motion; it does not apply to --motion "
               << motion << "\n";
+    return 2;
+  }
+  if (motion == "hold" && reach_m <= 0.0) {
+    std::cerr << "telex-sim-natnet: --motion hold needs --reach (the surface's depth, m)\n";
     return 2;
   }
 
   try {
     cfg.version = natnet::parse_version(version);
     NatNetMotion fn = motion == "head-turns" ? natnet_head_turns(cfg.reported_latency_s)
+                      : motion == "hold"     ? natnet_hold_toward(reach_m)
                       : motion != "press"    ? load_natnet_csv(motion, loop)
                       : reach_m > 0.0        ? natnet_press_toward(reach_m)
                                              : NatNetMotion(natnet_press_motion);

@@ -93,6 +93,16 @@ NatNetMotion natnet_press_toward(double surface_depth_m) {
   };
 }
 
+NatNetMotion natnet_hold_toward(double surface_depth_m) {
+  if (!std::isfinite(surface_depth_m) || surface_depth_m < 0.35 || surface_depth_m > 5.0)
+    throw std::invalid_argument("--reach must be in [0.35, 5] m (the surface's depth)");
+  const double tip_ahead_m = press_index_tip_ahead_of_hand_m();
+  const double tip_depth_m = surface_depth_m + 0.5 * kPressTipPastM;
+  return [tip_depth_m, tip_ahead_m](double, natnet::Frame& frame) {
+    press_frame(-(tip_depth_m + kPressEyesAheadOfHeadM) + tip_ahead_m, frame);
+  };
+}
+
 NatNetMotion natnet_head_turns(double reported_latency_s) {
   return [reported_latency_s](double t_s, natnet::Frame& frame) {
     natnet_press_motion(t_s, frame);

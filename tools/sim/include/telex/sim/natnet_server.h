@@ -53,6 +53,9 @@ inline constexpr double kPressTipStartM = 0.30;
 inline constexpr double kPressTipPastM = 0.04;
 inline constexpr double kPressEyesAheadOfHeadM = 0.08;
 NatNetMotion natnet_press_toward(double surface_depth_m);
+// The same hand held still with the index tip kPressTipPastM / 2 beyond the surface: a steady
+// press, so a fault shows as the force leaving and coming back (tools/fault_soak.sh).
+NatNetMotion natnet_hold_toward(double surface_depth_m);
 // How far ahead of the hand body the straight index fingertip is in the press's hand orientation.
 double press_index_tip_ahead_of_hand_m();
 
