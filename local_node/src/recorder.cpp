@@ -4,6 +4,7 @@
 #include "telex/local/recorder.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
@@ -222,10 +223,22 @@ RecorderStats SessionRecorder::finish() {
 
 void SessionRecorder::writer_loop(std::stop_token stop) {
   const bool ok = fault_.run([&] {
-    while (!stop.stop_requested())
-      if (!write_pending()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    // The producers have stopped: write what they left.
-    while (write_pending()) {
+    try {
+      while (!stop.stop_requested())
+        if (!write_pending()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      // The producers have stopped: write what they left.
+      while (write_pending()) {
+      }
+    } catch (const std::exception& e) {
+      // A write failed (a full disk): the recording stops here and the station goes on; what
+      // comes after is counted as dropped, and telex-local exits 1 naming this at its end.
+      spdlog::error(
+          "recording stopped: {}; the haptics and the view go on, telex-local will "
+          "exit 1 at its end (the bag keeps every whole chunk before this: `rosbag "
+          "reindex` reads it back)",
+          e.what());
+      std::lock_guard lock(error_mu_);
+      error_ = e.what();
     }
   });
   if (!ok) {

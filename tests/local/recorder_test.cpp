@@ -6,14 +6,17 @@
 
 #include <gtest/gtest.h>
 #include <pty.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "process.h"
@@ -44,7 +47,10 @@ Session record_stroke(const std::string& path, const HapticParams& haptic,
   rc.force_rate_hz = record_rate_hz;
   rc.monotonic_to_bag_ns = 1'700'000'000'000'000'000;
   rc.config_json = session_config_json(haptic, surface, 1000.0).dump();
+  // Queues that hold the whole session (3000 ticks, 91 surfaces): the loop below does not wait
+  // for the writer, and a loaded machine's writer may fall behind it.
   rc.tick_queue = 1 << 14;
+  rc.surface_queue = 128;
   SessionRecorder recorder(rc);
 
   const Intrinsics k = kinect_v1_intrinsics(160, 120);
@@ -267,6 +273,70 @@ TEST(SessionRecorder, AFullQueueDropsAndCountsAndNeverWaits) {
     if (t.topic == kFingertipsTopic) {
       EXPECT_EQ(t.messages, accepted);
     }
+}
+
+// A full disk (found by tools/fault_soak.sh): the failed write used to fault the recorder's thread,
+// which stopped the station, and the bag library's destructor then threw again from the failed
+// close (std::terminate). Now the recording stops with its error, the recorder takes and drops
+// what comes after, and nothing ends the process. The disk fills here at a file-size limit
+// (RLIMIT_FSIZE, SIGXFSZ ignored): writes past it fail as on a full disk.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    ::getrlimit(RLIMIT_FSIZE, &saved_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit lim = saved_;
+    lim.rlim_cur = bytes;
+    ::setrlimit(RLIMIT_FSIZE, &lim);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &saved_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit saved_{};
+  void (*old_handler_)(int) = SIG_DFL;
+};
+
+TEST(SessionRecorder, AFullDiskStopsTheRecordingOnlyAndNeverEndsTheProcess) {
+  const auto path = temp_bag("full.bag").string();
+  RecorderConfig rc;
+  rc.path = path;
+  rc.monotonic_to_bag_ns = 1'700'000'000'000'000'000;
+  rc.surface_queue = 4;
+  std::uint64_t offered = 0;
+  const FileSizeLimit full(4 << 20);
+  {
+    SessionRecorder recorder(rc);
+    const Intrinsics k = kinect_v1_intrinsics(640, 480);
+    // Noise, so the LZ4 chunks stay large: a few of them fill the 4 MiB.
+    cv::Mat1w depth(480, 640);
+    cv::randu(depth, 500, 4000);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (recorder.stats().error.empty() && std::chrono::steady_clock::now() < deadline) {
+      ++offered;
+      const auto t = static_cast<std::int64_t>(offered) * 33'000'000;
+      recorder.add_surface({offered, t, t, depth.clone(), k, ""});
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    const RecorderStats failed = recorder.stats();
+    ASSERT_NE(failed.error, "") << "no write failed past 4 MiB after " << offered << " surfaces";
+    EXPECT_NE(failed.error.find(path), std::string::npos) << failed.error;
+    EXPECT_GT(failed.surfaces, 0u);
+    EXPECT_FALSE(recorder.thread_fault().has_value())
+        << "a full disk is the recording's failure, not a fault that stops the station";
+    // Afterwards the recorder still takes what it is given, without waiting, and drops it.
+    for (int i = 0; i < 20; ++i) recorder.add_surface({0, 0, 0, depth.clone(), k, ""});
+    const RecorderStats end = recorder.finish();
+    EXPECT_EQ(end.error, failed.error);
+    EXPECT_GT(end.dropped_surfaces, 0u);
+    std::printf("the recording stopped after %llu of %llu surfaces: %s\n",
+                static_cast<unsigned long long>(end.surfaces),
+                static_cast<unsigned long long>(offered), end.error.c_str());
+  }  // the destructor: before, std::terminate from the bag library's second close
 }
 
 TEST(SessionRecorder, BadPathsAndBagsThatAreNotSessionsAreNamed) {

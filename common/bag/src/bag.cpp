@@ -14,6 +14,7 @@
 
 #include <cstring>
 #include <map>
+#include <memory>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <stdexcept>
@@ -241,15 +242,26 @@ std::int64_t ros_ns(std::uint32_t sec, std::uint32_t nsec) {
 
 struct Writer::Impl {
   std::string path;
-  rosbag::Bag bag;
+  std::unique_ptr<rosbag::Bag> bag = std::make_unique<rosbag::Bag>();
   bool open = false;
+
+  // After a failed write or close (a full disk) the library's Bag cannot be closed: its
+  // destructor calls close() again, which throws again (the chunk still cannot be written) and,
+  // thrown from a destructor, ends the process. The Bag is given up instead (its memory and its
+  // file handle are kept until exit) and the file keeps what was written: every whole chunk
+  // before the failure, which `rosbag reindex` reads back.
+  void abandon() {
+    open = false;
+    (void)bag.release();  // deliberately kept, see above
+  }
 
   template <typename M>
   void write(const std::string& topic, std::int64_t time_ns, const M& msg) {
     if (!open) throw std::runtime_error("bag " + path + " is closed");
     try {
-      bag.write(topic, to_ros(time_ns), msg);
+      bag->write(topic, to_ros(time_ns), msg);
     } catch (const std::exception& e) {
+      abandon();
       throw std::runtime_error("cannot write " + topic + " to bag " + path + ": " + e.what());
     }
   }
@@ -258,13 +270,14 @@ struct Writer::Impl {
 Writer::Writer(const std::string& path, Compression compression) : impl_(new Impl) {
   impl_->path = path;
   try {
-    impl_->bag.open(path, rosbag::bagmode::Write);
+    impl_->bag->open(path, rosbag::bagmode::Write);
   } catch (const std::exception& e) {
+    impl_->abandon();  // a header that could not be written cannot be closed either
     throw std::runtime_error("cannot create bag " + path + ": " + e.what());
   }
-  impl_->bag.setCompression(compression == Compression::Lz4   ? rosbag::compression::LZ4
-                            : compression == Compression::Bz2 ? rosbag::compression::BZ2
-                                                              : rosbag::compression::Uncompressed);
+  impl_->bag->setCompression(compression == Compression::Lz4   ? rosbag::compression::LZ4
+                             : compression == Compression::Bz2 ? rosbag::compression::BZ2
+                                                               : rosbag::compression::Uncompressed);
   impl_->open = true;
 }
 
@@ -280,8 +293,9 @@ void Writer::close() {
   if (!impl_->open) return;
   impl_->open = false;
   try {
-    impl_->bag.close();
+    impl_->bag->close();
   } catch (const std::exception& e) {
+    impl_->abandon();
     throw std::runtime_error("cannot close bag " + impl_->path + ": " + e.what());
   }
 }
