@@ -76,7 +76,16 @@ struct SurfaceClient::Impl {
   std::array<std::uint8_t, 2048> udp_buf{};
   udp::endpoint udp_from;
   static constexpr std::size_t kMaxQueued = 64;
-  std::deque<std::vector<std::uint8_t>> out_queue;  // front: being written while `writing`
+  // The kernel's send buffer for the link (SO_SNDBUF; Linux doubles it): the upstream is small
+  // (head commands at 200 Hz, NACKs, reports), and what the kernel holds during a stall arrives
+  // as a burst of old head targets afterwards. 16 KiB still leaves a window of 160 KB/s at a
+  // 200 ms round trip.
+  static constexpr int kUpstreamSendBuffer = 16 * 1024;
+  struct Outgoing {
+    std::vector<std::uint8_t> bytes;
+    bool head = false;  // a head command: only the newest waiting one is worth sending
+  };
+  std::deque<Outgoing> out_queue;  // front: being written while `writing`
   bool writing = false;
 
   // With TLS, after the handshake: opens the remote's datagrams (remote->station key).
@@ -111,10 +120,21 @@ struct SurfaceClient::Impl {
     h.session_id = session_id;
     h.seq = seq++;
     h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
-    out_queue.push_back(proto::encode_stream(h, m));
+    const bool head = std::holds_alternative<proto::HeadCommand>(m);
+    // A head command replaces one still waiting: the remote wants the operator's newest pose,
+    // not a backlog of old ones (judged by their age at arrival, they would be held anyway).
+    // Never the front while a write is in flight: async_write reads that buffer until its
+    // handler runs, and the handler pops it.
+    if (head) {
+      const auto waiting = out_queue.begin() + (writing ? 1 : 0);
+      const auto before = out_queue.size();
+      out_queue.erase(
+          std::remove_if(waiting, out_queue.end(), [](const Outgoing& o) { return o.head; }),
+          out_queue.end());
+      stats.upstream_dropped.fetch_add(before - out_queue.size());
+    }
+    out_queue.push_back({proto::encode_stream(h, m), head});
     // A stuck link must not grow memory: past kMaxQueued drop the oldest message still waiting.
-    // Never the front while a write is in flight: async_write reads that buffer until its handler
-    // runs, and the handler pops it.
     if (out_queue.size() > kMaxQueued) {
       out_queue.erase(out_queue.begin() + (writing ? 1 : 0));
       stats.upstream_dropped.fetch_add(1);
@@ -130,7 +150,7 @@ struct SurfaceClient::Impl {
     writing = true;
     const auto gen = generation;
     // The handler keeps the stream alive: a TLS stream must outlive its operations.
-    link->async_write(asio::buffer(out_queue.front()),
+    link->async_write(asio::buffer(out_queue.front().bytes),
                       [this, gen, keep = link](boost::system::error_code ec, std::size_t) {
                         if (gen != generation) return;
                         if (!out_queue.empty()) out_queue.pop_front();
@@ -166,6 +186,7 @@ struct SurfaceClient::Impl {
     stats.connects.fetch_add(1);
     boost::system::error_code ec;
     tcp_sock.set_option(tcp::no_delay(true), ec);
+    tcp_sock.set_option(asio::socket_base::send_buffer_size(kUpstreamSendBuffer), ec);
     link = tls_ctx ? std::make_shared<proto::LinkStream>(std::move(tcp_sock), *tls_ctx)
                    : std::make_shared<proto::LinkStream>(std::move(tcp_sock));
     tcp_sock = tcp::socket(io);

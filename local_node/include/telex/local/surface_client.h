@@ -31,7 +31,9 @@ struct ClientConfig {
   std::int64_t heartbeat_ns = 250'000'000;
   std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
   std::int64_t backoff_min_ns = 100'000'000;
-  std::int64_t backoff_max_ns = 1'000'000'000;
+  // At most half a second between attempts: a remote that was restarted is streaming to the
+  // station within about that of its start (tools/fault_soak.sh: remote_kill).
+  std::int64_t backoff_max_ns = 500'000'000;
   proto::DecodeLimits limits{};
   // Fault tests put telex-sim-impair in the depth path: bind UDP on udp_bind_port (0 = any) and
   // tell the remote to send to udp_announce_port (0 = the bound port), where the proxy listens.
@@ -62,7 +64,8 @@ struct ClientStats {
   // Depth-stream messages seen, by fragment count (ReassemblerCounters::messages_by_fragments).
   std::array<std::atomic<std::uint64_t>, 8> udp_messages_by_fragments{};
   std::atomic<std::uint64_t> dropped_malformed{0};  // parser + reassembler rejections
-  // Messages to the remote dropped unsent because 64 were already queued behind a stalled write.
+  // Messages to the remote dropped unsent: a head command replaced by a newer one while it waited,
+  // or the oldest waiting message when 64 were already queued behind a stalled write.
   std::atomic<std::uint64_t> upstream_dropped{0};
   std::atomic<std::uint64_t> dropped_foreign{0};  // wrong session or source
   // Authentication: auth_failed counts TLS handshakes that the TLS layer failed (another key, a
