@@ -327,7 +327,8 @@ void add_output_options(CLI::App& app, StationFlags& f) {
 // Keys and certificates (docs/PROTOCOL.md).
 void add_security_options(CLI::App& app, StationFlags& f) {
   app.add_option("--psk", f.psk_file,
-                 "pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "pre-shared key FILE (32..1024 random bytes, mode 0600; `telex keygen FILE` "
+                 "writes one): TLS 1.3 with this key and "
                  "(EC)DHE on TCP, sealed datagrams on UDP; the remote needs the same key");
   app.add_option("--cert", f.cert_file,
                  "this station's certificate chain FILE (PEM), instead of --psk; with --key, --ca");

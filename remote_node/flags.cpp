@@ -350,6 +350,11 @@ void add_run_options(CLI::App& app, RemoteFlags& f) {
   app.add_option("--duration", f.cfg.duration_s, "Stop after S seconds (0 = until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-stats", f.no_stats, "No stats line every second");
+  app.add_option("--stats", f.stats_form,
+                 "The stats line every second: short (rates, the station, the eyes, the head and "
+                 "the problem counters that are not zero) | full (every counter and stage time)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"short", "full"}));
   app.add_flag("--no-realtime", f.no_realtime,
                "Do not try SCHED_FIFO for the threads from capture to the network and the head "
                "loop (the default keeps other programs on this machine from delaying depth)");
@@ -373,7 +378,8 @@ void add_head_options(CLI::App& app, RemoteFlags& f) {
 // TLS: a pre-shared key or certificates, or --insecure off loopback.
 void add_security_options(CLI::App& app, RemoteFlags& f) {
   app.add_option("--psk", f.psk_file,
-                 "Pre-shared key FILE (16..1024 raw bytes, mode 0600): TLS 1.3 with this key and "
+                 "Pre-shared key FILE (32..1024 random bytes, mode 0600; `telex keygen FILE` "
+                 "writes one): TLS 1.3 with this key and "
                  "(EC)DHE on TCP, sealed datagrams on UDP; the station needs the same key");
   app.add_option(
       "--cert", f.cert_file,
@@ -499,6 +505,7 @@ void resolve_remote_flags(const CLI::App& app, RemoteFlags& f) {
   f.cfg.pipeline.fill = f.fill && !f.no_fill;
   f.cfg.pipeline.temporal_fill = !f.no_temporal;
   f.cfg.stats_line = !f.no_stats;
+  f.cfg.stats_full = f.stats_form == "full";
   f.cfg.realtime = !f.no_realtime;
   resolve_security(f);
   validate(f.cfg);

@@ -28,7 +28,7 @@ constexpr unsigned char kSuiteId[2] = {0x13, 0x02};
 constexpr std::size_t kPskBytes = 48;  // one SHA-384 output
 
 // The TLS PSK of a key file: HKDF-SHA384 (RFC 5869) of its bytes, so key files of any allowed
-// length (16..1024 bytes) give an external PSK of the suite's hash length.
+// length (32..1024 bytes, auth.h kMinKeyBytes) give an external PSK of the suite's hash length.
 struct Psk {
   std::array<unsigned char, kPskBytes> bytes{};
   ~Psk() { OPENSSL_cleanse(bytes.data(), bytes.size()); }
