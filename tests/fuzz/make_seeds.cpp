@@ -139,6 +139,75 @@ std::vector<telex::proto::Message> messages() {
   return m;
 }
 
+// natnet_reply_fuzz: byte 0 = the client's configured version (index into 2.0 2.3 2.5 2.6 2.7
+// 2.9 2.11 3.0 3.1 4.0 4.1; 11 = none), then records of u16 length, u8 ms since the last, datagram.
+void natnet_reply_seeds(const fs::path& dir) {
+  using namespace telex::local::natnet;
+  const Version versions[] = {{2, 0},  {2, 3}, {2, 5}, {2, 6}, {2, 7}, {2, 9},
+                              {2, 11}, {3, 0}, {3, 1}, {4, 0}, {4, 1}};
+  const auto record = [](std::uint8_t dt_ms, const Bytes& datagram) {
+    return cat({{static_cast<std::uint8_t>(datagram.size()),
+                 static_cast<std::uint8_t>(datagram.size() >> 8), dt_ms},
+                datagram});
+  };
+  ModelDefs defs;
+  defs.rigid_bodies.push_back({"head", 1, -1, {0.0f, 0.1f, 0.0f}});
+  defs.rigid_bodies.push_back({"hand", 2, 1, {0.02f, 0.0f, -0.01f}});
+  const auto frame_at = [](std::uint32_t n, double t_s, float x_m) {
+    Frame f;
+    f.frame_number = n;
+    f.timestamp_s = t_s;
+    f.stamp_mid_exposure = 1'000'000 + n * 10'000;
+    f.stamp_transmit = f.stamp_mid_exposure + 4'000;
+    f.software_latency_s = 0.004f;
+    RigidBody head;
+    head.id = 1;
+    head.p_m = {0.0f, 1.6f, 0.3f};
+    RigidBody hand;
+    hand.id = 2;
+    hand.p_m = {x_m, 1.2f, 0.4f};
+    hand.qx = 0.7071068f;
+    hand.qw = 0.7071068f;
+    hand.markers.push_back(hand.p_m);
+    f.rigid_bodies = {head, hand};
+    f.labeled_markers.push_back({65537, {0.5f, 0.5f, 0.5f}, 0.01f, 1, 0.001f});
+    return f;
+  };
+  for (std::uint8_t i = 0; i < std::size(versions); ++i) {
+    const Version v = versions[i];
+    ServerInfo info;
+    info.app_name = "Motive";
+    info.app_version = {3, 0, 1, 0};
+    info.natnet_version = v;
+    info.high_res_clock_hz = 10'000'000;
+    info.data_port = 1511;
+    info.multicast = true;
+    info.multicast_group = {239, 255, 42, 99};
+    // As the client meets a server: its info, the model definitions, frames, the echo reply.
+    const Bytes session =
+        cat({record(0, make_server_info(info)), record(1, make_model_defs(defs, v)),
+             record(8, encode_frame(frame_at(100, 1.000, 0.10f), v)),
+             record(8, encode_frame(frame_at(101, 1.008, 0.11f), v)),
+             record(1, make_echo_reply(12345, 67890, v)),
+             record(9, encode_frame(frame_at(102, 1.016, 0.12f), v))});
+    const std::string name = std::to_string(v.major) + "_" + std::to_string(v.minor);
+    write(dir, "session_v" + name, cat({{11}, session}));
+    // Configured with the version (version=X.Y): frames parse before any server info.
+    write(dir, "configured_v" + name,
+          cat({{i},
+               record(8, encode_frame(frame_at(7, 0.5, 0.2f), v)),
+               record(8, encode_frame(frame_at(8, 0.508, 0.2f), v))}));
+  }
+  // What the client reads nothing of but the framing: a message string, a command response, an
+  // unrecognized request.
+  const std::string text = "Motive: recording started";
+  write(dir, "replies",
+        cat({{11},
+             record(0, make_packet(kMessageString, Bytes(text.begin(), text.end()))),
+             record(0, make_packet(kResponse, Bytes{1, 0, 0, 0})),
+             record(0, make_packet(kUnrecognizedRequest, {}))}));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -369,6 +438,7 @@ int main(int argc, char** argv) {
     video::stamp_head_pose(posed, {0.5f, -0.25f, 0.0f});
     write(out / "video_header_fuzz", "h264_head_pose", posed);
   }
+  natnet_reply_seeds(out / "natnet_reply_fuzz");
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;
 }
