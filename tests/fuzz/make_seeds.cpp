@@ -437,6 +437,25 @@ int main(int argc, char** argv) {
     Bytes posed = pair(video::VideoCodec::H264, false, Bytes{0, 0, 0, 1, 0x41, 0x9a});
     video::stamp_head_pose(posed, {0.5f, -0.25f, 0.0f});
     write(out / "video_header_fuzz", "h264_head_pose", posed);
+    // Protocol 7's posed pairs: intra MJPEG, joints at the bounds (+-pi), no payload, widest eyes.
+    Bytes mjpeg = pair(video::VideoCodec::Mjpeg, true, Bytes{2, 0, 0, 0, 0xff, 0xd8, 0xff, 0xd8});
+    video::stamp_head_pose(mjpeg, {-0.1f, 0.2f, -0.3f});
+    write(out / "video_header_fuzz", "mjpeg_head_pose", mjpeg);
+    const float pi = 3.14159265358979323846f;
+    Bytes bounds = pair(video::VideoCodec::H264, true, Bytes{0, 0, 0, 1, 0x65});
+    video::stamp_head_pose(bounds, {pi, -pi, 0.0f});
+    write(out / "video_header_fuzz", "h264_head_pose_pi", bounds);
+    Bytes empty = pair(video::VideoCodec::H264, false, {});
+    video::stamp_head_pose(empty, {0.0f, 0.0f, 0.0f});
+    write(out / "video_header_fuzz", "empty_payload_head_pose", empty);
+    video::EncodedFrameHeader wide;
+    wide.codec = video::VideoCodec::Mjpeg;
+    wide.eye_width_px = video::kMaxEyeSidePx;
+    wide.eye_height_px = 1;
+    wide.head_joint_rad = std::array<float, 3>{1.0f, 1.0f, 1.0f};
+    Bytes w;
+    video::serialize_header(wide, w);
+    write(out / "video_header_fuzz", "mjpeg_widest_head_pose", w);
   }
   natnet_reply_seeds(out / "natnet_reply_fuzz");
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
