@@ -208,6 +208,34 @@ void natnet_reply_seeds(const fs::path& dir) {
              record(0, make_packet(kUnrecognizedRequest, {}))}));
 }
 
+// config_fuzz: byte 0 = the file's name (0 .toml, 1 .json, 2 .conf), then a telex-local config.
+void config_seeds(const fs::path& dir) {
+  const auto text = [](std::uint8_t kind, const std::string& t) {
+    return cat({{kind}, Bytes(t.begin(), t.end())});
+  };
+  write(
+      dir, "station.toml",
+      text(0,
+           "# telex-local at the desk\nconnect = \"192.168.1.20:7300\"\ntransport = \"udp\"\n"
+           "hand = \"natnet:192.168.1.10,unicast,version=3.1\"\nhead-body = 1\nhand-body = 2\n"
+           "max-force = 2.5\nstiffness = 400.0\nno-realtime = true\nrig = \"rig.json\"\n"
+           "psk = \"telex.key\"\nlog-forces = \"logs/forces.csv\"\nhaptics = \"sim:display.csv\"\n"
+           "view = \"png:view\"\nduration = 30\n"));
+  write(dir, "station.json",
+        text(1,
+             "{\"connect\": \"127.0.0.1:7300\", \"transport\": \"tcp\", \"rate\": 1000, "
+             "\"repeat\": true, \"elbow-bodies\": \"4,5\", \"udp-port\": 0, \"ramp\": 1.5, "
+             "\"rig\": \"../rig/desk.json\", \"gg-config\": \"gg.json\", "
+             "\"hand\": \"script:press\", \"quiet\": false}"));
+  write(dir, "station_json.conf",
+        text(2, "  {\"eye-size\": \"1280x720\", \"view-layout\": \"fig7\", \"warp\": \"off\"}"));
+  write(dir, "lists.toml",
+        text(0,
+             "[default]\nduration = 0.5\nview = 'png:/tmp/v'\nhead-rate = 200.0\n"
+             "deadman = \"evdev:/dev/input/event3\"\n"));
+  write(dir, "typo.toml", text(0, "duraton = 1\n"));
+  write(dir, "wrong_type.json", text(1, "{\"no-repair\": 3, \"max-force\": \"strong\"}"));
+}
 
 // parser_fuzz: byte 0 = flags (bit 0 frame size, bit 1 key, chunk size), then a TCP stream.
 void stream_seeds(const fs::path& out, const std::vector<telex::proto::Message>& msgs) {
@@ -476,6 +504,7 @@ int main(int argc, char** argv) {
   dynamixel_seeds(out);
   video_seeds(out);
   natnet_reply_seeds(out / "natnet_reply_fuzz");
+  config_seeds(out / "config_fuzz");
   std::printf("wrote %d seeds under %s\n", g_written, out.c_str());
   return 0;
 }
