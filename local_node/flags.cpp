@@ -76,7 +76,9 @@ void check_tracking_specs(const StationFlags& f) {
   for (const auto& [flag, spec] : {std::pair<const char*, const std::string&>{"--glove", f.glove},
                                    {"--other-glove", f.cfg.tracker.other_glove_spec}}) {
     if (spec.empty()) continue;
-    checked(flag, [&] { check_glove_spec(spec); });
+    // Clang before 16 cannot capture a structured binding (P1091); the fuzz build uses clang 14.
+    const std::string& glove = spec;
+    checked(flag, [&] { check_glove_spec(glove); });
     if (!natnet)
       throw CLI::ValidationError(
           flag,

@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <string>
 #include <vector>
 
 #include "flags.h"
+#include "telex/cli/cli.h"
 #include "telex/local/view_window.h"
 
 namespace telex::local {
@@ -115,6 +117,40 @@ TEST(StationFlags, HapticCpuMustBeOneThisProcessMayRunOn) {
     EXPECT_NE(std::string(e.what()).find("--haptic-cpu"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("may run on"), std::string::npos) << e.what();
   }
+}
+
+// A config file's text, read as telex-local reads the file (telex/cli/cli.h, parse_config_text).
+TEST(StationFlags, ConfigTextIsReadAsTheFileIs) {
+  const auto read = [](const std::string& file, const std::string& text) {
+    StationFlags flags;
+    CLI::App app{"test"};
+    add_station_options(app, flags);
+    cli::parse_config_text(app, file, text);
+    return flags;
+  };
+  const StationFlags toml = read("/etc/telex/station.toml",
+                                 "connect = \"10.0.0.2:7000\"\nmax-force = 2.5\nquiet = true\n"
+                                 "log-forces = \"logs/forces.csv\"\n");
+  EXPECT_EQ(toml.connect, "10.0.0.2:7000");
+  EXPECT_DOUBLE_EQ(toml.cfg.haptic.max_force_N, 2.5);
+  EXPECT_TRUE(toml.quiet);
+  EXPECT_EQ(toml.cfg.log_forces_csv, "/etc/telex/logs/forces.csv");
+  EXPECT_EQ(read("/x/s.json", R"({"transport": "tcp"})").transport, "tcp");
+  for (const auto& [file, text, key] :
+       std::vector<std::array<std::string, 3>>{{"/x/typo.toml", "duraton = 1\n", "'duraton'"},
+                                               {"/x/flag.json", R"({"quiet": 3})", "'quiet'"}}) {
+    try {
+      read(file, text);
+      ADD_FAILURE() << text << " was accepted";
+    } catch (const CLI::ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(read("/x/n.toml", "max-force = \"strong\"\n"), CLI::ParseError);
+  // The rig the daemons look for before their flags, as the file gives it.
+  EXPECT_EQ(cli::value_in_config_text("/x/a.toml", "rig = \"r.json\"\n", "rig"), "r.json");
+  EXPECT_EQ(cli::value_in_config_text("/x/a.json", "{\"rig\": ", "rig"), "");
 }
 
 }  // namespace

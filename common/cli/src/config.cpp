@@ -3,6 +3,7 @@
 // errors; paths in it are relative to its folder.
 #include <algorithm>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -56,7 +57,7 @@ class StrictConfig : public CLI::Config {
   }
 
   std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
-    const std::string file = config_file(*app_);
+    const std::string file = source_.empty() ? config_file(*app_) : source_;
     const std::string text((std::istreambuf_iterator<char>(input)),
                            std::istreambuf_iterator<char>());
     std::vector<CLI::ConfigItem> items;
@@ -98,6 +99,8 @@ class StrictConfig : public CLI::Config {
     for (const auto& k : keys) paths_[k] = how;
   }
   bool is_path(const std::string& key) const { return paths_.count(key) > 0; }
+  // The file a text given without one stands for (parse_config_text); "" = --config's.
+  void set_source(std::string file) { source_ = std::move(file); }
 
  private:
   void resolve_paths(const std::string& file, std::vector<CLI::ConfigItem>& items) const {
@@ -143,6 +146,7 @@ class StrictConfig : public CLI::Config {
 
   const CLI::App* app_;
   std::map<std::string, ConfigPath> paths_;
+  std::string source_;
   mutable std::vector<std::pair<std::string, std::string>> values_;
 };
 
@@ -151,9 +155,10 @@ std::shared_ptr<StrictConfig> strict_config_of(const CLI::App& app) {
       std::const_pointer_cast<CLI::Config>(app.get_config_formatter()));
 }
 
-// The value of `key` in a config file's text, without the strict checks; "" when it has none or
-// the text does not parse.
-std::string raw_value(const std::string& file, const std::string& text, const std::string& key) {
+}  // namespace
+
+std::string value_in_config_text(const std::string& file, const std::string& text,
+                                 const std::string& key) {
   if (is_json(file, text)) {
     const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
     if (j.is_discarded() || !j.is_object() || !j.contains(key) || !j[key].is_string()) return {};
@@ -169,7 +174,16 @@ std::string raw_value(const std::string& file, const std::string& text, const st
   return {};
 }
 
-}  // namespace
+void parse_config_text(CLI::App& app, const std::string& file, const std::string& text) {
+  const auto strict = strict_config_of(app);
+  if (!strict) throw std::logic_error("parse_config_text: call add_strict_config first");
+  strict->set_source(file);
+  // Back to --config's file however the parse ends.
+  const std::unique_ptr<StrictConfig, void (*)(StrictConfig*)> restore(
+      strict.get(), [](StrictConfig* c) { c->set_source({}); });
+  std::istringstream in(text);
+  app.parse_from_stream(in);
+}
 
 std::string path_in(const std::string& value, const std::filesystem::path& dir) {
   if (value.empty() || std::filesystem::path(value).is_absolute()) return value;
@@ -212,7 +226,7 @@ std::optional<ConfigValue> config_path_before_flags(int argc, const char* const*
   std::ifstream in(file);
   if (file.empty() || !in) return std::nullopt;
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string value = raw_value(file, text, key);
+  const std::string value = value_in_config_text(file, text, key);
   if (value.empty()) return std::nullopt;
   return ConfigValue{path_in(value, folder_of(file)), file};
 }

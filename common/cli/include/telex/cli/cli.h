@@ -80,6 +80,20 @@ std::optional<ConfigValue> config_path_before_flags(int argc, const char* const*
 // telex::RigError for a --rig without a file.
 std::optional<ConfigValue> rig_before_flags(int argc, const char* const* argv);
 
+// The value of `key` in a config file's text (`file` names it: .json picks JSON), as the file
+// gives it, without the strict checks: "" when it has none or the text does not parse. Never
+// throws for any text.
+std::string value_in_config_text(const std::string& file, const std::string& text,
+                                 const std::string& key);
+
+// What parse() does with a --config file, given its text: `text` read by `app`'s strict loader
+// (add_strict_config before) as the file `file` (its name picks the format and is named in the
+// errors; its folder resolves relative paths), then applied to the options as CLI11 applies a
+// config file (conversions, validators, requirements). Throws CLI::ParseError: a CLI::ConfigError
+// naming the key and `file` for an unknown key or a value of the wrong shape, else the option's
+// own error for a value it refuses.
+void parse_config_text(CLI::App& app, const std::string& file, const std::string& text);
+
 // After parse(): what the config file set that the command line did not give again.
 ConfigOrigin config_origin(const CLI::App& app, int argc, const char* const* argv);
 
