@@ -178,7 +178,8 @@ void Station::Run::connect() {
   ClientEvents events;
   surface_.bind(events);
   view_.bind(events);
-  events.on_state = [](ClientState s, const std::string& why) {
+  events.on_state = [this](ClientState s, const std::string& why) {
+    if (s == ClientState::Handshaking) surface_.forget_remote_said();
     spdlog::info("remote {}: {}", to_string(s), why);
   };
   events.on_warning = [](const std::string& what) { spdlog::warn("{}", what); };
@@ -424,13 +425,18 @@ void Station::Run::print_status() {
   last_status_ns_ = now_ns;
   std::string text =
       stats_.status_text(fps, surface_.build_ms(), client_->state(), haptic_.tracker());
-  // The eyes, when the view shows them: a remote whose eye source ended or never delivered says
-  // so here, not only as a grey background.
+  const unsigned said = surface_.remote_said();
+  if (said & SurfaceStage::kSourceEnded)
+    text += " | the remote's depth source ended: the last surface stays";
+  // The eyes, when the view shows them: what the remote said of its eye source, not only a grey
+  // background.
   if (view_.stereo())
     text += eye_fps > 0.0 ? fmt::format(" | eyes {:.1f} pairs/s", eye_fps)
-                          : std::string(
-                                " | eyes none (no video from the remote: its --stereo "
-                                "source ended or never delivered, see its stats line)");
+            : (said & SurfaceStage::kEyesOff)
+                ? std::string(" | eyes off (the remote runs without --stereo)")
+            : (said & SurfaceStage::kEyesEnded)
+                ? std::string(" | eyes ended (the remote's --stereo source played to its end)")
+                : std::string(" | eyes none (no video from the remote yet: see its stats line)");
   text += photon_status(view_.photon_recent());
   text += tracker_inputs_.status(now_ns);
   if (cfg_.status_line) {
@@ -440,7 +446,8 @@ void Station::Run::print_status() {
       if (last.tracked[i])
         forces += fmt::format(" {} {:.2f}/{:+.2f}N", kFingerNames[i], last.forces[i].normal_force_N,
                               last.forces[i].shear_along_axis_N);
-    spdlog::info("{} |{}{}", text, forces, cfg_.insecure ? " | INSECURE link (--insecure)" : "");
+    spdlog::info("{}{}{}", text, forces.empty() ? "" : " |" + forces,
+                 cfg_.insecure ? " | INSECURE link (--insecure)" : "");
   }
   if (cfg_.insecure && ++statuses_since_insecure_warning_ >= 60) {
     statuses_since_insecure_warning_ = 0;

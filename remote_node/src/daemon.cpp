@@ -407,6 +407,7 @@ void RemoteDaemon::capture_loop() {
       std::this_thread::sleep_for(10ms);
     } else if (r.status == ReadStatus::EndOfStream) {
       source_ended_ = true;
+      server_->tell("source_ended");
       return;
     }
   }
@@ -431,6 +432,7 @@ void RemoteDaemon::stereo_loop() {
       ++stats_.source_errors;
     } else if (r.status == ReadStatus::EndOfStream) {
       eyes_ = EyeState::Ended;
+      server_->tell("eyes_ended");
       return;
     }
   }
@@ -506,7 +508,9 @@ int RemoteDaemon::run() {
       }
       if (config_.stats_line && now - last >= 1s) {
         const DaemonStats s = stats();
-        std::cerr << format_stats_line(s, before, std::chrono::duration<double>(now - last).count())
+        const double span_s = std::chrono::duration<double>(now - last).count();
+        std::cerr << (config_.stats_full ? format_stats_line(s, before, span_s)
+                                         : format_stats_short(s, before, span_s))
                   << (config_.insecure ? " | INSECURE link (--insecure)" : "") << std::endl;
         before = s;
         last = now;

@@ -371,8 +371,9 @@ TEST(LocalFlags, WindowViewWithoutDisplaySaysWhatToDo) {
   EXPECT_NE(local.stderr_text().find("--view png:DIR"), std::string::npos) << local.stderr_text();
 }
 
-// The station's status line says whether the eyes arrive: a remote with no eye source (or one
-// that ended) reads "eyes none", not only a grey background in the view.
+// The station's status line says whether the eyes arrive: a remote with no eye source reads
+// "eyes off" on both sides (the remote tells the station it has no --stereo), not only a grey
+// background in the view; no status line ends in a bare separator.
 TEST(Loopback, TheStatusLineSaysWhetherTheEyesArrive) {
   for (const bool eyes : {true, false}) {
     const auto dir = scratch_dir(eyes ? "status_eyes" : "status_no_eyes");
@@ -390,10 +391,36 @@ TEST(Loopback, TheStatusLineSaysWhetherTheEyesArrive) {
     if (eyes) {
       EXPECT_NE(err.find(" pairs/s"), std::string::npos) << err;
     } else {
-      EXPECT_NE(err.find("eyes none (no video from the remote"), std::string::npos) << err;
+      EXPECT_NE(err.find("eyes off (the remote runs without --stereo)"), std::string::npos) << err;
       EXPECT_EQ(err.find(" pairs/s"), std::string::npos) << err;
     }
+    EXPECT_EQ(err.find(" |\n"), std::string::npos) << "a line ends in a bare separator:\n" << err;
   }
+}
+
+// A files source that plays once: when it has ended the remote says so and the station's status
+// line says it, instead of "surface 0.0 fps | latency 0.0 ms | streaming" for as long as it runs;
+// the same for the eyes.
+TEST(Loopback, TheStationSaysWhenTheRemotesSourcesEnded) {
+  TELEX_REQUIRE_REAL_DATA();
+  const auto desk = real_data_dir() / "desk";
+  const auto dir = scratch_dir("sources_ended");
+  RemoteProcess remote(
+      dir,
+      {"--source", "files:" + (desk / "desk_0_depth_mm.png").string(), "--stereo",
+       "files:" + (desk / "desk_0_rgb.png").string() + "," + (desk / "desk_0_rgb.png").string()});
+  Process local(local_args(remote.port, dir,
+                           {"--hand", "script:press", "--duration", "7", "--view",
+                            "png:" + (dir / "view").string()}),
+                dir / "local.out", dir / "local.err");
+  const auto rc = local.wait(90s);
+  ASSERT_TRUE(rc.has_value()) << "telex-local did not finish";
+  const std::string err = local.stderr_text();
+  EXPECT_NE(err.find("the remote's depth source ended: the last surface stays"), std::string::npos)
+      << err;
+  EXPECT_NE(err.find("eyes ended (the remote's --stereo source played to its end)"),
+            std::string::npos)
+      << err;
 }
 
 }  // namespace

@@ -47,10 +47,14 @@ void SurfaceStage::bind(ClientEvents& events) {
   events.on_config = [this](const proto::StreamConfig& c) { assembler_.configure(c); };
   // The remote says which registration its depth went through after each stream configuration.
   events.on_stats = [this](const proto::Stats& s) {
-    for (const auto& [key, value] : s.counters)
+    for (const auto& [key, value] : s.counters) {
+      if (value == 0) continue;
       for (const char* name : {"none", "hardware", "rig"})
-        if (value != 0 && key == std::string("registration_") + name)
-          remote_registration_.store(name);
+        if (key == std::string("registration_") + name) remote_registration_.store(name);
+      if (key == "source_ended") remote_said_.fetch_or(kSourceEnded);
+      if (key == "eyes_off") remote_said_.fetch_or(kEyesOff);
+      if (key == "eyes_ended") remote_said_.fetch_or(kEyesEnded);
+    }
   };
   events.on_tile = [this](const proto::Header& h, const proto::DepthTile& t) { on_tile(h, t); };
   events.on_manifest = [this](const proto::Header& h, const proto::FrameManifest& m) {

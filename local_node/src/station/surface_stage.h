@@ -53,6 +53,10 @@ class SurfaceStage {
   std::uint64_t frames_built() const { return frames_built_.load(); }
   double first_centre_depth_m() const { return first_centre_depth_m_.load(); }
   double build_ms() const { return build_ms_.load(); }
+  // What the remote said of its sources this session (its standing Stats, PROTOCOL.md).
+  enum RemoteSaid : unsigned { kSourceEnded = 1, kEyesOff = 2, kEyesEnded = 4 };
+  unsigned remote_said() const { return remote_said_.load(); }
+  void forget_remote_said() { remote_said_.store(0); }  // a new session starts
   // Frames, repair counters, tile ages and latencies; once the network and surface threads have
   // stopped.
   void summarize(StationSummary& s) const;
@@ -83,6 +87,7 @@ class SurfaceStage {
   std::mutex watch_mu_;
   // The remote's registration as its Stats said it (a static name; "" until said).
   std::atomic<const char*> remote_registration_{""};
+  std::atomic<unsigned> remote_said_{0};
   std::vector<cv::Rect> watch_rects_;  // the fingertip windows as read (surface -> network)
 
   // ---- surface thread ----

@@ -230,6 +230,7 @@ void RemoteServer::stop() { impl_->stop(); }
 std::uint16_t RemoteServer::port() const { return impl_->port(); }
 ClientState RemoteServer::state() const { return impl_->state(); }
 bool RemoteServer::video_wanted() const { return impl_->video_wanted(); }
+void RemoteServer::tell(const std::string& key) { impl_->tell(key); }
 const ServerCounters& RemoteServer::counters() const { return impl_->counters_; }
 const std::string& RemoteServer::scheduling() const { return impl_->scheduling_; }
 const ThreadFault& RemoteServer::fault() const { return impl_->fault_; }

@@ -108,6 +108,7 @@ class RemoteServer::Impl {
                      std::vector<std::uint8_t> encoded_pair);
   ClientState state() const { return connected_ ? ClientState::Connected : ClientState::Waiting; }
   bool video_wanted() const { return video_wanted_; }
+  void tell(const std::string& key);  // any thread
   ServerCounters counters_;
   std::string scheduling_;  // the io thread's, set by start()
   ThreadFault fault_{"network (telex-net)"};
@@ -162,6 +163,9 @@ class RemoteServer::Impl {
   bool admit_repair(std::size_t& queued, std::uint16_t slot, std::uint32_t id, std::size_t bytes,
                     std::int64_t now_ns, std::atomic<std::uint64_t>& over_queue);
   void send_control(Buffer buf);
+  // The standing facts (tell()) as Stats counters to the operator's session; with `eyes_off`
+  // also "eyes_off" when it asked for video and there is no --stereo.
+  void send_told(bool eyes_off);
   std::size_t queued_repair_bytes(const Session& s) const;
   void kick_tcp(const std::shared_ptr<Session>& s);
 
@@ -206,6 +210,7 @@ class RemoteServer::Impl {
   std::uint32_t active_generation_ = 0;
   std::uint32_t session_id_ = 0;
   std::uint32_t next_session_id_ = 1;
+  std::vector<std::string> told_;  // tell()'s keys, in order, each once
   std::chrono::steady_clock::time_point last_drop_log_{};
   std::list<std::shared_ptr<Session>> pending_;  // in accept order: the oldest first
   std::chrono::steady_clock::time_point last_auth_log_{}, last_accept_log_{};

@@ -221,6 +221,7 @@ void RemoteServer::Impl::on_hello(const std::shared_ptr<Session>& a, const proto
   acc.udp_port = a->over_udp ? udp_.local_endpoint().port() : 0;
   send_control(make_buffer(proto::encode_stream(accept_header, acc)));
   probe(a);  // the first one with the Accept: HeadCommands are judged from its answer on
+  send_told(!config_.video_available && (hello.capabilities & proto::kCapVideo));
   ++counters_.clients_accepted;
   std::lock_guard lock(mu_);
   connected_ = true;
@@ -350,6 +351,25 @@ void RemoteServer::Impl::on_video_nack(const proto::VideoNack& nack) {
 // Resends (untrimmable frames) still waiting in `s`'s queue, in bytes.
 std::size_t RemoteServer::Impl::queued_repair_bytes(const Session& s) const {
   return s.queue.queued_repair_bytes();
+}
+
+void RemoteServer::Impl::tell(const std::string& key) {
+  asio::post(io_, [this, key] {
+    if (std::find(told_.begin(), told_.end(), key) != told_.end()) return;
+    told_.push_back(key);
+    if (active_ && active_->hello_done)
+      send_control(make_buffer(proto::encode_stream(header(session_id_, 0, steady_now_ns(), false),
+                                                    proto::Stats{{{key, 1}}})));
+  });
+}
+
+void RemoteServer::Impl::send_told(bool eyes_off) {
+  proto::Stats facts;
+  for (const auto& key : told_) facts.counters.emplace_back(key, 1);
+  if (eyes_off) facts.counters.emplace_back("eyes_off", 1);
+  if (facts.counters.empty()) return;
+  send_control(
+      make_buffer(proto::encode_stream(header(session_id_, 0, steady_now_ns(), false), facts)));
 }
 
 void RemoteServer::Impl::send_control(Buffer buf) {

@@ -157,6 +157,12 @@ class RemoteServer {
   std::uint16_t port() const;  // the bound TCP port
   ClientState state() const;
   bool video_wanted() const;  // the connected client asked for video
+  // A standing fact for the station (docs/PROTOCOL.md, Stats): sent now as a Stats counter
+  // `key` = 1 to the connected operator and to every later one right after its Accept. Keys:
+  // "source_ended" (the depth source played to its end), "eyes_ended" (the stereo source did).
+  // The server adds "eyes_off" itself for a station that asks for video when there is no
+  // stereo source. Any thread.
+  void tell(const std::string& key);
   const ServerCounters& counters() const;
   // What the network thread got (try_realtime's description); empty before start().
   const std::string& scheduling() const;
