@@ -32,6 +32,7 @@ struct RemoteFlags {
   std::string registration;  // --registration hardware|rig|none; empty: rig when there are
                              // extrinsics (the rig's, or --register shift|full), else none
   bool fill = false, no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
+  std::string stats_form = "short";  // --stats
   std::string psk_file, cert_file, key_file, ca_file;
   bool insecure = false;
   // What the --config file set, for the messages of errors after parsing.

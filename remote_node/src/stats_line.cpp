@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The remote's stats line, once a second on stderr: rates, stage times, the link's and the head's
-// counters between two snapshots of DaemonStats.
+// counters between two snapshots of DaemonStats (--stats full), or the short line (the default):
+// rates, the station, the eyes, the head, and only the problem counters that are not zero.
 #include <fmt/format.h>
 
 #include <string>
@@ -71,6 +72,54 @@ std::string format_stats_line(const DaemonStats& now, const DaemonStats& before,
           now.head.hardware_errors + now.head.io_errors,
       depth_registration_name(now.registration), now.realtime_threads, now.path_threads,
       eye_state_name(now.eyes));
+}
+
+std::string format_stats_short(const DaemonStats& now, const DaemonStats& before, double seconds) {
+  const double dt = seconds > 0 ? seconds : 1.0;
+  const auto mbit = [&](std::uint64_t a, std::uint64_t b) {
+    return static_cast<double>(a - b) * 8.0 / dt / 1e6;
+  };
+  // What went wrong, since the start: only the counters that are not zero.
+  std::string problems;
+  const auto add = [&](const char* name, std::uint64_t n) {
+    if (n != 0) problems += fmt::format("{}{} {}", problems.empty() ? "" : ", ", name, n);
+  };
+  add("source-errors", now.source_errors);
+  add("slot-drop", now.frames_slot_dropped);
+  add("queue-drop", now.frames_queue_dropped);
+  add("malformed", now.malformed_in);
+  add("auth-failed", now.auth_failed);
+  add("unsealed", now.unsealed);
+  add("replayed", now.replayed);
+  add("udp-ignored", now.udp_ignored);
+  add("pre-auth-evicted", now.preauth_evicted);
+  add("pre-auth-timeouts", now.preauth_timeouts);
+  add("accept-errors", now.accept_errors);
+  add("control-dropped", now.control_dropped);
+  add("video-failed", now.video_failed);
+  add("client-timeouts", now.client_timeouts);
+  add("head-errors", now.head.timeouts + now.head.crc_errors + now.head.bad_packets +
+                         now.head.status_errors + now.head.hardware_errors + now.head.io_errors);
+  std::string line = fmt::format(
+      "in {:.1f} out {:.1f} fps | depth {:.2f} Mbit/s | {} | station {}",
+      static_cast<double>(now.frames_in - before.frames_in) / dt,
+      static_cast<double>(now.frames_sent - before.frames_sent) / dt,
+      mbit(now.bytes_sent - now.video_bytes_sent, before.bytes_sent - before.video_bytes_sent),
+      now.video_frames == before.video_frames
+          ? std::string("no video sent")
+          : fmt::format("video {} pairs {:.2f} Mbit/s", now.video_frames - before.video_frames,
+                        mbit(now.video_bytes_sent, before.video_bytes_sent)),
+      client_state_name(now.client));
+  if (now.head_commands_in != 0)  // a station commands the head (none without a head driver)
+    line += fmt::format(
+        " | head {} commands{}", now.head_commands_in - before.head_commands_in,
+        now.head_holding ? std::string(", holding (") + head_hold_name(now.head_hold) + ")" : "");
+  if (now.source_ended) line += " | depth source ended";
+  if (!problems.empty()) line += " | " + problems;
+  // The same ending as the full line.
+  line += fmt::format(" | realtime {}/{} | eyes {}", now.realtime_threads, now.path_threads,
+                      eye_state_name(now.eyes));
+  return line;
 }
 
 }  // namespace telex::remote

@@ -46,6 +46,7 @@ struct DaemonConfig {
   std::int64_t video_bitrate_bps = 4'000'000;
   double duration_s = 0.0;    // 0: until SIGINT/SIGTERM
   bool stats_line = true;     // one line a second on stderr
+  bool stats_full = false;    // ... the long form (format_stats_line), not the short one
   std::string head = "none";  // the robot head's driver: see make_head_driver
   HeadLimits head_limits = kDefaultHeadLimits;
   // The head's joint axes (the rig's robot_head): a synthetic depth scene is seen from the head's
@@ -129,6 +130,9 @@ struct DaemonStats {
 // "frames in/out", mean ms per stage, bytes/s, tiles skipped and client state between two
 // snapshots.
 std::string format_stats_line(const DaemonStats& now, const DaemonStats& before, double seconds);
+// The default, short line (about a sixth of the full one): rates, the station, the eyes, the
+// head and the problem counters that are not zero.
+std::string format_stats_short(const DaemonStats& now, const DaemonStats& before, double seconds);
 
 class RemoteDaemon {
  public:
