@@ -19,6 +19,7 @@
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <string_view>
 
 #include "telex/base/periodic.h"
 
@@ -114,6 +115,13 @@ struct OpenXrOutput::Xr {
   }
 };
 
+// XR_ENABLE_API_LAYERS names Khronos' core validation layer.
+static bool validation_layer_enabled() {
+  const char* layers = std::getenv("XR_ENABLE_API_LAYERS");
+  return layers != nullptr && std::string_view(layers).find("XR_APILAYER_LUNARG_core_validation") !=
+                                  std::string_view::npos;
+}
+
 OpenXrOutput::OpenXrOutput() : xr_(std::make_unique<Xr>()) {
   xr_->runtime = openxr_runtime_manifest();
   std::uint32_t n = 0;
@@ -134,7 +142,21 @@ OpenXrOutput::OpenXrOutput() : xr_(std::make_unique<Xr>()) {
     throw std::runtime_error("openxr view: the runtime (" + xr_->runtime +
                              ") offers no OpenGL binding (neither XR_MNDX_egl_enable nor "
                              "XR_KHR_opengl_enable); the station draws with OpenGL only");
-  binding_ = offered(XR_MNDX_EGL_ENABLE_EXTENSION_NAME) ? Binding::Egl : Binding::Xlib;
+  // Khronos' core validation layer (1.0.20) does not know XR_MNDX_egl_enable and fails
+  // xrCreateSession with its binding: with the layer on and an X display, take the Xlib binding,
+  // which it checks; the layer's text goes to stderr unless its file is named, so that stdout
+  // keeps --json-summary alone (issue 50).
+  const bool validating = validation_layer_enabled();
+  if (validating && std::getenv("XR_CORE_VALIDATION_FILE_NAME") == nullptr) {
+    ::setenv("XR_CORE_VALIDATION_EXPORT_TYPE", "text", 0);
+    ::setenv("XR_CORE_VALIDATION_FILE_NAME", "/dev/stderr", 1);
+  }
+  const char* display = std::getenv("DISPLAY");
+  const bool x_display = display != nullptr && *display != '\0';
+  binding_ = offered(XR_MNDX_EGL_ENABLE_EXTENSION_NAME) && !(validating && x_display)
+                 ? Binding::Egl
+                 : Binding::Xlib;
+  egl_under_validation_ = binding_ == Binding::Egl && validating;
   std::vector<const char*> enable{XR_KHR_OPENGL_ENABLE_EXTENSION_NAME};
   if (binding_ == Binding::Egl) enable.push_back(XR_MNDX_EGL_ENABLE_EXTENSION_NAME);
 
@@ -222,7 +244,16 @@ void OpenXrOutput::create_session(const void* binding) {
   auto sci = xr_struct<XrSessionCreateInfo>(XR_TYPE_SESSION_CREATE_INFO);
   sci.next = binding;
   sci.systemId = x.system;
-  x.check(xrCreateSession(x.instance, &sci, &x.session), "xrCreateSession");
+  const XrResult r = xrCreateSession(x.instance, &sci, &x.session);
+  if (r == XR_ERROR_VALIDATION_FAILURE && egl_under_validation_)
+    throw XrCallError(
+        "openxr view: xrCreateSession failed with XR_ERROR_VALIDATION_FAILURE: "
+        "the core validation layer (XR_ENABLE_API_LAYERS) does not know the "
+        "headless EGL binding (XR_MNDX_egl_enable) of the runtime (" +
+        x.runtime +
+        "); run the station under an X display (xvfb-run) so it takes the Xlib "
+        "binding, which the layer checks, or leave the layer out");
+  x.check(r, "xrCreateSession");
 
   std::uint32_t n = 0;
   x.check(xrEnumerateReferenceSpaces(x.session, 0, &n, nullptr), "xrEnumerateReferenceSpaces");

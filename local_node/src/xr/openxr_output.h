@@ -93,6 +93,7 @@ class OpenXrOutput {
 
   std::unique_ptr<Xr> xr_;
   Binding binding_ = Binding::Egl;
+  bool egl_under_validation_ = false;  // the EGL binding with the core validation layer on
   std::string runtime_name_;
   std::string end_reason_;
   Phase phase_ = Phase::Starting;
