@@ -448,7 +448,9 @@ TEST(RemoteDaemon, EyesThatPlayOnceWaitForAViewerAndTheirEndIsReported) {
   // says they ended.
   test::TestClient viewer(d.port(), true, proto::kCapVideo);
   ASSERT_TRUE(viewer.run_until([&] { return d.stats().eyes == EyeState::Ended; }, 10s));
-  ASSERT_TRUE(viewer.run_until([&] { return viewer.video_.size() >= 3; }, 5s));
+  ASSERT_TRUE(viewer.run_until([&] { return viewer.video_.size() >= 3; }, 5s))
+      << viewer.video_.size() << " pairs came; the remote encoded " << d.stats().video_frames
+      << " and sent " << d.stats().video_pairs_sent << " whole";
   EXPECT_EQ(d.stats().video_frames, 3u);
   EXPECT_EQ(viewer.video_.size(), 3u);
   EXPECT_NE(format_stats_line(d.stats(), DaemonStats{}, 1.0).find("| realtime "),
