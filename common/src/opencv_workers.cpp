@@ -17,7 +17,7 @@ void start_opencv_workers() {
     // pool is at full size when this returns (a stripe that waits alone times out after 1 s).
     const int n = std::max(1, cv::getNumThreads());
     std::atomic<int> begun{0};
-    cv::parallel_for_(
+    parallel_for(
         cv::Range(0, n),
         [&](const cv::Range& r) {
           begun.fetch_add(r.size());

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "synthetic_internal.h"
+#include "telex/common/opencv_workers.h"
 #include "telex/common/synthetic.h"
 
 namespace telex::synth {
@@ -215,14 +216,14 @@ cv::Mat1w apply_sensor(const Geometry& g, const SensorModel& sensor, std::uint64
       }
     }
   };
-  cv::parallel_for_(cv::Range(0, h), sensor_rows);
+  parallel_for(cv::Range(0, h), sensor_rows);
   return depth_mm;
 }
 
 // Rows are independent (noise is hashed per pixel), so OpenCV's thread pool may split them; the
 // result is identical for any thread count (cv::setNumThreads(1) runs serially).
 void cast_all(const PixelCaster& caster, Geometry& g) {
-  cv::parallel_for_(cv::Range(0, g.z_m.rows), [&](const cv::Range& rows) {
+  parallel_for(cv::Range(0, g.z_m.rows), [&](const cv::Range& rows) {
     for (int v = rows.start; v < rows.end; ++v)
       for (int u = 0; u < g.z_m.cols; ++u) caster.cast(u, v, g);
   });
@@ -290,7 +291,7 @@ Rendered Renderer::render(const Scene& scene, std::uint64_t frame_index) {
     // u - fx * baseline / z, since the projector is offset along x only.
     std::vector<std::size_t> recast_per_row(h, 0);
     const double fx_b = intr_.fx * sensor_.baseline_m;
-    cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    parallel_for(cv::Range(0, h), [&](const cv::Range& rows) {
       for (int v = rows.start; v < rows.end; ++v) {
         for (int u = 0; u < w; ++u) {
           bool dirty = false;

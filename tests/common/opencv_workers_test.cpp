@@ -13,10 +13,12 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "telex/base/periodic.h"
 
@@ -89,6 +91,22 @@ TEST(OpenCvWorkers, StartedFromAnOrdinaryThreadTheyStayOrdinaryUnderARealtimeCal
   EXPECT_GT(without, 1) << "the control did not show the inheritance: the check cannot fail";
   // Started first from the ordinary main thread: only the realtime thread itself.
   EXPECT_EQ(child_fifo_threads(true), 1);
+}
+
+// The stripes' writes are the caller's to read and free once parallel_for returns. Under TSan
+// (build-tsan's common_tests) this is the hand-off Debian's uninstrumented TBB pool hides: with
+// cv::parallel_for_ itself TSan reported the caller's free of `rows` as a race with the workers'
+// writes, as it did for the synthetic renderer in RemoteDaemon.* (docs/VERIFICATION.md, TSan).
+TEST(ParallelFor, EveryRowOnceAndTheCallerOwnsTheResultAfterIt) {
+  start_opencv_workers();
+  for (int round = 0; round < 20; ++round) {
+    auto rows = std::make_unique<std::vector<int>>(480, 0);
+    parallel_for(cv::Range(0, 480), [&](const cv::Range& r) {
+      for (int v = r.start; v < r.end; ++v) (*rows)[static_cast<std::size_t>(v)] += v + 1;
+    });
+    for (int v = 0; v < 480; ++v) ASSERT_EQ((*rows)[static_cast<std::size_t>(v)], v + 1) << v;
+    rows.reset();
+  }
 }
 
 }  // namespace
