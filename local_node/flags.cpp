@@ -301,6 +301,12 @@ void add_output_options(CLI::App& app, StationFlags& f) {
                  "it")
       ->check(CLI::IsMember({"sbs", "fig7"}))
       ->capture_default_str();
+  app.add_option("--view-overlays", f.cfg.view_overlays,
+                 "the status text and the normal-map inset drawn into each eye of the stereo "
+                 "view: on | off | auto (on, except with --view hmd, where they would sit in the "
+                 "operator's sight)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
   app.add_option("--stereo-baseline", f.cfg.stereo_baseline_m,
                  "distance between the remote's eye cameras in metres (stereo view)")
       ->check(CLI::Range(0.0, 1.0));

@@ -412,8 +412,10 @@ StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVid
     overlay(interaction, in, {});
     out.fig7 = fig7_layout(interaction, k_eye_, out.normals, in.k, in.forces, in.arrow_m_per_N);
   }
-  overlay(out.left, in, inset);
-  overlay(out.right, in, inset);
+  if (in.overlays) {
+    overlay(out.left, in, inset);
+    overlay(out.right, in, inset);
+  }
   cv::hconcat(out.left, out.right, out.sbs);
   return out;
 }

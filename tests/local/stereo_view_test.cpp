@@ -64,6 +64,31 @@ TEST(StereoView, TheTrackedArmAndHandAppearInBothEyesShiftedByTheDisparity) {
   EXPECT_TRUE(skin(v.left(static_cast<int>(vv), static_cast<int>(u + d))));
 }
 
+// --view-overlays (issue 50): the status band is drawn into each eye only when asked; without it
+// the eyes are the scene alone (off by default for --view hmd).
+TEST(StereoView, TheStatusBandIsDrawnOnlyWhenTheOverlaysAreOn) {
+  StereoView view(320, 240);
+  StereoViewInputs in;
+  in.k = kinect_v1_intrinsics(320, 240);
+  in.hand = reaching_hand();
+  const cv::Vec3b grey(60, 60, 60);
+  in.eye_bgr = {cv::Mat3b(240, 320, grey), cv::Mat3b(240, 320, grey)};
+  in.status = "surface 30.0 fps | latency 5.0 ms | streaming";
+  const StereoViewImages on = view.render(in);
+  in.overlays = false;
+  const StereoViewImages off = view.render(in);
+  cv::Mat diff;
+  cv::absdiff(on.right, off.right, diff);
+  cv::Mat1b changed;
+  cv::cvtColor(diff, changed, cv::COLOR_BGR2GRAY);
+  const int n = cv::countNonZero(changed > 0);
+  EXPECT_GT(n, 200) << "the overlays changed " << n << " pixels";
+  // The band darkens the bottom of each eye to a third; without overlays the video is as it came.
+  const cv::Rect bottom(0, 232, 320, 8);
+  const double with = cv::mean(on.right(bottom))[1], without = cv::mean(off.right(bottom))[1];
+  EXPECT_LT(with, 0.5 * without) << with << " against " << without;
+}
+
 TEST(StereoView, AFingertipInContactShowsItsPressureAndOneEyeServesBoth) {
   StereoView view(640, 480);
   StereoViewInputs in;

@@ -309,6 +309,8 @@ bool StationView::stereo_inputs(StereoViewInputs& in, bool late_pair) {
   in.k = vs->intrinsics;
   in.eye_size = cfg_.eye_size;
   in.fig7 = cfg_.view_layout == "fig7";
+  in.overlays = cfg_.view_overlays == "on" ||
+                (cfg_.view_overlays == "auto" && spec_.kind != ViewSpec::Kind::Hmd);
   in.baseline_m = cfg_.stereo_baseline_m;
   in.skin_bgr = cfg_.skin_bgr;
   drawn_.reset();

@@ -85,6 +85,9 @@ struct StationConfig {
   // --view-layout: "sbs" (the eyes side by side) or "fig7" (the right eye beside the normal map
   // with the touch vectors; png:DIR also writes fig7.png, a window shows it instead of the pair).
   std::string view_layout = "sbs";
+  // --view-overlays: the status band and the normal-map inset drawn into each eye: "on", "off",
+  // or "auto" (on, except with --view hmd, where the operator's eyes are in the headset).
+  std::string view_overlays = "auto";
   // The remote's eye cameras: the left eye this far to the right eye's left (the synthetic stereo
   // source's 65 mm by default); the stereo view's left eye sees the depth from there.
   double stereo_baseline_m = 0.065;

@@ -39,6 +39,7 @@ struct StereoViewInputs {
   double arrow_m_per_N = 0.02;        // force arrow length in the scene per newton
   cv::Vec3b skin_bgr{150, 175, 225};  // the body's colour (the rig's operator.skin_rgb)
   bool fig7 = false;                  // also compose Fig. 7 (--view-layout fig7)
+  bool overlays = true;  // the status band and the normal-map inset on each eye (--view-overlays)
   // Where the operator's shoulders sit in the camera (right eye) frame, by Side, when the tracker
   // has no shoulder body: 30 cm below and 10 cm behind the eyes, the right one 20 cm right of the
   // right eye, the left one as far left of the left eye (the eyes 64 mm apart).
