@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <boost/asio.hpp>
-#include <deque>
 #include <thread>
 #include <vector>
 
@@ -14,6 +13,7 @@
 #include "telex/proto/link_stream.h"
 #include "telex/proto/parser.h"
 #include "telex/proto/seal.h"
+#include "upstream_queue.h"
 
 namespace telex::local {
 
@@ -75,17 +75,12 @@ struct SurfaceClient::Impl {
   std::array<std::uint8_t, 64 * 1024> tcp_buf{};
   std::array<std::uint8_t, 2048> udp_buf{};
   udp::endpoint udp_from;
-  static constexpr std::size_t kMaxQueued = 64;
   // The kernel's send buffer for the link (SO_SNDBUF; Linux doubles it): the upstream is small
   // (head commands at 200 Hz, NACKs, reports), and what the kernel holds during a stall arrives
   // as a burst of old head targets afterwards. 16 KiB still leaves a window of 160 KB/s at a
   // 200 ms round trip.
   static constexpr int kUpstreamSendBuffer = 16 * 1024;
-  struct Outgoing {
-    std::vector<std::uint8_t> bytes;
-    bool head = false;  // a head command: only the newest waiting one is worth sending
-  };
-  std::deque<Outgoing> out_queue;  // front: being written while `writing`
+  UpstreamQueue out_queue;
   bool writing = false;
 
   // With TLS, after the handshake: opens the remote's datagrams (remote->station key).
@@ -120,25 +115,8 @@ struct SurfaceClient::Impl {
     h.session_id = session_id;
     h.seq = seq++;
     h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
-    const bool head = std::holds_alternative<proto::HeadCommand>(m);
-    // A head command replaces one still waiting: the remote wants the operator's newest pose,
-    // not a backlog of old ones (judged by their age at arrival, they would be held anyway).
-    // Never the front while a write is in flight: async_write reads that buffer until its
-    // handler runs, and the handler pops it.
-    if (head) {
-      const auto waiting = out_queue.begin() + (writing ? 1 : 0);
-      const auto before = out_queue.size();
-      out_queue.erase(
-          std::remove_if(waiting, out_queue.end(), [](const Outgoing& o) { return o.head; }),
-          out_queue.end());
-      stats.upstream_dropped.fetch_add(before - out_queue.size());
-    }
-    out_queue.push_back({proto::encode_stream(h, m), head});
-    // A stuck link must not grow memory: past kMaxQueued drop the oldest message still waiting.
-    if (out_queue.size() > kMaxQueued) {
-      out_queue.erase(out_queue.begin() + (writing ? 1 : 0));
-      stats.upstream_dropped.fetch_add(1);
-    }
+    stats.upstream_dropped.fetch_add(out_queue.push(
+        proto::encode_stream(h, m), std::holds_alternative<proto::HeadCommand>(m), writing));
     if (!writing) write_next();
   }
 
@@ -150,7 +128,7 @@ struct SurfaceClient::Impl {
     writing = true;
     const auto gen = generation;
     // The handler keeps the stream alive: a TLS stream must outlive its operations.
-    link->async_write(asio::buffer(out_queue.front().bytes),
+    link->async_write(asio::buffer(out_queue.front()),
                       [this, gen, keep = link](boost::system::error_code ec, std::size_t) {
                         if (gen != generation) return;
                         if (!out_queue.empty()) out_queue.pop_front();
