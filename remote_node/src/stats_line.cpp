@@ -117,8 +117,9 @@ std::string format_stats_short(const DaemonStats& now, const DaemonStats& before
   if (now.source_ended) line += " | depth source ended";
   if (!problems.empty()) line += " | " + problems;
   // The same ending as the full line.
-  line += fmt::format(" | realtime {}/{} | eyes {}", now.realtime_threads, now.path_threads,
-                      eye_state_name(now.eyes));
+  line += fmt::format(" | registration {} | realtime {}/{} | eyes {}",
+                      depth_registration_name(now.registration), now.realtime_threads,
+                      now.path_threads, eye_state_name(now.eyes));
   return line;
 }
 

@@ -39,7 +39,7 @@ nlohmann::json last_json_line(std::string out) {
 Process start_remote(std::uint16_t port, const std::filesystem::path& dir, const std::string& tag) {
   return Process(
       {built_binary("telex-remote").string(), "--listen", "127.0.0.1:" + std::to_string(port),
-       "--transport", "udp", "--source", "synthetic:plane"},
+       "--transport", "udp", "--source", "synthetic:plane", "--stats", "full"},
       dir / ("remote" + tag + ".out"), dir / ("remote" + tag + ".err"));
 }
 
@@ -158,7 +158,7 @@ RepairRun run_repair(bool repair, const std::string& loss, const std::string& na
   const auto port = free_port(), udp_port = free_port(), proxy_port = free_port();
   Process remote(
       {built_binary("telex-remote").string(), "--listen", "127.0.0.1:" + std::to_string(port),
-       "--transport", "udp", "--source", "synthetic:plane,noise=off"},
+       "--transport", "udp", "--source", "synthetic:plane,noise=off", "--stats", "full"},
       dir / "remote.out", dir / "remote.err");
   Process proxy(
       {built_binary("telex-sim-impair").string(), "--listen",

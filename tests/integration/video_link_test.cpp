@@ -40,8 +40,13 @@ struct LinkSpec {
 LinkRun run_link(const LinkSpec& spec) {
   const auto dir = scratch_dir(spec.name);
   const auto port = free_port(), udp_port = free_port(), proxy_port = free_port();
-  std::vector<std::string> remote_argv{built_binary("telex-remote").string(), "--listen",
-                                       "127.0.0.1:" + std::to_string(port), "--transport", "udp"};
+  std::vector<std::string> remote_argv{built_binary("telex-remote").string(),
+                                       "--listen",
+                                       "127.0.0.1:" + std::to_string(port),
+                                       "--transport",
+                                       "udp",
+                                       "--stats",
+                                       "full"};
   remote_argv.insert(remote_argv.end(), spec.remote.begin(), spec.remote.end());
   Process remote(remote_argv, dir / "remote.out", dir / "remote.err");
   std::vector<std::string> proxy_argv{built_binary("telex-sim-impair").string(), "--listen",

@@ -26,13 +26,13 @@ TEST(StatsLine, ShortByDefaultWithOnlyTheProblemsThatHappened) {
   const std::string line = format_stats_short(now, before, 10.0);
   EXPECT_EQ(line,
             "in 30.0 out 29.0 fps | depth 4.00 Mbit/s | video 290 pairs 2.40 Mbit/s | station "
-            "connected | realtime 0/0 | eyes live");
+            "connected | registration none | realtime 0/0 | eyes live");
   DaemonStats bad = now;
   bad.malformed_in = 3;
   bad.auth_failed = 1;
   bad.source_ended = true;
   const std::string said = format_stats_short(bad, before, 10.0);
-  EXPECT_NE(said.find(" | depth source ended | malformed 3, auth-failed 1 | realtime"),
+  EXPECT_NE(said.find(" | depth source ended | malformed 3, auth-failed 1 | registration"),
             std::string::npos)
       << said;
   const std::string full = format_stats_line(now, before, 10.0);
@@ -47,8 +47,9 @@ TEST(StatsLine, ANoVideoRemoteSaysEyesOff) {
   s.video_bytes_sent = 0;
   s.eyes = EyeState::Off;
   const std::string line = format_stats_short(s, DaemonStats{}, 1.0);
-  EXPECT_NE(line.find("no video sent | station connected | realtime 0/0 | eyes off"),
-            std::string::npos)
+  EXPECT_NE(
+      line.find("no video sent | station connected | registration none | realtime 0/0 | eyes off"),
+      std::string::npos)
       << line;
 }
 

@@ -13,8 +13,9 @@ namespace telex::test {
 
 namespace {
 std::vector<std::string> remote_argv(std::uint16_t port, std::vector<std::string> extra) {
+  // The full stats line: tests read its counters (the default line shows only those not zero).
   std::vector<std::string> a{built_binary("telex-remote").string(), "--listen",
-                             "127.0.0.1:" + std::to_string(port)};
+                             "127.0.0.1:" + std::to_string(port), "--stats", "full"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
