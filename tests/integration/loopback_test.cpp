@@ -64,8 +64,10 @@ struct LatencyBound {
 };
 constexpr LatencyBound kFullFrameLatency{"full-frame surfaces", "latency_median_ms", 8 * 18.05,
                                          "latency_p99_ms", 12 * 21.45};
+// 15x: a loaded CI check reached 19.65 ms (10.6x) with ctest -j2 beside another test run; a
+// stalled stage gives hundreds of milliseconds.
 constexpr LatencyBound kRoiPartsLatency{"ROI part, in contact", "contact_latency_median_ms",
-                                        10 * 1.85, "contact_latency_p99_ms", 25 * 4.65};
+                                        15 * 1.85, "contact_latency_p99_ms", 25 * 4.65};
 
 void expect_latency_within_bench(const nlohmann::json& j, const LatencyBound& b) {
   const double median = j[b.median_key].get<double>(), p99 = j[b.p99_key].get<double>();
