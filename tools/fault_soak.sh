@@ -57,7 +57,6 @@ done
 mountpoint -q "$rec" && umount "$rec"
 mount -t tmpfs -o "size=${rec_mb}m" tmpfs "$rec"
 rm -f "$outdir/key" && "$bin/telex" keygen "$outdir/key" >/dev/null
-: >"$outdir/faults.csv"
 echo "fault,start_ns,end_ns,pressing_before" >"$outdir/faults.csv"
 
 pids=()
@@ -174,12 +173,13 @@ remote_kill() {
   fault_end_ns=$(now_ns)
   start_remote
 }
-natnet_silent() {
-  kill -STOP "$natnet_pid"
-  sleep 3
+stop_for() {  # PID SECONDS: the process stopped (SIGSTOP), then resumed
+  kill -STOP "$1"
+  sleep "$2"
   fault_end_ns=$(now_ns)
-  kill -CONT "$natnet_pid"
+  kill -CONT "$1"
 }
+natnet_silent() { stop_for "$natnet_pid" 3; }
 display_closed() {
   kill -INT "$display_pid"
   wait "$display_pid" 2>/dev/null || true
@@ -187,12 +187,7 @@ display_closed() {
   fault_end_ns=$(now_ns)
   start_display
 }
-station_stop() {
-  kill -STOP "$local_pid"
-  sleep 1
-  fault_end_ns=$(now_ns)
-  kill -CONT "$local_pid"
-}
+station_stop() { stop_for "$local_pid" 1; }
 disk_full() {
   dd if=/dev/zero of="$rec/filler" bs=1M status=none 2>/dev/null || true
   fault_end_ns=$(now_ns)
