@@ -159,4 +159,40 @@ DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
   return out;
 }
 
+std::size_t fill_disocclusions(cv::Mat1w& depth_mm, double fx, double baseline_m, double slack_px) {
+  if (!(fx > 0.0)) throw std::invalid_argument("fill_disocclusions: fx must be > 0");
+  const double f_b_mm = fx * std::abs(baseline_m) * 1000.0;  // parallax px = f_b_mm / z_mm
+  std::size_t filled = 0;
+  for (int v = 0; v < depth_mm.rows; ++v) {
+    std::uint16_t* row = depth_mm[v];
+    const int w = depth_mm.cols;
+    for (int u = 0; u < w;) {
+      if (row[u] != kNoDepth) {
+        ++u;
+        continue;
+      }
+      int end = u;
+      while (end < w && row[end] == kNoDepth) ++end;
+      const std::uint16_t before = u > 0 ? row[u - 1] : kNoDepth;
+      const std::uint16_t after = end < w ? row[end] : kNoDepth;
+      double widest = -1.0;
+      std::uint16_t fill = kNoDepth;
+      if (before != kNoDepth && after != kNoDepth) {
+        const double z_near = std::min(before, after), z_far = std::max(before, after);
+        widest = f_b_mm * (1.0 / z_near - 1.0 / z_far);
+        fill = std::max(before, after);
+      } else if (before != kNoDepth || after != kNoDepth) {
+        fill = before != kNoDepth ? before : after;
+        widest = f_b_mm / fill;
+      }
+      if (fill != kNoDepth && end - u <= widest + slack_px) {
+        std::fill(row + u, row + end, fill);
+        filled += static_cast<std::size_t>(end - u);
+      }
+      u = end;
+    }
+  }
+  return filled;
+}
+
 }  // namespace telex

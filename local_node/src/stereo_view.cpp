@@ -313,7 +313,10 @@ void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2
   // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
   // an edge) at each eye pixel's ray.
   const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
-  const cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+  // The strips the right eye could not see behind an edge, and the left border, are what the left
+  // video shows there: given the depth behind, not left as holes the warp would outline.
+  cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+  fill_disocclusions(left_mm, in.k.fx, in.baseline_m);
   right.depth_mm =
       resample_depth_turned(in.depth_mm, in.k, right.k, in.R_CameraDisplay[index_of(Side::Right)]);
   left.depth_mm =

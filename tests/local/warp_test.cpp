@@ -14,6 +14,9 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "telex/common/hole_fill.h"
+#include "telex/common/registration.h"
+#include "telex/common/synthetic.h"
 #include "telex/local/warp_check.h"
 
 namespace telex::local {
@@ -176,10 +179,74 @@ TEST(Warp, TheBorderTheCaptureDidNotSeeShowsThePreviousFrame) {
   }
 }
 
+// The room as the remote sends it (the sensor's depth, its holes filled) and as the left eye sees
+// it: reprojected 65 mm to the left and its parallax gaps closed, as StereoView::prepare_depth
+// does. Warped for a head that turned and rolled a few degrees since the capture, the eye's video
+// (one colour here) comes back whole: no neutral seam along the edges the right eye saw past, nor
+// along the left border it never saw. Without fill_disocclusions the left eye showed 1-2 px grey
+// lines along every occluding edge and a vertical one near its left border.
+TEST(Warp, TheLeftEyeWarpsWithoutASeamWhereTheRightEyeSawPastAnEdge) {
+  const Intrinsics k = kinect_v1_intrinsics(640, 480);
+  const cv::Mat1w right =
+      fill_holes_mode(
+          synth::render(synth::Scene::named("room"), k, synth::SensorModel{}).depth.depth_mm)
+          .depth_mm;
+  ASSERT_EQ(cv::countNonZero(right == 0), 0);
+  const glm::dvec3 p_RightEye(-0.065, 0.0, 0.0);
+  const cv::Mat1w unfilled =
+      reproject_depth({right, k}, k, {glm::dmat3(1.0), -p_RightEye}).depth_mm;
+  cv::Mat1w left = unfilled.clone();
+  const int gaps = cv::countNonZero(left == 0);
+  EXPECT_GT(gaps, 1000);  // the parallax opens them
+  // Nearly all close; what stays is a few rows of the left border beside the table's edge, where
+  // the strip's neighbour is not the surface the strip hides (the warp shows the video there as
+  // if far, without a seam).
+  EXPECT_GT(fill_disocclusions(left, k.fx, 0.065), static_cast<std::size_t>(gaps * 0.95));
+  const glm::dmat3 R_DisplayCapture(glm::rotate(
+      glm::rotate(glm::dmat4(1.0), 0.06, glm::dvec3(0, 1, 0)), 0.05, glm::dvec3(0, 0, 1)));
+  // Neutral pixels inside the part of the display the capture covers (a turn of 3.4 deg and a
+  // roll of 2.9 deg uncover about 35 px at the side and 20 px at the top and bottom).
+  const auto seam = [&](const cv::Mat1w& depth, const glm::dvec3& p, double sliver_px) {
+    DepthWarp warp(640, 480, {.hole_fill = HoleFill::Neutral, .sliver_px = sliver_px});
+    const WarpedEye out = warp.warp(cv::Mat3b(480, 640, kBlue), depth, k,
+                                    eye_display_from_capture(R_DisplayCapture, p));
+    int n = 0;
+    for (int y = 60; y < 420; ++y)
+      for (int x = 80; x < 560; ++x) n += out.bgr(y, x) == kGrey;
+    return n;
+  };
+  EXPECT_EQ(seam(right, glm::dvec3(0.0), 2.0), 0) << "right eye";
+  EXPECT_EQ(seam(left, p_RightEye, 2.0), 0) << "left eye";
+  // What the view drew before: the gaps left open, every sliver neutral.
+  EXPECT_GT(seam(unfilled, p_RightEye, 0.0), 500) << "left eye as before";
+}
+
+// fill_disocclusions closes a gap as wide as the parallax opens, with the farther depth, and
+// leaves a wider one (the sensor's own hole) open.
+TEST(Warp, DisocclusionsTakeTheDepthBehindAndOnlyAsWideAsTheParallax) {
+  // fx 500, baseline 0.1 m: an edge from 1 m to 2 m opens 500 * 0.1 * (1 - 0.5) = 25 px.
+  cv::Mat1w d(2, 100, std::uint16_t{2000});
+  d.row(0).colRange(0, 40).setTo(1000);
+  d.row(0).colRange(40, 65).setTo(0);  // 25 px: the parallax's
+  d.row(1).colRange(40, 70).setTo(0);  // 30 px between two 2 m depths: the sensor's
+  EXPECT_EQ(fill_disocclusions(d, 500.0, 0.1), 25u);
+  EXPECT_EQ(d(0, 52), 2000);
+  EXPECT_EQ(d(1, 52), 0);
+  // At the side: 500 * 0.1 / 2 m = 25 px; a 27 px strip closes with the 2 px slack, 30 px not.
+  cv::Mat1w side(2, 100, std::uint16_t{2000});
+  side.row(0).colRange(0, 27).setTo(0);
+  side.row(1).colRange(0, 30).setTo(0);
+  EXPECT_EQ(fill_disocclusions(side, 500.0, -0.1), 27u);
+  EXPECT_EQ(side(0, 0), 2000);
+  EXPECT_EQ(side(1, 0), 0);
+  EXPECT_THROW(fill_disocclusions(side, 0.0, 0.1), std::invalid_argument);
+}
+
 TEST(Warp, BadSizesAndOptionsNameThemselves) {
   EXPECT_THROW(DepthWarp(0, 480), std::invalid_argument);
   EXPECT_THROW(DepthWarp(640, 480, {.grid_step_px = 0}), std::invalid_argument);
   EXPECT_THROW(DepthWarp(640, 480, {.merge_cells = 0}), std::invalid_argument);
+  EXPECT_THROW(DepthWarp(640, 480, {.sliver_px = -1.0}), std::invalid_argument);
   DepthWarp warp(64, 48, {});
   const Intrinsics k = kinect_v1_intrinsics(64, 48);
   EXPECT_THROW(warp.warp(cv::Mat3b(48, 64), cv::Mat1w(40, 64), k, {}), std::invalid_argument);

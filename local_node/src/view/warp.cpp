@@ -100,6 +100,7 @@ uniform vec3 u_p_VideoDepth_m;
 uniform mat3 u_H_video;  // display pixel -> video pixel, the rotation only
 uniform vec2 u_size;
 uniform vec3 u_neutral_rgb;
+uniform float u_sliver_px;
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out uint o_depth_mm;
 bool in_image(vec2 px) {
@@ -116,6 +117,8 @@ void main() {
   vec3 q = u_H_capture * vec3(want, 1.0);
   vec2 source = q.xy / q.z;
   bool unseen = q.z <= 0.0 || !in_image(source);
+  float best_e2 = 1e30;
+  vec3 best_rgb = u_neutral_rgb;
   for (int i = 0; i < 4 && q.z > 0.0 && in_image(source); ++i) {
     float z_m = float(texelFetch(u_depth_mm, ivec2(floor(source + 0.5)), 0).r) * 1e-3;
     if (z_m <= 0.0) {
@@ -134,12 +137,25 @@ void main() {
     vec3 p_Display = u_R_DisplayCapture * p_Capture + u_p_DisplayCapture_m;
     if (p_Display.z <= 0.0) break;
     vec2 error = u_k.xy * p_Display.xy / p_Display.z + u_k.zw - want;
-    if (dot(error, error) <= 0.25) {
+    float e2 = dot(error, error);
+    if (e2 <= 0.25) {
       o_color = vec4(video_at(source, p_Capture), 1.0);
       o_depth_mm = uint(clamp(p_Display.z * 1000.0 + 0.5, 1.0, 65535.0));
       return;
     }
+    if (e2 < best_e2) {
+      best_e2 = e2;
+      best_rgb = video_at(source, p_Capture);
+    }
     source -= error;
+  }
+  // A sliver uncovered by the eye's own small move (a millimetres' shift of an eye off the turn's
+  // axis opens a pixel or two along an edge): the capture's pixel that lands nearest, since a
+  // neutral line there would outline the edge. A wider disocclusion stays neutral below.
+  if (best_e2 <= u_sliver_px * u_sliver_px) {
+    o_color = vec4(best_rgb, 1.0);
+    o_depth_mm = 0u;
+    return;
   }
   vec3 r = u_H_previous * vec3(want, 1.0);
   vec2 px = r.xy / r.z;
@@ -356,6 +372,7 @@ struct DepthWarp::Impl {
                 static_cast<float>(height));
     glUniform3f(glGetUniformLocation(fill, "u_neutral_rgb"), o.neutral_bgr[2] / 255.0f,
                 o.neutral_bgr[1] / 255.0f, o.neutral_bgr[0] / 255.0f);
+    glUniform1f(glGetUniformLocation(fill, "u_sliver_px"), static_cast<float>(o.sliver_px));
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LEQUAL);
     glDepthMask(GL_FALSE);
@@ -421,6 +438,8 @@ DepthWarp::DepthWarp(int width, int height, WarpOptions options)
                                 " is not in 1..8");
   if (!(options.max_depth_step_ratio > 0.0))
     throw std::invalid_argument("warp: the depth step ratio must be positive");
+  if (!(options.sliver_px >= 0.0 && options.sliver_px <= 16.0))
+    throw std::invalid_argument("warp: sliver_px must be in 0..16");
   Impl& g = *impl_;
   g.width = width;
   g.height = height;

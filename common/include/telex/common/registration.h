@@ -2,6 +2,7 @@
 // Registration of a depth map to another camera (the right eye): shift+scale, or full reprojection.
 #pragma once
 
+#include <cstddef>
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
@@ -49,5 +50,15 @@ struct RigidTransform {
 // them, which closes the one-pixel cracks that magnification and parallax leave.
 DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
                            const RigidTransform& target_from_depth, bool fill_cracks = true);
+
+// Closes, in a depth image reprojected to a camera displaced sideways by `baseline_m` (the left
+// eye seeing the right eye's depth), the gaps the displacement opens: along each row, a run of
+// holes between a nearer and a farther depth takes the farther (what was uncovered lies behind
+// the occluder), and a run at the image's side takes its one neighbour's depth. Only runs no
+// wider than the parallax could open are closed, fx |baseline| (1/z_near - 1/z_far) at an edge and
+// fx |baseline| / z at the side, plus `slack_px`: a wider hole is the sensor's and stays a hole.
+// Returns the pixels filled. Throws std::invalid_argument when fx is not > 0.
+std::size_t fill_disocclusions(cv::Mat1w& depth_mm, double fx, double baseline_m,
+                               double slack_px = 2.0);
 
 }  // namespace telex

@@ -43,6 +43,10 @@ struct WarpOptions {
   double max_depth_step_ratio = 0.1;
   HoleFill hole_fill = HoleFill::Previous;
   cv::Vec3b neutral_bgr{96, 96, 96};
+  // A hole pixel whose nearest landing capture pixel misses it by at most this many pixels (the
+  // sliver an eye's small move off the turn's axis opens along an edge) takes that pixel's colour
+  // instead of the neutral one. 0: every hole neutral.
+  double sliver_px = 2.0;
   // false: WarpedEye::bgr stays empty and the picture is only in WarpedEye::texture, for a
   // renderer in the same GL context (EyeView::background_texture): no read-back and no upload.
   bool read_back_bgr = true;
