@@ -200,6 +200,17 @@ void add_haptic_options(CLI::App& app, StationFlags& f) {
                  "surface/tracking age that fades forces out, s")
       ->check(CLI::Range(0.01, 10.0))
       ->capture_default_str();
+  app.add_option("--link-silence-ms", f.link_silence_ms,
+                 "zero force at once when nothing authenticated has come from the remote for "
+                 "this long (the station probes every 10 ms); 0: off, only --stale-limit's fade. "
+                 "Raise it for a link whose round trip jitters more (a WAN)")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
+  app.add_option("--tracking-silence-ms", f.tracking_silence_ms,
+                 "zero force at once when the hand tracker's frames stop for this long; 0: off. "
+                 "Raise it for a tracker slower than 60 Hz")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
   app.add_option("--rate", f.cfg.rate_hz, "haptic loop rate, Hz")
       ->check(CLI::Range(10.0, 10000.0))
       ->capture_default_str();
@@ -393,6 +404,8 @@ void resolve_station_flags(StationFlags& f) {
                                std::to_string(f.cfg.haptic_cpu) +
                                    " is not a CPU this process may run on (it has " +
                                    std::to_string(usable_cpu_count()) + ")");
+  f.cfg.link_silence_s = f.link_silence_ms * 1e-3;
+  f.cfg.tracking_silence_s = f.tracking_silence_ms * 1e-3;
   if (!f.eye_size.empty()) {
     try {
       f.cfg.eye_size = parse_eye_size(f.eye_size);

@@ -32,6 +32,8 @@ struct StationFlags {
   bool full_frame = false, roi_flag = false, no_fill_here = false;
   int bilateral_radius = 0;  // set from the configuration when the options are added
   bool no_frame_parts = false, no_repair = false;
+  // --link-silence-ms and --tracking-silence-ms, into cfg's seconds.
+  double link_silence_ms = 40.0, tracking_silence_ms = 40.0;
   // What the --config file set, for the messages of errors after parsing.
   cli::ConfigOrigin config;
 };

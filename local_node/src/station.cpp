@@ -283,6 +283,7 @@ void Station::Run::watch_tracker_inputs() {
 void Station::Run::start_haptics() {
   if (!haptic_.tracker()) make_tracker_now();
   if (view_.openxr()) haptic_.set_output_gate(&view_.output_gate());
+  haptic_.set_link_pulse(&client_->stats().alive_ns);
   spdlog::info("surface at {:.3f} m ahead; hand {}; haptics {}",
                surface_.first_centre_depth_m() > 0 ? surface_.first_centre_depth_m()
                                                    : cfg_.tracker.surface_depth_m,
@@ -471,6 +472,8 @@ StationSummary Station::Run::summarize() {
   s.thread_scheduling = thread_scheduling_;
   if (haptic_.tracker()) s.tracker = haptic_.tracker()->stats();
   s.tracker_silent = tracker_inputs_.summary(monotonic_ns());
+  s.ticks_link_silent = haptic_.ticks_link_silent();
+  s.ticks_tracking_silent = haptic_.ticks_tracking_silent();
   const ClientStats& cs = client_->stats();
   s.auth_failed = cs.auth_failed.load();
   s.unsealed = cs.unsealed.load();

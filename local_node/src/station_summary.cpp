@@ -97,6 +97,8 @@ nlohmann::json StationSummary::to_json() const {
                    {"wake_latency_p99_us", wake_latency_p99_us},
                    {"wake_latency_max_us", wake_latency_max_us},
                    {"missed_ticks", missed_ticks},
+                   {"ticks_link_silent", ticks_link_silent},
+                   {"ticks_tracking_silent", ticks_tracking_silent},
                    {"nominal_rate_hz", nominal_rate_hz},
                    {"haptic_span_s", haptic_span_s},
                    {"log_origin_monotonic_ns", log_origin_monotonic_ns},

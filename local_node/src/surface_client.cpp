@@ -47,6 +47,7 @@ struct SurfaceClient::Impl {
         tcp_sock(io),
         udp_sock(io),
         heartbeat_timer(io),
+        alive_timer(io),
         retry_timer(io),
         parser(cfg.limits),
         dgram(cfg.limits),
@@ -63,6 +64,7 @@ struct SurfaceClient::Impl {
   std::shared_ptr<proto::LinkStream> link;  // the connection: TLS or plain
   udp::socket udp_sock;
   asio::steady_timer heartbeat_timer;
+  asio::steady_timer alive_timer;
   asio::steady_timer retry_timer;
   ThreadFault fault{"network (telex-net)"};
   std::thread thread;
@@ -115,8 +117,12 @@ struct SurfaceClient::Impl {
     h.session_id = session_id;
     h.seq = seq++;
     h.capture_ns = static_cast<std::uint64_t>(monotonic_ns());
-    stats.upstream_dropped.fetch_add(out_queue.push(
-        proto::encode_stream(h, m), std::holds_alternative<proto::HeadCommand>(m), writing));
+    using Kind = UpstreamQueue::Kind;
+    const auto* probe = std::get_if<proto::Heartbeat>(&m);
+    const Kind kind = std::holds_alternative<proto::HeadCommand>(m) ? Kind::Head
+                      : probe != nullptr && probe->t2_ns == 0       ? Kind::Probe
+                                                                    : Kind::Kept;
+    stats.upstream_dropped.fetch_add(out_queue.push(proto::encode_stream(h, m), kind, writing));
     if (!writing) write_next();
   }
 
@@ -394,6 +400,7 @@ struct SurfaceClient::Impl {
       stats.dropped_foreign.fetch_add(1);
       return;
     }
+    if (session_id != 0) stats.alive_ns.store(last_rx_ns, std::memory_order_relaxed);
     const std::uint64_t message_bytes = proto::kHeaderSize + h.payload_len;
     if (h.type == proto::MsgType::EncodedVideo)
       stats.video_bytes.fetch_add(message_bytes);
@@ -409,6 +416,8 @@ struct SurfaceClient::Impl {
               return;
             }
             session_id = m.session_id;
+            stats.alive_ns.store(last_rx_ns, std::memory_order_relaxed);
+            arm_alive_probe();
             backoff_ns = cfg.backoff_min_ns;
             set_state(ClientState::Streaming,
                       "session " + std::to_string(m.session_id) + ", " +
@@ -477,9 +486,23 @@ struct SurfaceClient::Impl {
     });
   }
 
+  // Probes at alive_probe_ns while the session lasts: their answers are the link's pulse.
+  void arm_alive_probe() {
+    if (cfg.alive_probe_ns <= 0) return;
+    const auto gen = generation;
+    alive_timer.expires_after(std::chrono::nanoseconds(cfg.alive_probe_ns));
+    alive_timer.async_wait([this, gen](boost::system::error_code ec) {
+      if (ec || gen != generation || session_id == 0) return;
+      send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
+      arm_alive_probe();
+    });
+  }
+
   void close_sockets() {
     boost::system::error_code ec;
+    stats.alive_ns.store(0, std::memory_order_relaxed);
     heartbeat_timer.cancel();
+    alive_timer.cancel();
     if (tcp_sock.is_open()) tcp_sock.close(ec);
     if (link) link->close();
     if (udp_sock.is_open()) udp_sock.close(ec);

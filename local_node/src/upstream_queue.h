@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The station's messages to the remote waiting for the link (SurfaceClient's network thread):
-// bounded, and a head command replaces one still waiting. The front is the message being written
-// while a write is in flight (async_write reads its buffer until the handler runs and pops it),
-// so it is never dropped or replaced.
+// bounded, and a head command or a liveness probe replaces one of its kind still waiting. The front
+// is the message being written while a write is in flight (async_write reads its buffer until the
+// handler runs and pops it), so it is never dropped or replaced.
 #pragma once
 
 #include <algorithm>
@@ -16,19 +16,24 @@ namespace telex::local {
 class UpstreamQueue {
  public:
   static constexpr std::size_t kMaxQueued = 64;
+  // What a message is to the queue: kept until written, or one of a kind only the newest of
+  // which is worth sending.
+  enum class Kind : std::uint8_t { Kept, Head, Probe };
 
   // Queues `bytes`; `writing`: the front is in flight. Returns how many waiting messages were
   // dropped for it: a head command replaces any head command still waiting (the remote wants the
-  // operator's newest pose, not a backlog of old ones), and past kMaxQueued the oldest waiting
-  // message goes, so a stuck link cannot grow memory.
-  std::size_t push(std::vector<std::uint8_t> bytes, bool head, bool writing) {
+  // operator's newest pose, not a backlog of old ones), a probe any probe still waiting (not
+  // counted: a newer probe asks the same), and past kMaxQueued the oldest waiting message goes,
+  // so a stuck link cannot grow memory.
+  std::size_t push(std::vector<std::uint8_t> bytes, Kind kind, bool writing) {
     const std::size_t before = q_.size();
     const auto waiting = q_.begin() + (writing && !q_.empty() ? 1 : 0);
-    if (head)
-      q_.erase(std::remove_if(waiting, q_.end(), [](const Outgoing& o) { return o.head; }),
-               q_.end());
-    std::size_t dropped = before - q_.size();
-    q_.push_back({std::move(bytes), head});
+    if (kind != Kind::Kept)
+      q_.erase(
+          std::remove_if(waiting, q_.end(), [kind](const Outgoing& o) { return o.kind == kind; }),
+          q_.end());
+    std::size_t dropped = kind == Kind::Head ? before - q_.size() : 0;
+    q_.push_back({std::move(bytes), kind});
     if (q_.size() > kMaxQueued) {
       q_.erase(q_.begin() + (writing ? 1 : 0));
       ++dropped;
@@ -44,7 +49,7 @@ class UpstreamQueue {
  private:
   struct Outgoing {
     std::vector<std::uint8_t> bytes;
-    bool head = false;  // a head command: only the newest waiting one is worth sending
+    Kind kind = Kind::Kept;
   };
   std::deque<Outgoing> q_;
 };

@@ -279,6 +279,30 @@ TEST(HapticModel, RestartOutputRampsUpFromZeroToTheSameContact) {
   EXPECT_NEAR(f.gain, 1.0, 1e-12);
 }
 
+// The station held the display at zero for a link's or a tracker's brief silence: the output
+// comes back from zero by the rate limit alone (0.05 N a tick), the gain kept at 1 (no 2 s ramp).
+TEST(HapticModel, ResumeOutputComesBackByTheRateLimitWithTheGainKept) {
+  HapticParams p = bare();
+  p.max_force_step_N = 0.05;
+  p.startup_ramp_s = 2.0;
+  Rig rig(p);
+  rig.surface = wall(0.8);
+  rig.step({0, 0, 0.79});
+  FingertipForce f;
+  for (int i = 0; i < 2500; ++i) f = rig.step({0, 0, 0.81});
+  const double full = p.stiffness_N_per_m * 0.01;
+  ASSERT_NEAR(f.normal_force_N, full, kForceTol);
+  ASSERT_NEAR(f.gain, 1.0, 1e-12);
+  rig.model.resume_output();
+  f = rig.step({0, 0, 0.81});
+  EXPECT_NEAR(f.normal_force_N, 0.05, 1e-12) << "jumped back to the force last output";
+  EXPECT_NEAR(f.gain, 1.0, 1e-12);
+  // full / 0.05 ticks later it is back (a restart_output would take the 2 s ramp).
+  const int ticks = static_cast<int>(std::ceil(full / 0.05));
+  for (int i = 1; i < ticks; ++i) f = rig.step({0, 0, 0.81});
+  EXPECT_NEAR(f.normal_force_N, full, kForceTol);
+}
+
 TEST(HapticModel, StaleSurfaceFadesToZero) {
   HapticParams p = bare();
   p.fade_out_s = 0.05;

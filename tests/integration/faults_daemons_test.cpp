@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <regex>
@@ -230,7 +231,8 @@ std::vector<Row> index_rows(const std::filesystem::path& csv) {
 }
 
 // The remote is killed mid-session. On the forces log's time base (the summary's
-// log_origin_monotonic_ns): no stale row before the kill, then the surface goes stale within the
+// log_origin_monotonic_ns): no stale row before the kill, the force zero as soon as the session's
+// end is known (before the surface is stale), then the surface goes stale within the
 // stale limit, the force fades steadily (never rising) to zero within the fade time and stays
 // zero until the restarted remote's surfaces arrive.
 TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
@@ -281,6 +283,14 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
   std::size_t first_stale = i;
   while (first_stale < rows.size() && rows[first_stale].status != "stale-surface") ++first_stale;
   ASSERT_LT(first_stale, rows.size()) << "forces never went stale after the remote was killed";
+  // Before that the link's end zeroed the force at once (--link-silence-ms): the closed session
+  // is known long before the surface is stale, and from then on nothing presses.
+  std::size_t first_zero = i;
+  while (first_zero < rows.size() && rows[first_zero].pressure > 0.0) ++first_zero;
+  EXPECT_LT(first_zero, first_stale) << "the force waited for the stale limit";
+  for (std::size_t k = first_zero; k < first_stale; ++k)
+    ASSERT_EQ(rows[k].pressure, 0.0) << "force again " << rows[k].t - t_kill << " s after the kill";
+  EXPECT_GT(summary["ticks_link_silent"].get<std::uint64_t>(), 0u);
   EXPECT_LE(rows[first_stale].t, t_kill + kStaleLimit + 0.05) << "kill at " << t_kill << " s";
   // A steady fade: under a linear ramp to zero within the fade time, zero until the remote is back.
   std::size_t recovered = rows.size();
@@ -306,6 +316,65 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
   EXPECT_LT(rows[recovered].t, t_restart + 2.0) << "restart at " << t_restart << " s";
   remote->signal(SIGINT);
   remote->wait(5s);
+}
+
+// The remote hangs (SIGSTOP: no end of session, no more messages) for 1.5 s and goes on. The
+// station's probes go unanswered, so the force is zero from the link's silence on (40 ms,
+// --link-silence-ms) while the last surface is still fresh (--stale-limit 0.5 s): zero rows come
+// first, stale ones only after them, nothing presses until the remote speaks again, and then the
+// press comes back on the same session.
+TEST(RemoteHang, AStoppedRemoteZeroesTheForceBeforeTheSurfaceIsStale) {
+  TELEX_REQUIRE_REMOTE();
+  const auto dir = scratch_dir("remote_hang");
+  const auto port = free_port();
+  Process remote = start_remote(port, dir, "");
+  // The index finger 1 cm into the plane (0.8 m) from 0.5 s on, held: a steady 5 N press.
+  const auto script = dir / "hold.script";
+  std::ofstream(script)
+      << "time_s finger x_m y_m z_m\n0 1 0 0 0.6\n0.5 1 0 0 0.81\n60 1 0 0 0.81\n";
+  Process local(local_argv(port, {"--hand", "script:" + script.string(), "--duration", "9",
+                                  "--stiffness", "500", "--max-force", "10", "--stale-limit", "0.5",
+                                  "--log-forces", (dir / "forces.csv").string()}),
+                dir / "local.out", dir / "local.err");
+  ASSERT_TRUE(eventually(20s, [&] {
+    return local.stderr_text().find("remote streaming") != std::string::npos;
+  })) << local.stderr_text();
+  std::this_thread::sleep_for(4s);
+  remote.signal(SIGSTOP);
+  const std::int64_t stopped_ns = monotonic_ns();
+  std::this_thread::sleep_for(1.5s);
+  remote.signal(SIGCONT);
+  const std::int64_t resumed_ns = monotonic_ns();
+  const auto rc = local.wait(30s);
+  ASSERT_TRUE(rc.has_value());
+  EXPECT_EQ(*rc, 0) << local.stderr_text();
+  const auto summary = last_json_line(local.stdout_text());
+  ASSERT_TRUE(summary.is_object()) << local.stdout_text();
+  EXPECT_GT(summary["ticks_link_silent"].get<std::uint64_t>(), 0u);
+  const auto origin = summary["log_origin_monotonic_ns"].get<std::int64_t>();
+  const double t_stop = static_cast<double>(stopped_ns - origin) / 1e9;
+  const double t_resume = static_cast<double>(resumed_ns - origin) / 1e9;
+  const auto rows = index_rows(dir / "forces.csv");
+  std::size_t i = 0;
+  double peak_before = 0;
+  for (; i < rows.size() && rows[i].t < t_stop; ++i)
+    peak_before = std::max(peak_before, rows[i].pressure);
+  EXPECT_GT(peak_before, 0.5) << "the press never touched the plane before the hang";
+  std::size_t first_zero = i;
+  while (first_zero < rows.size() && rows[first_zero].pressure > 0.0) ++first_zero;
+  std::size_t first_stale = i;
+  while (first_stale < rows.size() && rows[first_stale].status != "stale-surface") ++first_stale;
+  ASSERT_LT(first_stale, rows.size()) << "the surface never went stale in a 1.5 s hang";
+  EXPECT_LT(first_zero, first_stale) << "the force waited for the stale limit";
+  // Nothing presses from the first zero until the remote was let go.
+  std::size_t k = first_zero;
+  for (; k < rows.size() && rows[k].t < t_resume; ++k)
+    ASSERT_EQ(rows[k].pressure, 0.0) << "force " << rows[k].t - t_stop << " s into the hang";
+  double peak_after = 0;
+  for (; k < rows.size(); ++k) peak_after = std::max(peak_after, rows[k].pressure);
+  EXPECT_GT(peak_after, 0.5) << "the press did not come back after the hang";
+  remote.signal(SIGINT);
+  remote.wait(5s);
 }
 
 TEST(StationRestart, RemoteAcceptsTheStationAgainAfterSigkill) {

@@ -123,6 +123,10 @@ void HapticModel::restart_output() {
   }
 }
 
+void HapticModel::resume_output() {
+  for (auto& f : fingers_) f.out_force_N = glm::dvec3(0.0);
+}
+
 void reexpress(const glm::dmat3& R_NewModel, std::span<FingertipForce> out) {
   for (auto& f : out) {
     f.force_N = R_NewModel * f.force_N;

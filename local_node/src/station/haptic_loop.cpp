@@ -70,6 +70,7 @@ void HapticLoop::ticks(std::stop_token stop) {
   std::int64_t prev = 0;
   const std::int64_t tracking_stale_ns = static_cast<std::int64_t>(cfg_.haptic.stale_limit_s * 1e9);
   std::uint64_t gate_before = 0;
+  bool was_silent = false;
   // The display supervisor's heartbeat is written here, on the thread that commands the force:
   // its silence is exactly what leaves a force held on the display (SIGSTOP or Ctrl-Z stop every
   // thread; a hung or starved tick stops this one), where a thread of its own would beat on
@@ -105,7 +106,18 @@ void HapticLoop::ticks(std::stop_token stop) {
       if (hand.bodies_fresh && hand.body_count > 0) bodies_.push(hand);
     }
     const bool fresh = now - hand.time_ns <= tracking_stale_ns;
+    // A silent link or tracker zeroes the force at once; when both speak again the force starts
+    // from zero through the rate limit, never jumps back (a silence long enough for the surface
+    // or the tracking to go stale has faded the gain too: the start-up ramp follows).
+    const bool silent = silenced(now, hand);
+    if (was_silent && !silent) model_.resume_output();
+    was_silent = silent;
     const glm::dmat3 from_model = model_tick(now, newest, hand, fresh, in, out);
+    if (silent)  // what the display is told, the logs and the recording say
+      for (auto& f : out) {
+        f.force_N = f.tangential_force_N = glm::dvec3(0.0);
+        f.normal_force_N = f.shear_along_axis_N = f.gain = 0.0;
+      }
     for (int i = 0; i < kFingerCount; ++i) {
       const auto& f = out[static_cast<std::size_t>(i)];
       shown[static_cast<std::size_t>(i)] = {channel_[static_cast<std::size_t>(i)], f.normal_force_N,
@@ -139,6 +151,27 @@ void HapticLoop::ticks(std::stop_token stop) {
     samples_.push(sample);
     missed_.store(timer.missed(), std::memory_order_relaxed);
   }
+}
+
+bool HapticLoop::silenced(std::int64_t now_ns, const HandState& hand) {
+  bool silent = false;
+  if (link_alive_ns_ && cfg_.link_silence_s > 0.0) {
+    const std::int64_t alive = link_alive_ns_->load(std::memory_order_relaxed);
+    link_seen_ = link_seen_ || alive != 0;
+    const auto limit = static_cast<std::int64_t>(cfg_.link_silence_s * 1e9);
+    if (link_seen_ && (alive == 0 || now_ns - alive > limit)) {
+      ticks_link_silent_.fetch_add(1, std::memory_order_relaxed);
+      silent = true;
+    }
+  }
+  // A tracker that has delivered and then stopped (time_ns is its last frame's poll time; a
+  // scripted hand's is every tick's).
+  if (cfg_.tracking_silence_s > 0.0 && hand.time_ns != 0 &&
+      now_ns - hand.time_ns > static_cast<std::int64_t>(cfg_.tracking_silence_s * 1e9)) {
+    ticks_tracking_silent_.fetch_add(1, std::memory_order_relaxed);
+    silent = true;
+  }
+  return silent;
 }
 
 glm::dmat3 HapticLoop::model_tick(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest,

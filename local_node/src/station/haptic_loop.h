@@ -40,6 +40,17 @@ class HapticLoop {
   void set_output_gate(const OutputGate* gate) { gate_ = gate; }
   // Ticks whose forces the gate zeroed.
   std::uint64_t ticks_gated() const { return ticks_gated_.load(std::memory_order_relaxed); }
+  // Before the thread starts: the link's pulse (ClientStats::alive_ns; 0 while no session). With
+  // cfg.link_silence_s > 0 the force is zero while it is older than that or 0 once a session was
+  // seen, and so with cfg.tracking_silence_s while the tracker's last frame is older.
+  void set_link_pulse(const std::atomic<std::int64_t>* alive_ns) { link_alive_ns_ = alive_ns; }
+  // Ticks zeroed for the link's silence and for the tracker's.
+  std::uint64_t ticks_link_silent() const {
+    return ticks_link_silent_.load(std::memory_order_relaxed);
+  }
+  std::uint64_t ticks_tracking_silent() const {
+    return ticks_tracking_silent_.load(std::memory_order_relaxed);
+  }
 
   // The haptic thread's body: no lock, allocation or log call per tick. On every exit the display
   // is commanded zero force.
@@ -57,6 +68,8 @@ class HapticLoop {
 
  private:
   void ticks(std::stop_token stop);
+  // Whether this tick's force must be zero for the link's or the tracker's silence (counted).
+  bool silenced(std::int64_t now_ns, const HandState& hand);
   // The hand's fingertips into the model's frame, the model's tick, and its forces back into the
   // newest surface's camera frame. Returns the rotation model -> that camera.
   glm::dmat3 model_tick(std::int64_t now_ns, const std::shared_ptr<const Surface>& newest,
@@ -78,6 +91,9 @@ class HapticLoop {
   std::unique_ptr<HandTracker> tracker_;
   const OutputGate* gate_ = nullptr;
   std::atomic<std::uint64_t> ticks_gated_{0};
+  const std::atomic<std::int64_t>* link_alive_ns_ = nullptr;
+  bool link_seen_ = false;  // a session's pulse was seen: its end is silence, not a slow start
+  std::atomic<std::uint64_t> ticks_link_silent_{0}, ticks_tracking_silent_{0};
   HapticModel model_;
   SpscRing<TickSample> samples_;
   SpscRing<HandState> bodies_;

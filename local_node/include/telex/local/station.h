@@ -55,6 +55,12 @@ struct StationConfig {
   bool realtime = true;         // try SCHED_FIFO for the threads on the depth-to-force path
   int haptic_cpu = -1;          // --haptic-cpu: the CPU the haptic thread is pinned to (-1: any)
   double max_tile_age_s = 0.5;  // a missing tile keeps its last value this long
+  // Force goes to zero at once while the link has been silent this long (no authenticated
+  // message: ClientStats::alive_ns, kept young by 100 Hz probes) or the tracker's frames have
+  // stopped this long, and ramps up again from zero when they return; 0: off (only the model's
+  // --stale-limit fade).
+  double link_silence_s = 0.04;
+  double tracking_silence_s = 0.04;
   // Repair (docs/PROTOCOL.md 2.5; client.repair announces it): a tile asked for is asked again
   // after max(nack_retry_min_s, the stream's transit + 2 RTT); key frames at most this often.
   double nack_retry_min_s = 0.025;

@@ -23,6 +23,9 @@ struct StationSummary {
   // Each tick's wake-up less its deadline (cyclictest's measure, comparable to its figures).
   double wake_latency_median_us = 0, wake_latency_p99_us = 0, wake_latency_max_us = 0;
   std::uint64_t missed_ticks = 0;
+  // Ticks whose force was zeroed for the link's silence (--link-silence-ms) or the tracker's
+  // (--tracking-silence-ms).
+  std::uint64_t ticks_link_silent = 0, ticks_tracking_silent = 0;
   // The haptic loop's nominal rate and the time from its first deadline to its last: every
   // deadline is ticked or missed, so ticks + missed_ticks = span * rate + 1 (PeriodicTimer).
   double nominal_rate_hz = 0;

@@ -30,6 +30,9 @@ struct ClientConfig {
   bool repair = true;       // announce kCapRepair: the remote caches tiles for TileNacks (2.5)
   std::int64_t heartbeat_ns = 250'000'000;
   std::int64_t timeout_ns = 1'000'000'000;  // remote silent this long: disconnect and reconnect
+  // During a session a Heartbeat probe this often (0: none beyond heartbeat_ns's): its answers
+  // keep ClientStats::alive_ns young, so the haptic loop learns of a cut link in tens of ms.
+  std::int64_t alive_probe_ns = 10'000'000;
   std::int64_t backoff_min_ns = 100'000'000;
   // At most half a second between attempts: a remote that was restarted is streaming to the
   // station within about that of its start (tools/fault_soak.sh: remote_kill).
@@ -82,6 +85,9 @@ struct ClientStats {
   std::atomic<std::uint64_t> receiver_reports{0};  // ReceiverReports sent (PROTOCOL.md 2.7)
   std::atomic<std::int64_t> clock_offset_ns{0};    // remote clock minus local clock (NTP estimate)
   std::atomic<std::int64_t> rtt_ns{0};
+  // Monotonic time of the session's last authenticated message from the remote; 0 while there
+  // is no session (before Accept, after a disconnect or the remote's end).
+  std::atomic<std::int64_t> alive_ns{0};
   std::atomic<std::uint8_t> state{static_cast<std::uint8_t>(ClientState::Stopped)};
 };
 

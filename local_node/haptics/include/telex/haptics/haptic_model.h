@@ -180,6 +180,10 @@ class HapticModel {
   // the rate limit and the start-up ramp, instead of jumping back to the force last output.
   // Proxies and contacts are kept, so the force comes back where it was.
   void restart_output();
+  // The display was held at zero for a moment (the link or the tracker silent for tens of ms):
+  // the next ticks start from zero through the rate limit only (max_force_step_N a tick), the
+  // gain kept, so a brief silence costs a brief dip and never a jump.
+  void resume_output();
 
   const HapticParams& params() const { return params_; }
   const HapticCounters& counters() const { return counters_; }
