@@ -9,8 +9,10 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 t0=$SECONDS
-"$root/tools/build.sh"
+# Only the two daemons and what they link: the tests build in tools/test.sh.
+TELEX_BUILD_TARGETS="telex-remote telex-local" "$root/tools/build.sh"
 echo "demo: built in $((SECONDS - t0)) s; both nodes start now" >&2
+t_run=$SECONDS
 bin="${TELEX_BUILD_DIR:-$root/build}/tools"
 duration="${TELEX_DEMO_SECONDS:-20}"
 port="${TELEX_DEMO_PORT:-7300}"
@@ -26,4 +28,4 @@ trap 'kill -INT $remote 2>/dev/null; wait $remote 2>/dev/null' EXIT INT TERM
 # sends those tiles first, the lowest-latency path (docs/BENCHMARKS.md, "Defaults").
 "$bin/telex-local" --connect "127.0.0.1:$port" --hand script:stroke --repeat --duration "$duration" \
   --haptics sim --print-forces 10 --view "png:$view" "$@"
-echo "demo: the operator's view is in $view/sbs.png (both eyes), left.png, right.png and view.png"
+echo "demo: ran $((SECONDS - t_run)) s; the operator's view is in $view/sbs.png (both eyes), left.png, right.png and view.png"

@@ -26,11 +26,12 @@ PACKAGES=(
   iproute2 procps
 )
 
+# One dpkg-query for all of them (one a package took 17 s on a loaded 2-core machine).
+installed="$(dpkg-query -W -f='${Package} ${Status}\n' "${PACKAGES[@]}" 2>/dev/null |
+  awk '$NF == "installed" && $(NF-1) == "ok" { sub(/:.*/, "", $1); print $1 }' || true)"
 missing=()
 for p in "${PACKAGES[@]}"; do
-  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
-    missing+=("$p")
-  fi
+  grep -qxF "$p" <<< "$installed" || missing+=("$p")
 done
 
 if [ ${#missing[@]} -eq 0 ]; then

@@ -5,13 +5,17 @@
 # with TELEX_NO_SKIPS=1, which turns any skip into a failure).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+t0=$SECONDS
 "$root/tools/build.sh"
+t_build=$((SECONDS - t0))
 build="${TELEX_BUILD_DIR:-$root/build}"
 cd "$build"
 set +e
 ctest --output-on-failure --schedule-random -j "${TELEX_JOBS:-$(nproc)}" --timeout 600 2>&1 | tee ctest.out
 rc=${PIPESTATUS[0]}
 set -e
+# The phases: build.sh's line above splits the first into install, configure and build.
+echo "test.sh: install + configure + build ${t_build} s, tests $((SECONDS - t0 - t_build)) s"
 skipped="$(sed -nE 's/^[[:space:]]+[0-9]+ - (.*) \(Skipped\)$/\1/p' ctest.out)"
 count=0
 [ -n "$skipped" ] && count="$(printf '%s\n' "$skipped" | wc -l)"
