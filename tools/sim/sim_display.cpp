@@ -48,6 +48,9 @@ int open_socket(const telex::Endpoint& at) {
   }
   const int one = 1;
   ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  // The kernel stamps each datagram's arrival: a late read (this process starved on a loaded
+  // machine) must not look like a late command.
+  ::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
   if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
     const std::string why = std::strerror(errno);
     ::close(fd);
@@ -83,7 +86,8 @@ void log_line(std::FILE* csv, std::int64_t rx_ns, int from_port,
 int main(int argc, char** argv) {
   telex::cli::Program program{
       "telex-sim-display: a UDP haptic display (telex-local --haptics udp:HOST:PORT) that writes "
-      "every command it receives to a CSV: rx_ns (CLOCK_REALTIME),from_port,pressure_N (the "
+      "every command it receives to a CSV: rx_ns (CLOCK_REALTIME, the kernel's arrival "
+      "stamp),from_port,pressure_N (the "
       "largest of the five fingers),finger,contacts",
       "telex-sim-display"};
   const telex::cli::CommandLine& app = program.command_line();
@@ -141,10 +145,24 @@ int main(int argc, char** argv) {
     if (::poll(&p, 1, 50) <= 0) continue;
     sockaddr_in from{};
     socklen_t from_len = sizeof from;
-    const ssize_t n =
-        ::recvfrom(fd, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from), &from_len);
+    iovec iov{buf.data(), buf.size()};
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
+    msghdr m{};
+    m.msg_name = &from;
+    m.msg_namelen = from_len;
+    m.msg_iov = &iov;
+    m.msg_iovlen = 1;
+    m.msg_control = control;
+    m.msg_controllen = sizeof control;
+    const ssize_t n = ::recvmsg(fd, &m, 0);
     if (n < 0) continue;
-    const std::int64_t rx_ns = realtime_ns();
+    std::int64_t rx_ns = realtime_ns();  // if the kernel gave no stamp
+    for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c))
+      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS) {
+        timespec ts{};
+        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+        rx_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+      }
     ++counts.datagrams;
     if (!telex::local::parse_udp_sink(std::string_view(buf.data(), static_cast<std::size_t>(n)),
                                       ch)) {
