@@ -230,6 +230,24 @@ std::vector<Row> index_rows(const std::filesystem::path& csv) {
   return rows;
 }
 
+// Waits until the station streams, then `for_s` more. False when it never streamed.
+bool streams_for(Process& local, std::chrono::seconds for_s) {
+  if (!eventually(
+          20s, [&] { return local.stderr_text().find("remote streaming") != std::string::npos; }))
+    return false;
+  std::this_thread::sleep_for(for_s);
+  return true;
+}
+
+// The first row from `from` on where `pred` holds; rows.size() when none does.
+template <typename Pred>
+std::size_t first_row(const std::vector<Row>& rows, std::size_t from, Pred pred) {
+  while (from < rows.size() && !pred(rows[from])) ++from;
+  return from;
+}
+bool zero(const Row& r) { return r.pressure == 0.0; }
+bool stale(const Row& r) { return r.status == "stale-surface"; }
+
 // The remote is killed mid-session. On the forces log's time base (the summary's
 // log_origin_monotonic_ns): no stale row before the kill, the force zero as soon as the session's
 // end is known (before the surface is stale), then the surface goes stale within the
@@ -246,10 +264,7 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
                         "500", "--max-force", "10", "--stale-limit", std::to_string(kStaleLimit),
                         "--log-forces", (dir / "forces.csv").string()}),
       dir / "local.out", dir / "local.err");
-  ASSERT_TRUE(eventually(20s, [&] {
-    return local.stderr_text().find("remote streaming") != std::string::npos;
-  })) << local.stderr_text();
-  std::this_thread::sleep_for(4s);
+  ASSERT_TRUE(streams_for(local, 4s)) << local.stderr_text();
   remote->signal(SIGKILL);
   const std::int64_t killed_ns = monotonic_ns();
   remote->wait(5s);
@@ -280,13 +295,11 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
   }
   EXPECT_GT(peak_before, 0.5) << "the press never touched the plane before the kill";
   // Stale within the stale limit of the kill (the last surface is at most that old then).
-  std::size_t first_stale = i;
-  while (first_stale < rows.size() && rows[first_stale].status != "stale-surface") ++first_stale;
+  const std::size_t first_stale = first_row(rows, i, stale);
   ASSERT_LT(first_stale, rows.size()) << "forces never went stale after the remote was killed";
   // Before that the link's end zeroed the force at once (--link-silence-ms): the closed session
   // is known long before the surface is stale, and from then on nothing presses.
-  std::size_t first_zero = i;
-  while (first_zero < rows.size() && rows[first_zero].pressure > 0.0) ++first_zero;
+  const std::size_t first_zero = first_row(rows, i, zero);
   EXPECT_LT(first_zero, first_stale) << "the force waited for the stale limit";
   for (std::size_t k = first_zero; k < first_stale; ++k)
     ASSERT_EQ(rows[k].pressure, 0.0) << "force again " << rows[k].t - t_kill << " s after the kill";
@@ -336,10 +349,7 @@ TEST(RemoteHang, AStoppedRemoteZeroesTheForceBeforeTheSurfaceIsStale) {
                                   "--stiffness", "500", "--max-force", "10", "--stale-limit", "0.5",
                                   "--log-forces", (dir / "forces.csv").string()}),
                 dir / "local.out", dir / "local.err");
-  ASSERT_TRUE(eventually(20s, [&] {
-    return local.stderr_text().find("remote streaming") != std::string::npos;
-  })) << local.stderr_text();
-  std::this_thread::sleep_for(4s);
+  ASSERT_TRUE(streams_for(local, 4s)) << local.stderr_text();
   remote.signal(SIGSTOP);
   const std::int64_t stopped_ns = monotonic_ns();
   std::this_thread::sleep_for(1.5s);
@@ -360,10 +370,8 @@ TEST(RemoteHang, AStoppedRemoteZeroesTheForceBeforeTheSurfaceIsStale) {
   for (; i < rows.size() && rows[i].t < t_stop; ++i)
     peak_before = std::max(peak_before, rows[i].pressure);
   EXPECT_GT(peak_before, 0.5) << "the press never touched the plane before the hang";
-  std::size_t first_zero = i;
-  while (first_zero < rows.size() && rows[first_zero].pressure > 0.0) ++first_zero;
-  std::size_t first_stale = i;
-  while (first_stale < rows.size() && rows[first_stale].status != "stale-surface") ++first_stale;
+  const std::size_t first_zero = first_row(rows, i, zero);
+  const std::size_t first_stale = first_row(rows, i, stale);
   ASSERT_LT(first_stale, rows.size()) << "the surface never went stale in a 1.5 s hang";
   EXPECT_LT(first_zero, first_stale) << "the force waited for the stale limit";
   // Nothing presses from the first zero until the remote was let go.
