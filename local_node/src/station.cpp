@@ -28,6 +28,7 @@
 #include "telex/common/opencv_workers.h"
 #include "telex/local/deadman.h"
 #include "telex/local/display_supervisor.h"
+#include "xr/openxr_output.h"
 
 namespace telex::local {
 namespace {
@@ -504,6 +505,8 @@ StationSummary Station::Run::summarize() {
 }
 
 StationSummary Station::run() {
+  // Before any of the run's threads: setenv is not safe beside a getenv on another thread.
+  if (ViewSpec::parse(cfg_.view_spec).kind == ViewSpec::Kind::OpenXr) prepare_openxr_environment();
   Run run(cfg_, stop_);
   return run.execute();
 }

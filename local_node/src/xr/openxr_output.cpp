@@ -122,6 +122,13 @@ static bool validation_layer_enabled() {
                                   std::string_view::npos;
 }
 
+void prepare_openxr_environment() {
+  if (validation_layer_enabled() && std::getenv("XR_CORE_VALIDATION_FILE_NAME") == nullptr) {
+    ::setenv("XR_CORE_VALIDATION_EXPORT_TYPE", "text", 0);
+    ::setenv("XR_CORE_VALIDATION_FILE_NAME", "/dev/stderr", 1);
+  }
+}
+
 OpenXrOutput::OpenXrOutput() : xr_(std::make_unique<Xr>()) {
   xr_->runtime = openxr_runtime_manifest();
   std::uint32_t n = 0;
@@ -147,10 +154,6 @@ OpenXrOutput::OpenXrOutput() : xr_(std::make_unique<Xr>()) {
   // which it checks; the layer's text goes to stderr unless its file is named, so that stdout
   // keeps --json-summary alone (issue 50).
   const bool validating = validation_layer_enabled();
-  if (validating && std::getenv("XR_CORE_VALIDATION_FILE_NAME") == nullptr) {
-    ::setenv("XR_CORE_VALIDATION_EXPORT_TYPE", "text", 0);
-    ::setenv("XR_CORE_VALIDATION_FILE_NAME", "/dev/stderr", 1);
-  }
   const char* display = std::getenv("DISPLAY");
   const bool x_display = display != nullptr && *display != '\0';
   binding_ = offered(XR_MNDX_EGL_ENABLE_EXTENSION_NAME) && !(validating && x_display)

@@ -104,6 +104,11 @@ class OpenXrOutput {
   std::function<void(Phase)> on_phase_;
 };
 
+// With Khronos' core validation layer enabled (XR_ENABLE_API_LAYERS) and no file named for it,
+// its text goes to stderr (XR_CORE_VALIDATION_FILE_NAME=/dev/stderr), so stdout keeps
+// --json-summary alone. Call before any thread starts: it sets the environment.
+void prepare_openxr_environment();
+
 // Which runtime the loader will load, for messages: "XR_RUNTIME_JSON=PATH", else the active
 // runtime's manifest where the loader looks for it (the XDG config directories). Throws
 // std::runtime_error, saying what to do, when XR_RUNTIME_JSON names no file or none is installed.
