@@ -474,7 +474,8 @@ struct SurfaceClient::Impl {
         return disconnect("remote silent for " + std::to_string(cfg.timeout_ns / 1'000'000) +
                           " ms");
       // Probes start with the session: before Accept there is no session key to tag them with.
-      if (session_id != 0)
+      // With the 10 ms probes on, those are the probes and this timer only checks and reports.
+      if (session_id != 0 && cfg.alive_probe_ns <= 0)
         send(proto::Heartbeat{static_cast<std::uint64_t>(monotonic_ns()), 0, 0, 0});
       // With each probe, what arrived over UDP since the last one (PROTOCOL.md 2.7).
       const auto r = report.take(monotonic_ns());
