@@ -16,11 +16,11 @@
 #include "telex/cli/cli.h"
 #include "telex/cli/processing_flags.h"
 #include "telex/common/endpoint.h"
-#include "telex/local/glove.h"
-#include "telex/local/hand_script.h"
-#include "telex/local/natnet_client.h"
-#include "telex/local/tracker.h"
-#include "telex/local/view_window.h"
+#include "telex/local/inputs/glove.h"
+#include "telex/local/inputs/hand_script.h"
+#include "telex/local/inputs/natnet_client.h"
+#include "telex/local/inputs/tracker_registry.h"
+#include "telex/local/view/view_window.h"
 
 namespace telex::local {
 
@@ -345,18 +345,7 @@ void add_output_options(CLI::App& app, StationFlags& f) {
 
 // Keys and certificates (docs/PROTOCOL.md).
 void add_security_options(CLI::App& app, StationFlags& f) {
-  app.add_option("--psk", f.psk_file,
-                 "pre-shared key FILE (32..1024 random bytes, mode 0600; `telex keygen FILE` "
-                 "writes one): TLS 1.3 with this key and "
-                 "(EC)DHE on TCP, sealed datagrams on UDP; the remote needs the same key");
-  app.add_option("--cert", f.cert_file,
-                 "this station's certificate chain FILE (PEM), instead of --psk; with --key, --ca");
-  app.add_option("--key", f.key_file, "the private key FILE (PEM, mode 0600) of --cert");
-  app.add_option("--ca", f.ca_file,
-                 "CA FILE (PEM): the remote's certificate must chain to it (required, verified)");
-  app.add_flag("--insecure", f.insecure,
-               "accept a --connect address off loopback without --psk or certificates: anyone on "
-               "the network can then move the robot head and watch its cameras and depth");
+  cli::add_link_security(app, f.security, {"station", "remote", "--connect", false});
 }
 
 // The keys whose value is a path (a spec's file or folder too): in a --config file they are
@@ -448,16 +437,7 @@ cv::Size parse_eye_size(const std::string& text) {
 
 void apply_security_flags(StationFlags& f) {
   ClientConfig& client = f.cfg.client;
-  proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
-  if (!f.psk_file.empty()) client.tls.psk = proto::load_psk_flag(f.psk_file);
-  if (!f.cert_file.empty()) {
-    proto::check_key_file_permissions(f.key_file, "private key file");
-    client.tls.cert = f.cert_file;
-    client.tls.key = f.key_file;
-    client.tls.ca = f.ca_file;
-    // Loaded once here, so an unreadable or mismatched file exits 2 before anything starts.
-    SSL_CTX_free(proto::make_tls_context(client.tls, proto::TlsRole::Client));
-  }
+  client.tls = cli::load_link_security(f.security, proto::TlsRole::Client);
   try {
     client.addresses = proto::resolve_host(client.host);
   } catch (const std::invalid_argument& e) {
@@ -465,7 +445,7 @@ void apply_security_flags(StationFlags& f) {
   }
   const bool loopback =
       std::all_of(client.addresses.begin(), client.addresses.end(), proto::is_loopback_address);
-  if (!client.tls.enabled() && !loopback && !f.insecure)
+  if (!client.tls.enabled() && !loopback && !f.security.insecure)
     throw std::invalid_argument(proto::insecure_refusal("--connect", f.connect));
   f.cfg.insecure = !client.tls.enabled() && !loopback;
 }

@@ -7,7 +7,8 @@
 #include <string>
 
 #include "telex/cli/command_line.h"
-#include "telex/local/station.h"
+#include "telex/cli/link_security.h"
+#include "telex/local/station/station.h"
 
 namespace CLI {
 class App;
@@ -23,8 +24,7 @@ struct StationFlags {
   std::string connect = "127.0.0.1:7300";
   std::string transport = "udp";
   std::string glove;
-  std::string psk_file, cert_file, key_file, ca_file;
-  bool insecure = false;
+  cli::LinkSecurityFlags security;  // --psk, --cert/--key/--ca, --insecure
   std::string elbow_bodies;
   std::string eye_size;  // --eye-size WxH, into cfg.eye_size
   bool no_realtime = false, no_bilateral = false, json_summary = false, quiet = false;

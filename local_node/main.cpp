@@ -8,8 +8,8 @@
 
 #include "flags.h"
 #include "telex/base/realtime.h"
-#include "telex/local/display_supervisor.h"
-#include "telex/local/station.h"
+#include "telex/local/displays/display_supervisor.h"
+#include "telex/local/station/station.h"
 
 namespace {
 

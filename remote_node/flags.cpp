@@ -377,19 +377,7 @@ void add_head_options(CLI::App& app, RemoteFlags& f) {
 
 // TLS: a pre-shared key or certificates, or --insecure off loopback.
 void add_security_options(CLI::App& app, RemoteFlags& f) {
-  app.add_option("--psk", f.psk_file,
-                 "Pre-shared key FILE (32..1024 random bytes, mode 0600; `telex keygen FILE` "
-                 "writes one): TLS 1.3 with this key and "
-                 "(EC)DHE on TCP, sealed datagrams on UDP; the station needs the same key");
-  app.add_option(
-      "--cert", f.cert_file,
-      "This remote's certificate chain FILE (PEM), instead of --psk; with --key and --ca");
-  app.add_option("--key", f.key_file, "The private key FILE (PEM, mode 0600) of --cert");
-  app.add_option("--ca", f.ca_file,
-                 "CA FILE (PEM): the station's certificate must chain to it (required, verified)");
-  app.add_flag("--insecure", f.insecure,
-               "Accept a --listen address off loopback without --psk or certificates: anyone on "
-               "the network can then move the robot head and watch its cameras and depth");
+  telex::cli::add_link_security(app, f.security, {"remote", "station", "--listen", true});
 }
 
 // The keys whose value is a path (a source's files too): in a --config file they are relative to
@@ -476,14 +464,7 @@ void resolve_registration(const CLI::App& app, RemoteFlags& f) {
 // loopback refused without --insecure.
 void resolve_security(RemoteFlags& f) {
   ServerConfig& server = f.cfg.server;
-  proto::validate_tls_flags(!f.psk_file.empty(), f.cert_file, f.key_file, f.ca_file);
-  if (!f.psk_file.empty()) server.tls.psk = proto::load_psk_flag(f.psk_file);
-  if (!f.cert_file.empty()) {
-    proto::check_key_file_permissions(f.key_file, "private key file");
-    server.tls.cert = f.cert_file;
-    server.tls.key = f.key_file;
-    server.tls.ca = f.ca_file;
-  }
+  server.tls = telex::cli::load_link_security(f.security, proto::TlsRole::Server);
   // A name (localhost) listens on its first address; the address checked is the one bound.
   try {
     server.host = proto::resolve_host(server.host).front();
@@ -491,7 +472,7 @@ void resolve_security(RemoteFlags& f) {
     throw std::invalid_argument("--listen " + f.listen + ": " + e.what());
   }
   const bool loopback = proto::is_loopback_address(server.host);
-  if (!server.tls.enabled() && !loopback && !f.insecure)
+  if (!server.tls.enabled() && !loopback && !f.security.insecure)
     throw std::invalid_argument(proto::insecure_refusal("--listen", f.listen));
   f.cfg.insecure = !server.tls.enabled() && !loopback;
 }

@@ -8,6 +8,7 @@
 #include <string_view>
 
 #include "telex/cli/command_line.h"
+#include "telex/cli/link_security.h"
 #include "telex/common/rig.h"
 #include "telex/remote/daemon.h"
 #include "telex/remote/pipeline.h"
@@ -33,8 +34,7 @@ struct RemoteFlags {
                              // extrinsics (the rig's, or --register shift|full), else none
   bool fill = false, no_fill = false, no_temporal = false, no_stats = false, no_realtime = false;
   std::string stats_form = "short";  // --stats
-  std::string psk_file, cert_file, key_file, ca_file;
-  bool insecure = false;
+  cli::LinkSecurityFlags security;   // --psk, --cert/--key/--ca, --insecure
   // What the --config file set, for the messages of errors after parsing.
   cli::ConfigOrigin config;
 };

@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "telex/local/glove.h"
-#include "telex/local/gravity_grabber.h"
+#include "telex/local/displays/gravity_grabber.h"
+#include "telex/local/inputs/glove.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace telex::local;

@@ -18,7 +18,7 @@
 #include "stream_fixtures.h"
 #include "telex/bag/bag.h"
 #include "telex/dynamixel/protocol.h"
-#include "telex/local/glove.h"
+#include "telex/local/inputs/glove.h"
 #include "telex/natnet/natnet.h"
 #include "telex/proto/depth_codec.h"
 #include "telex/proto/fragment.h"

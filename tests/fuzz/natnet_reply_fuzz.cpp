@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 // libFuzzer target: a session of datagrams from a NatNet server, through every parser the
-// station's client (local_node/src/natnet_client.cpp, Impl::handle) applies to them, in its order:
-// the packet framing; server info (both readings: the 264 bytes, then the version's connection
-// fields), which sets the layout of later frames unless the client was given one; model
+// station's client (local_node/inputs/src/natnet_client.cpp, Impl::handle) applies to them, in its
+// order: the packet framing; server info (both readings: the 264 bytes, then the version's
+// connection fields), which sets the layout of later frames unless the client was given one; model
 // definitions; FRAMEOFDATA in that layout, then the client's checks (reported latency, the
 // frame's place in the timeline, each rigid body's pose). Echo replies, unrecognized-request
 // replies and message strings reach the framing only: the client reads nothing more of them.
@@ -20,7 +20,7 @@
 #include <span>
 #include <vector>
 
-#include "telex/local/natnet_client.h"
+#include "telex/local/inputs/natnet_client.h"
 #include "telex/natnet/natnet.h"
 
 namespace {

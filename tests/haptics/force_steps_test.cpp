@@ -3,6 +3,7 @@
 // gain, the proxy's push-out, free move, friction, slide and spring, passivity, clamp, rate limit,
 // outputs; and the Model frame (a turned surface gives the same force, turned).
 #include "telex/haptics/detail/force_steps.h"
+#include "telex/haptics/haptic_model.h"
 
 #include <gtest/gtest.h>
 

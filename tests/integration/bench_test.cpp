@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "process.h"
-#include "telex/local/recorder.h"
+#include "telex/local/record/recorder.h"
 #include "test_support.h"
 
 namespace {

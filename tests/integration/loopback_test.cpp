@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -76,6 +77,21 @@ void expect_latency_within_bench(const nlohmann::json& j, const LatencyBound& b)
   EXPECT_LE(p99, b.p99_ms * kSanitizerSlowdown) << b.what << ": p99 " << p99 << " ms";
 }
 
+// The summary's keys, nested objects as a.b, sorted (arrays and values are leaves).
+std::vector<std::string> flat_keys(const nlohmann::json& j, const std::string& prefix = "") {
+  std::vector<std::string> out;
+  for (const auto& [k, v] : j.items()) {
+    if (v.is_object()) {
+      const auto inner = flat_keys(v, prefix + k + ".");
+      out.insert(out.end(), inner.begin(), inner.end());
+    } else {
+      out.push_back(prefix + k);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   const auto dir = scratch_dir("loopback_press");
   RemoteProcess remote(dir, {"--source", "synthetic:plane"});
@@ -123,6 +139,13 @@ TEST(Loopback, PressOnPlaneGivesHookeForceAndNothingBeforeOrAfter) {
   ASSERT_GT(j["bytes_in"].get<double>(), 0.0);
   EXPECT_NEAR(j["stream_mbit_per_s"].get<double>(),
               j["bytes_in"].get<double>() * 8e-6 / j["haptic_span_s"].get<double>(), 1e-9);
+  // Tests and tools read these keys: a change to how the summary is declared keeps every one
+  // (the list was taken from e374442's station; a key added on purpose is added to it).
+  const auto want = read_text(std::filesystem::path(TELEX_SOURCE_DIR) /
+                              "tests/integration/station_summary_keys.txt");
+  std::string have;
+  for (const auto& k : flat_keys(j)) have += k + "\n";
+  EXPECT_EQ(have, want);
 }
 
 // ROI first end to end: with --roi the remote sends each frame's fingertip tiles as an ROI part

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "process.h"
-#include "telex/local/udp_sink.h"
+#include "telex/local/displays/udp_sink.h"
 #include "test_support.h"
 
 namespace telex {

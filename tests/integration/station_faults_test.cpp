@@ -22,8 +22,8 @@
 
 #include "process.h"
 #include "telex/base/periodic.h"
-#include "telex/local/hand_model.h"
-#include "telex/local/station.h"
+#include "telex/local/inputs/hand_model.h"
+#include "telex/local/station/station.h"
 #include "telex/remote/daemon.h"
 #include "telex/sim/natnet_server.h"
 

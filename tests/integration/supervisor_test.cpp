@@ -28,8 +28,8 @@
 
 #include "daemons.h"
 #include "process.h"
-#include "telex/local/display_supervisor.h"
-#include "telex/local/udp_sink.h"
+#include "telex/local/displays/display_supervisor.h"
+#include "telex/local/displays/udp_sink.h"
 #include "test_support.h"
 
 namespace telex::test {

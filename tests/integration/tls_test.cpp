@@ -423,6 +423,41 @@ TEST(TlsCertificates, MutualCertificatesServeAndOthersAreRefused) {
               last_counter(remote.proc.stderr_text(), "auth-failed"));
 }
 
+// Both daemons load their certificates through one loader (telex/cli/link_security.h) that
+// builds a TLS context while the flags are read: a key that does not match its certificate exits
+// 2 naming the problem before anything listens or connects, at the remote as at the station.
+TEST(TlsCertificates, AKeyThatDoesNotMatchItsCertificateExitsTwoAtStartOnBothSides) {
+  TELEX_REQUIRE_BINARIES("telex-remote", "telex-local");
+  TELEX_SKIP_UNLESS(std::system("openssl version > /dev/null 2>&1") == 0,
+                    "the openssl command line is not installed");
+  const auto dir = scratch_dir("tls_mismatch");
+  ASSERT_TRUE(make_ca(dir, "ca") && make_cert(dir, "ca", "remote") &&
+              make_cert(dir, "ca", "station"))
+      << read_text(dir / "openssl.log");
+  const auto f = [&](const std::string& n) { return (dir / n).string(); };
+  {
+    Process p({built_binary("telex-remote").string(), "--source", "synthetic:plane", "--listen",
+               "127.0.0.1:" + std::to_string(free_port()), "--cert", f("remote.pem"), "--key",
+               f("station.key"), "--ca", f("ca.pem"), "--duration", "5"},
+              dir / "r.out", dir / "r.err");
+    const auto rc = p.wait(20s);
+    ASSERT_TRUE(rc.has_value());
+    EXPECT_EQ(*rc, 2) << p.stderr_text();
+    EXPECT_NE(p.stderr_text().find("key"), std::string::npos) << p.stderr_text();
+    EXPECT_EQ(p.stderr_text().find("listening"), std::string::npos) << p.stderr_text();
+  }
+  {
+    Process p({built_binary("telex-local").string(), "--connect",
+               "127.0.0.1:" + std::to_string(free_port()), "--cert", f("station.pem"), "--key",
+               f("remote.key"), "--ca", f("ca.pem"), "--hand", "script:press"},
+              dir / "l.out", dir / "l.err");
+    const auto rc = p.wait(20s);
+    ASSERT_TRUE(rc.has_value());
+    EXPECT_EQ(*rc, 2) << p.stderr_text();
+    EXPECT_NE(p.stderr_text().find("key"), std::string::npos) << p.stderr_text();
+  }
+}
+
 // The IPv4 address of an interface that is up and not loopback, or "0.0.0.0" when there is none.
 std::string non_loopback_address() {
   ifaddrs* list = nullptr;

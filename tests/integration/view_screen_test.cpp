@@ -13,7 +13,7 @@
 
 #include "daemons.h"
 #include "process.h"
-#include "telex/local/view_window.h"
+#include "telex/local/view/view_window.h"
 #include "test_support.h"
 #include "xvfb.h"
 

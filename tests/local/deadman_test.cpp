@@ -2,7 +2,7 @@
 // --deadman: the spec, evdev's input_event records and HID reports to a pressed state (recorded
 // bytes, split at every boundary), and the open path's errors, which name the device and what to
 // try. No device is needed: none exists where these tests run.
-#include "telex/local/deadman.h"
+#include "telex/local/inputs/deadman.h"
 
 #include <gtest/gtest.h>
 #include <linux/input.h>

@@ -2,7 +2,7 @@
 // The display supervisor with a stand-in station: a forked child that starts the supervisor, sends
 // a press on the channel, and dies (SIGKILL, abort, a segfault) or says goodbye; the test reads
 // what the channel got.
-#include "telex/local/display_supervisor.h"
+#include "telex/local/displays/display_supervisor.h"
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
@@ -26,8 +26,8 @@
 
 #include "process.h"
 #include "telex/base/periodic.h"
-#include "telex/local/gravity_grabber.h"
-#include "telex/local/udp_sink.h"
+#include "telex/local/displays/gravity_grabber.h"
+#include "telex/local/displays/udp_sink.h"
 #include "test_support.h"
 
 namespace telex::local {

@@ -11,9 +11,10 @@
 #include <thread>
 
 #include "process.h"
-#include "telex/local/gravity_grabber.h"
-#include "telex/local/haptic_display.h"
-#include "telex/local/udp_sink.h"
+#include "telex/local/displays/display_registry.h"
+#include "telex/local/displays/gravity_grabber.h"
+#include "telex/local/displays/haptic_display.h"
+#include "telex/local/displays/udp_sink.h"
 
 namespace telex::local {
 namespace {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // 5DT glove report parsing on byte-level reports, serial resync, calibration, open failures.
-#include "telex/local/glove.h"
+#include "telex/local/inputs/glove.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "process.h"
-#include "telex/local/tracker.h"
+#include "telex/local/inputs/tracker_registry.h"
 
 namespace telex::local {
 namespace {

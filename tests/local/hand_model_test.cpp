@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT
 // Hand kinematics and head-to-camera mapping against closed-form positions.
-#include "telex/local/hand_model.h"
+#include "telex/local/inputs/hand_model.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <glm/gtc/quaternion.hpp>
 
-#include "telex/local/tracker.h"
+#include "telex/local/inputs/tracker.h"
 
 namespace telex::local {
 namespace {

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // --record-hmd-poses' pairing: the NatNet head body interpolated to the headset's moments, ten a
 // second, and what cannot be paired counted rather than written.
-#include "telex/local/hmd_pose_pairer.h"
+#include "telex/local/inputs/hmd_pose_pairer.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // A tracker input that delivers nothing is said once it has been silent 2 s, on the status line
 // while it lasts, and in the summary when the run ends silent; one that delivers is not.
-#include "station/input_watch.h"
+#include "input_watch.h"
 
 #include <gtest/gtest.h>
 

@@ -12,8 +12,8 @@
 #include <thread>
 
 #include "process.h"
-#include "telex/local/natnet_client.h"
-#include "telex/local/tracker.h"
+#include "telex/local/inputs/natnet_client.h"
+#include "telex/local/inputs/tracker_registry.h"
 #include "telex/sim/natnet_server.h"
 
 namespace telex::local {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // NatNet client against the in-process server simulator on loopback, unicast and multicast.
-#include "telex/local/natnet_client.h"
+#include "telex/local/inputs/natnet_client.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -12,8 +12,8 @@
 #include <thread>
 
 #include "process.h"
-#include "telex/local/stereo_view.h"
-#include "telex/local/tracker.h"
+#include "telex/local/inputs/tracker_registry.h"
+#include "telex/local/view/stereo_view.h"
 #include "telex/sim/natnet_server.h"
 
 namespace telex::local {

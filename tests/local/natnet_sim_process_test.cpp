@@ -9,7 +9,7 @@
 #include <chrono>
 #include <thread>
 
-#include "telex/local/natnet_client.h"
+#include "telex/local/inputs/natnet_client.h"
 #include "telex/sim/natnet_server.h"
 #include "test_support.h"
 

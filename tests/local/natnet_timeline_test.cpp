@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "process.h"
-#include "telex/local/natnet_client.h"
+#include "telex/local/inputs/natnet_client.h"
 #include "telex/sim/natnet_server.h"
 
 namespace telex::local {

@@ -2,7 +2,7 @@
 // The overview (view.png) in pixels: its normal-map inset shows the remote scene's full-frame
 // normals the stereo view computed for display, with the haptic path's fingertip windows outlined
 // on it, not the windows alone on black.
-#include "telex/local/operator_view.h"
+#include "telex/local/view/operator_view.h"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "analytic_depth.h"
-#include "telex/local/stereo_view.h"
+#include "telex/local/view/stereo_view.h"
 
 namespace telex::local {
 namespace {

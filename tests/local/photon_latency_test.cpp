@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT
 // PhotonLatency: motion to photon and capture to photon from stamped frames, on made-up clocks.
-#include "telex/local/photon_latency.h"
+#include "telex/local/view/photon_latency.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <limits>
 
-#include "telex/local/natnet_client.h"
+#include "telex/local/inputs/natnet_client.h"
 
 namespace telex::local {
 namespace {

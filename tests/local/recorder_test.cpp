@@ -2,7 +2,7 @@
 // Session recording and replay without the daemons: a stroke over a noisy synthetic plane, run
 // through the shipped surface build and force model tick by tick as the station does, recorded,
 // read back topic by topic and replayed; the recorder's queues drop and count instead of waiting.
-#include "telex/local/recorder.h"
+#include "telex/local/record/recorder.h"
 
 #include <gtest/gtest.h>
 #include <pty.h>

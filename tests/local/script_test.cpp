@@ -9,7 +9,8 @@
 
 #include "process.h"
 #include "telex/haptics/haptic_surface.h"
-#include "telex/local/hand_script.h"
+#include "telex/local/inputs/hand_script.h"
+#include "telex/local/inputs/tracker_registry.h"
 
 namespace telex::local {
 namespace {

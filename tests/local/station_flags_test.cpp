@@ -10,7 +10,7 @@
 
 #include "flags.h"
 #include "telex/cli/cli.h"
-#include "telex/local/view_window.h"
+#include "telex/local/view/view_window.h"
 
 namespace telex::local {
 namespace {

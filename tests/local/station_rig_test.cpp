@@ -7,9 +7,9 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "telex/local/glove.h"
-#include "telex/local/station.h"
-#include "telex/local/stereo_view.h"
+#include "telex/local/inputs/glove.h"
+#include "telex/local/station/station.h"
+#include "telex/local/view/stereo_view.h"
 
 namespace telex::local {
 namespace {

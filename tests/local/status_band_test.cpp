@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The views' status text fits every image it is drawn on: wrapped at spaces, nothing past the
 // right margin, every word kept.
-#include "telex/local/status_band.h"
+#include "telex/local/view/status_band.h"
 
 #include <gtest/gtest.h>
 

@@ -12,8 +12,8 @@
 
 #include "analytic_depth.h"
 #include "telex/haptics/hand_kinematics.h"
-#include "telex/local/fig7_view.h"
-#include "telex/local/stereo_view.h"
+#include "telex/local/view/fig7_view.h"
+#include "telex/local/view/stereo_view.h"
 
 namespace telex::local {
 namespace {

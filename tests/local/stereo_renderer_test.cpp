@@ -2,7 +2,7 @@
 // The stereo view's renderer, headless on Mesa's EGL: the remote scene hides the body where it is
 // nearer (both eyes), the eyes see a point at depth Z with the disparity f B / Z, and bad sizes or
 // a missing EGL name themselves.
-#include "telex/local/stereo_renderer.h"
+#include "telex/local/view/stereo_renderer.h"
 
 #include <epoxy/gl.h>
 #include <gtest/gtest.h>

@@ -2,7 +2,7 @@
 // The operator's stereo view: the tracked arm and hand appear in both eyes with the right
 // disparity, a fingertip in contact shows its pressure colour, one eye's video serves both with a
 // flag, and the status text fits the image.
-#include "telex/local/stereo_view.h"
+#include "telex/local/view/stereo_view.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "src/xr/openxr_output.h"
+#include "telex/local/view/openxr_output.h"
 
 namespace telex::local {
 namespace {

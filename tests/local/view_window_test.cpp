@@ -4,7 +4,7 @@
 // window is, full screen in hmd mode, follows a resize; Esc and the close button close it; the
 // stereo renderer's EGL context on another thread coexists with the window's; no display and an
 // unknown monitor are errors that say what to do.
-#include "telex/local/view_window.h"
+#include "telex/local/view/view_window.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -19,7 +19,7 @@
 
 #include "process.h"
 #include "telex/base/latest_slot.h"
-#include "telex/local/stereo_renderer.h"
+#include "telex/local/view/stereo_renderer.h"
 #include "test_support.h"
 #include "xvfb.h"
 

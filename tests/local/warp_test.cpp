@@ -3,7 +3,7 @@
 // moves the picture by f tan(angle), a box moved sideways in front of a wall opens a hole that is
 // shaded neutrally, never stretched from the box's edge, a border the capture did not see takes
 // the previous frame, and the ground-truth check (`telex warp --check`) meets its bounds.
-#include "telex/local/warp.h"
+#include "telex/local/view/warp.h"
 
 #include <gtest/gtest.h>
 
@@ -17,7 +17,7 @@
 #include "telex/common/hole_fill.h"
 #include "telex/common/registration.h"
 #include "telex/common/synthetic.h"
-#include "telex/local/warp_check.h"
+#include "telex/local/view/warp_check.h"
 
 namespace telex::local {
 namespace {

@@ -15,13 +15,14 @@
 #include <new>
 #include <thread>
 
-#include "station/haptic_loop.h"
+#include "haptic_loop.h"
 #include "telex/base/periodic.h"
 #include "telex/base/realtime.h"
 #include "telex/common/synthetic.h"
-#include "telex/local/display_supervisor.h"
-#include "telex/local/hand_script.h"
-#include "telex/local/surface_builder.h"
+#include "telex/local/displays/display_registry.h"
+#include "telex/local/displays/display_supervisor.h"
+#include "telex/local/inputs/hand_script.h"
+#include "telex/local/link/surface_builder.h"
 
 namespace {
 

@@ -13,10 +13,10 @@
 #include <memory>
 #include <opencv2/imgproc.hpp>
 
-#include "telex/local/fig7_view.h"
-#include "telex/local/stereo_renderer.h"
-#include "telex/local/stereo_view.h"
-#include "telex/local/warp.h"
+#include "telex/local/view/fig7_view.h"
+#include "telex/local/view/stereo_renderer.h"
+#include "telex/local/view/stereo_view.h"
+#include "telex/local/view/warp.h"
 
 namespace telex::local {
 namespace {

@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-#include "telex/local/warp.h"
+#include "telex/local/view/warp.h"
 
 namespace telex::local {
 namespace {

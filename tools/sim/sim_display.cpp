@@ -23,7 +23,7 @@
 
 #include "telex/cli/command_line.h"
 #include "telex/common/endpoint.h"
-#include "telex/local/udp_sink.h"
+#include "telex/local/displays/udp_sink.h"
 
 namespace {
 

@@ -11,7 +11,7 @@
 
 #include "command.h"
 #include "telex/cli/processing_flags.h"
-#include "telex/local/recorder.h"
+#include "telex/local/record/recorder.h"
 
 namespace telex::tool {
 namespace {

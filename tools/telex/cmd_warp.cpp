@@ -10,7 +10,7 @@
 #include <string>
 
 #include "command.h"
-#include "telex/local/warp_check.h"
+#include "telex/local/view/warp_check.h"
 
 namespace telex::tool {
 namespace {

@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "telex/local/glove.h"
-#include "telex/local/hid.h"
+#include "telex/local/displays/hid.h"
+#include "telex/local/inputs/glove.h"
 
 namespace telex::devices {
 
@@ -27,7 +27,8 @@ const std::vector<KnownDevice>& known_devices() {
         // "1d27/PRODUCT@BUS/ADDRESS" (Carmine 1.08/1.09, Asus Xtion, PrimeSensor).
         {0x1d27, std::nullopt, "PrimeSense PS1080 sensor (Carmine, Xtion)", "--source openni"},
     };
-    // The 5DT gloves this project reads (local_node/src/glove.cpp, glove_model_from_product_id).
+    // The 5DT gloves this project reads (local_node/inputs/src/glove.cpp,
+    // glove_model_from_product_id).
     for (const auto& p : local::glove_products())
       t.push_back({local::k5dtVendorId, p.product_id,
                    "5DT Data Glove " + std::to_string(local::sensor_count(p.model)) + " Ultra (" +

@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <glm/vec3.hpp>
 
-#include "telex/haptics/haptic_model.h"
 #include "telex/haptics/haptic_surface.h"
+#include "telex/haptics/haptic_types.h"
 
 namespace telex::detail {
 
