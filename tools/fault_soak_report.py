@@ -112,6 +112,18 @@ def bag_lines(outdir, rows):
     return out
 
 
+def fd_window(rows, key, first):
+    """The descriptors' range over the first or the last five minutes of samples: a single sample
+    catches transient ones (a picture being written, a reconnect's socket)."""
+    t = [int(r["t_s"]) for r in rows]
+    if first:
+        sel = [r for r in rows if int(r["t_s"]) <= t[0] + 300]
+    else:
+        sel = [r for r in rows if int(r["t_s"]) >= t[-1] - 300]
+    v = [int(r[key]) for r in sel if r[key]]
+    return f"{min(v)}-{max(v)}" if v else "-"
+
+
 def resource_lines(outdir):
     rows = []
     with open(os.path.join(outdir, "resources.csv"), newline="") as f:
@@ -124,7 +136,8 @@ def resource_lines(outdir):
         growth = 100.0 * (int(b["local_kb"]) - int(a["local_kb"])) / int(a["local_kb"])
         out.append(f"- telex-local: resident {int(a['local_kb']) / 1024:.1f} MiB at {a['t_s']} s, "
                    f"{int(b['local_kb']) / 1024:.1f} MiB at {b['t_s']} s ({growth:+.2f} %); "
-                   f"descriptors {a['local_fds']} -> {b['local_fds']}")
+                   f"descriptors over the first 5 min {fd_window(local[:-3], 'local_fds', True)}, "
+                   f"over the last 5 min {fd_window(local[:-3], 'local_fds', False)}")
     by_pid = {}
     for r in rows:
         if r["remote_kb"]:
@@ -137,7 +150,8 @@ def resource_lines(outdir):
         out.append(f"- telex-remote (its longest life, {len(by_pid)} started in all): resident "
                    f"{int(a['remote_kb']) / 1024:.1f} MiB at {a['t_s']} s, "
                    f"{int(b['remote_kb']) / 1024:.1f} MiB at {b['t_s']} s ({growth:+.2f} %); "
-                   f"descriptors {a['remote_fds']} -> {b['remote_fds']}")
+                   f"descriptors over its first 5 min {fd_window(runs, 'remote_fds', True)}, "
+                   f"over its last 5 min {fd_window(runs, 'remote_fds', False)}")
     return out
 
 

@@ -332,7 +332,7 @@ TEST(RemoteRestart, ForcesFadeWithinTheStaleLimitAndTheStationReconnects) {
 }
 
 // The remote hangs (SIGSTOP: no end of session, no more messages) for 1.5 s and goes on. The
-// station's probes go unanswered, so the force is zero from the link's silence on (40 ms,
+// station's probes go unanswered, so the force is zero from the link's silence on (35 ms,
 // --link-silence-ms) while the last surface is still fresh (--stale-limit 0.5 s): zero rows come
 // first, stale ones only after them, nothing presses until the remote speaks again, and then the
 // press comes back on the same session.

@@ -59,8 +59,8 @@ struct StationConfig {
   // message: ClientStats::alive_ns, kept young by 100 Hz probes) or the tracker's frames have
   // stopped this long, and ramps up again from zero when they return; 0: off (only the model's
   // --stale-limit fade).
-  double link_silence_s = 0.04;
-  double tracking_silence_s = 0.04;
+  double link_silence_s = 0.035;
+  double tracking_silence_s = 0.035;
   // Repair (docs/PROTOCOL.md 2.5; client.repair announces it): a tile asked for is asked again
   // after max(nack_retry_min_s, the stream's transit + 2 RTT); key frames at most this often.
   double nack_retry_min_s = 0.025;
