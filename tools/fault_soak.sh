@@ -68,7 +68,11 @@ cleanup() {
   if mountpoint -q "$rec"; then umount "$rec" 2>/dev/null || true; fi
 }
 trap cleanup EXIT
-now_ns() { date +%s%N; }
+# CLOCK_REALTIME in ns without a fork (bash's EPOCHREALTIME, microseconds): `$(date +%s%N)`
+# forks, and at load its stamp came 1.5 ms (up to 7 ms) before the next statement ran, which the
+# fault's "to zero" would then include. The display simulator's arrivals are on the same clock.
+stamp() { printf -v "$1" '%s000' "${EPOCHREALTIME/./}"; }
+now_ns() { local t; stamp t; echo "$t"; }
 
 start_remote() {
   "$bin/telex-remote" --listen "127.0.0.1:$port_remote" --psk "$outdir/key" \
@@ -145,7 +149,7 @@ fault() {  # NAME then the action; the action sets fault_end_ns
   local name=$1 before=yes
   shift
   wait_for_press || before=no
-  fault_start_ns=$(now_ns)
+  stamp fault_start_ns
   "$@"
   echo "$name,$fault_start_ns,$fault_end_ns,$before" >>"$outdir/faults.csv"
   echo "$(date +%T) $name (pressing before: $before)" >&2
@@ -154,7 +158,7 @@ link_loss() {
   kill -STOP -- "-$relay_pid"
   kill -STOP "$proxy_pid"
   sleep 5
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
   kill -CONT -- "-$relay_pid"
   kill -CONT "$proxy_pid"
 }
@@ -163,20 +167,20 @@ loss20() {
   wait "$proxy_pid" 2>/dev/null || true
   start_proxy 0.2 30
   wait "$proxy_pid" 2>/dev/null || true
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
   start_proxy
 }
 remote_kill() {
   kill -KILL "$remote_pid"
   wait "$remote_pid" 2>/dev/null || true
   sleep 2
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
   start_remote
 }
 stop_for() {  # PID SECONDS: the process stopped (SIGSTOP), then resumed
   kill -STOP "$1"
   sleep "$2"
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
   kill -CONT "$1"
 }
 natnet_silent() { stop_for "$natnet_pid" 3; }
@@ -184,13 +188,13 @@ display_closed() {
   kill -INT "$display_pid"
   wait "$display_pid" 2>/dev/null || true
   sleep 2
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
   start_display
 }
 station_stop() { stop_for "$local_pid" 1; }
 disk_full() {
   dd if=/dev/zero of="$rec/filler" bs=1M status=none 2>/dev/null || true
-  fault_end_ns=$(now_ns)
+  stamp fault_end_ns
 }
 
 sleep 20
