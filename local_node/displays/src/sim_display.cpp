@@ -2,6 +2,8 @@
 // The simulated display (sim_display.h).
 #include "sim_display.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
