@@ -72,16 +72,13 @@ def main():
         where = " ".join(cells[2:]) if len(cells) > 2 else line
         row_files, names = [], []
         for tok in TICK.findall(where):
+            # "file.cpp: name" in one pair of backticks splits into the file and the name
             for part in re.split(r"[\s,;]+|->", tok):
                 part = part.strip().rstrip(":")
                 if FILE.fullmatch(part):
                     row_files.append(part)
                 elif IDENT.match(part) and part not in NOT_CODE:
                     names.append(part.replace("()", ""))
-            # "file.cpp: name" inside one pair of backticks
-        for f in re.findall(r"`([\w./-]+\.(?:cpp|h|hpp|cc))(?::[^`]*)?`", where):
-            if f not in row_files:
-                row_files.append(f)
         for tok in TICK.findall(where):
             d = tok.strip().rstrip("/")
             if "/" in d and os.path.isdir(d):

@@ -130,9 +130,9 @@ struct StereoRenderer::Impl {
     window_depth.resize(65536);
     window_depth[0] = 1.0f;
     for (std::size_t mm = 1; mm < window_depth.size(); ++mm) {
-      const double z = std::clamp(static_cast<double>(mm) * 1e-3, kNear_m, kFar_m);
-      const double ndc = (kFar_m + kNear_m) / (kFar_m - kNear_m) -
-                         2.0 * kFar_m * kNear_m / ((kFar_m - kNear_m) * z);
+      const double z = std::clamp(static_cast<double>(mm) * 1e-3, kViewNear_m, kViewFar_m);
+      const double ndc = (kViewFar_m + kViewNear_m) / (kViewFar_m - kViewNear_m) -
+                         2.0 * kViewFar_m * kViewNear_m / ((kViewFar_m - kViewNear_m) * z);
       window_depth[mm] = static_cast<float>(ndc * 0.5 + 0.5);
     }
     body = std::make_unique<BodyPass>();

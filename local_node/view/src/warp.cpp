@@ -399,8 +399,7 @@ struct DepthWarp::Impl {
     glUniform1i(glGetUniformLocation(mesh, "u_step"), step);
     glUniform1i(glGetUniformLocation(mesh, "u_vertices_per_row"), quads_x + 1);
     set_pose(mesh, k, poses);
-    const glm::mat4 projection =
-        projection_from_intrinsics(k, StereoRenderer::kNear_m, StereoRenderer::kFar_m);
+    const glm::mat4 projection = projection_from_intrinsics(k, kViewNear_m, kViewFar_m);
     glUniformMatrix4fv(glGetUniformLocation(mesh, "u_projection"), 1, GL_FALSE,
                        glm::value_ptr(projection));
     glEnable(GL_DEPTH_TEST);

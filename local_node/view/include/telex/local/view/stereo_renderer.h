@@ -63,7 +63,6 @@ class StereoRenderer {
   void set_body_divisor(int divisor);
 
   std::string gl_renderer() const;  // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
-  static constexpr double kNear_m = kViewNear_m, kFar_m = kViewFar_m;
 
  private:
   struct Impl;
