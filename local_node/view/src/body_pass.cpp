@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-// The body pass: round cones joined by a smooth minimum and sphere-traced once per pixel over the
-// capsules of its screen tile, lit to the video's brightness, and the fingertips' contact shadows
-// on the remote scene.
+// The body pass: the body as triangles (BodyMesh), or as the reference, round cones joined by a
+// smooth minimum and sphere-traced once per pixel over the capsules of its screen tile; lit to the
+// video's brightness; and the fingertips' contact shadows on the remote scene.
 #include "body_pass.h"
 
 #include <epoxy/gl.h>
@@ -47,27 +47,7 @@ void main() {
 constexpr double kShadowReach_m = 0.05;
 constexpr double kShadowRadius_m = 0.012;
 
-constexpr std::size_t kCapsuleFloats = 12;  // a, radius at a, b, radius at b, rgba
-
-std::array<float, 3> f3(const glm::dvec3& v) {
-  return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
-}
-
 bool finite(const glm::dvec3& v) { return std::isfinite(v.x + v.y + v.z); }
-
-double radius_b(const Capsule& c) { return c.radius_b_m < 0.0 ? c.radius_m : c.radius_b_m; }
-
-// `bytes` from `data` into `buffer`, read by the shader as the texture buffer `texture` of texel
-// `format` on texture unit `unit` (its sampler uniform at `location`).
-void texture_buffer(GLuint buffer, GLuint texture, const void* data, std::size_t bytes,
-                    GLenum format, int unit, GLint location) {
-  glBindBuffer(GL_TEXTURE_BUFFER, buffer);
-  glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
-  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
-  glBindTexture(GL_TEXTURE_BUFFER, texture);
-  glTexBuffer(GL_TEXTURE_BUFFER, format, buffer);
-  glUniform1i(location, unit);
-}
 
 }  // namespace
 
@@ -84,20 +64,45 @@ struct BodyPass::Gl {
   bool tiles_valid = false;
   bool depth_uploaded = false;  // scene_depth in depth_tex
   void upload_scene_depth();
-  // Per slot (eye): its target, made on its first march, and what composite_body needs of it.
+  // Per slot (eye): its target, made on its first draw, and what composite_body needs of it.
   struct Slot {
     std::unique_ptr<BodyUpsample> target;
     std::vector<cv::Rect> areas_px;  // empty: nothing to composite
     int divisor = 1;
+    // The mesh at the eye's size is drawn by composite_body straight into the eye's target,
+    // depth-tested against the remote depth there: what it draws, kept until then.
+    bool direct = false;
+    std::vector<Capsule> capsules;
+    Intrinsics k;
+    glm::dvec3 p_RightEye{0.0};
+    float exposure = 1.0f;
   };
   std::array<Slot, kSlots> slots;
   BodyTiles tiles;
   std::vector<float> caps;
+  std::unique_ptr<BodyMesh> mesh;
+  BodyShape shape = BodyShape::Mesh;
+  // The samples that passed the depth test (for the mesh the fragments shaded: early depth,
+  // opaque fragments) and, where the driver counts them, the fragment shader's runs (llvmpipe
+  // counts every lane of the 4x4 blocks it runs the shader on).
+  std::array<GLuint, 2> queries{};
+  bool has_invocations = false;
+  bool counting = false;
+  BodyFragments fragments;
+  // Around a body draw when counting: its fragment shader's runs into `fragments`.
+  void begin_count();
+  void end_count();
+  // The ray-march into the bound target (k_body its intrinsics).
+  void march(const Intrinsics& k_body, const glm::dvec3& p_RightEye,
+             std::span<const Capsule> capsules, float exposure);
 };
 
 BodyPass::BodyPass() : gl_(std::make_unique<Gl>()) {
   Gl& g = *gl_;
-  g.body = link_program(kBodyTilesVs, kBodyTilesFs, "stereo view: body");
+  g.body = link_program(kBodyTilesVs, body_shader(kBodyTilesFs).c_str(), "stereo view: body");
+  g.mesh = std::make_unique<BodyMesh>();
+  glGenQueries(2, g.queries.data());
+  g.has_invocations = epoxy_has_gl_extension("GL_ARB_pipeline_statistics_query");
   g.shadow = link_program(kRectVertexShader, kShadowFs, "stereo view: body");
   glGenVertexArrays(1, &g.vao);
   glGenVertexArrays(1, &g.empty_vao);
@@ -193,74 +198,107 @@ void BodyPass::draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_Rig
   glBindVertexArray(0);
 }
 
-void BodyPass::march_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
-                          std::span<const Capsule> capsules, float exposure, int divisor) {
+void BodyPass::set_shape(BodyShape shape) { gl_->shape = shape; }
+void BodyPass::set_counting(bool on) { gl_->counting = on; }
+BodyFragments BodyPass::last_body_fragments() const { return gl_->fragments; }
+
+void BodyPass::draw_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure, int divisor) {
   Gl& g = *gl_;
   if (slot < 0 || slot >= kSlots)
     throw std::invalid_argument("stereo view: body slot out of range");
   Gl::Slot& s = g.slots[static_cast<std::size_t>(slot)];
   s.areas_px.clear();
+  s.capsules.clear();
   s.divisor = std::max(1, divisor);
+  g.fragments = {};
   if (capsules.size() > kMaxCapsules) capsules = capsules.first(kMaxCapsules);
-  const auto neighbours = blend_neighbours(capsules);
-  g.caps.assign(capsules.size() * kCapsuleFloats, 0.0f);
-  for (std::size_t i = 0; i < capsules.size(); ++i) {
-    const Capsule& c = capsules[i];
-    const glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
-    const double ra = c.radius_m, rb = radius_b(c);
-    if (!(ra > 0.0) || !(rb > 0.0) || !std::isfinite(ra + rb) || !finite(a) || !finite(b)) continue;
-    const auto fa = f3(a), fb = f3(b);
-    float* cap = g.caps.data() + i * kCapsuleFloats;
-    std::copy(fa.begin(), fa.end(), cap);
-    cap[3] = static_cast<float>(ra);
-    std::copy(fb.begin(), fb.end(), cap + 4);
-    cap[7] = static_cast<float>(rb);
-    cap[8] = c.bgr[2] / 255.0f;
-    cap[9] = c.bgr[1] / 255.0f;
-    cap[10] = c.bgr[0] / 255.0f;
-    cap[11] = c.lit ? 1.0f : 0.0f;
+  s.direct = g.shape == BodyShape::Mesh && s.divisor == 1;
+  if (s.direct) {
+    s.capsules.assign(capsules.begin(), capsules.end());
+    s.k = k;
+    s.p_RightEye = p_RightEye;
+    s.exposure = exposure;
+    return;
   }
   if (capsules.empty()) return;
   if (!s.target) s.target = std::make_unique<BodyUpsample>();
   const Intrinsics k_body = s.target->begin(k, s.divisor);
+  g.begin_count();
+  if (g.shape == BodyShape::Mesh)
+    g.mesh->draw(k_body, p_RightEye, capsules, exposure);
+  else
+    g.march(k_body, p_RightEye, capsules, exposure);
+  g.end_count();
+  // Tiles of 32 eye pixels: most of the bounding rectangle of two arms reaching in holds no
+  // body, and the composite costs llvmpipe some 20 ns per pixel it covers.
+  s.areas_px = body_tiles_px(k, p_RightEye, capsules, s.divisor + 1, 32);
+  s.target->end();
+}
+
+void BodyPass::Gl::begin_count() {
+  fragments = {};
+  if (!counting) return;
+  glBeginQuery(GL_SAMPLES_PASSED, queries[0]);
+  if (has_invocations) glBeginQuery(GL_FRAGMENT_SHADER_INVOCATIONS_ARB, queries[1]);
+}
+
+void BodyPass::Gl::end_count() {
+  if (!counting) return;
+  glEndQuery(GL_SAMPLES_PASSED);
+  if (has_invocations) glEndQuery(GL_FRAGMENT_SHADER_INVOCATIONS_ARB);
+  GLuint64 count = 0;
+  glGetQueryObjectui64v(queries[0], GL_QUERY_RESULT, &count);
+  fragments.passed = count;
+  if (has_invocations) {
+    glGetQueryObjectui64v(queries[1], GL_QUERY_RESULT, &count);
+    fragments.invocations = count;
+  }
+}
+
+bool BodyPass::draws_into_target(int slot) const {
+  if (slot < 0 || slot >= kSlots) return false;
+  const Gl::Slot& s = gl_->slots[static_cast<std::size_t>(slot)];
+  return s.direct && !s.capsules.empty();
+}
+
+void BodyPass::Gl::march(const Intrinsics& k_body, const glm::dvec3& p_RightEye,
+                         std::span<const Capsule> capsules, float exposure) {
+  const auto neighbours = blend_neighbours(capsules);
+  pack_capsules(capsules, p_RightEye, caps);
   // Tiles of 16 target pixels: smaller tiles have shorter lists but llvmpipe pays per quad; 8 and
   // 32 measured slower (4 much slower).
   constexpr int kTilePx = 16;
-  bin_body_tiles(k_body, p_RightEye, capsules, neighbours, kTilePx, g.tiles);
-  if (!g.tiles.tiles.empty()) {
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
-    glUseProgram(g.body);
-    glUniform2f(glGetUniformLocation(g.body, "u_size"), static_cast<float>(k_body.width),
-                static_cast<float>(k_body.height));
-    glUniform4f(glGetUniformLocation(g.body, "u_k"), static_cast<float>(k_body.fx),
-                static_cast<float>(k_body.fy), static_cast<float>(k_body.cx),
-                static_cast<float>(k_body.cy));
-    glUniform1f(glGetUniformLocation(g.body, "u_near"), static_cast<float>(kViewNear_m));
-    glUniform1f(glGetUniformLocation(g.body, "u_far"), static_cast<float>(kViewFar_m));
-    glUniform1f(glGetUniformLocation(g.body, "u_exposure"), exposure);
-    texture_buffer(g.caps_buffer, g.caps_tex, g.caps.data(), g.caps.size() * sizeof(float),
-                   GL_RGBA32F, 1, glGetUniformLocation(g.body, "u_caps"));
-    texture_buffer(g.list_buffer, g.list_tex, g.tiles.list.data(),
-                   g.tiles.list.size() * sizeof(g.tiles.list[0]), GL_RG32I, 0,
-                   glGetUniformLocation(g.body, "u_list"));
-    glBindBuffer(GL_ARRAY_BUFFER, g.tiles_vbo);
-    glBufferData(GL_ARRAY_BUFFER,
-                 static_cast<GLsizeiptr>(g.tiles.tiles.size() * sizeof(g.tiles.tiles[0])),
-                 g.tiles.tiles.data(), GL_STREAM_DRAW);
-    glBindVertexArray(g.vao);
-    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(g.tiles.tiles.size()));
-    glBindVertexArray(0);
-    glBindTexture(GL_TEXTURE_BUFFER, 0);
-    glActiveTexture(GL_TEXTURE1);
-    glBindTexture(GL_TEXTURE_BUFFER, 0);
-    glActiveTexture(GL_TEXTURE0);
-    // Tiles of 32 eye pixels: most of the bounding rectangle of two arms reaching in holds no
-    // body, and the composite costs llvmpipe some 20 ns per pixel it covers.
-    s.areas_px = body_tiles_px(k, p_RightEye, capsules, s.divisor + 1, 32);
-  }
-  s.target->end();
+  bin_body_tiles(k_body, p_RightEye, capsules, neighbours, kTilePx, tiles);
+  if (tiles.tiles.empty()) return;
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);
+  glUseProgram(body);
+  glUniform2f(glGetUniformLocation(body, "u_size"), static_cast<float>(k_body.width),
+              static_cast<float>(k_body.height));
+  glUniform4f(glGetUniformLocation(body, "u_k"), static_cast<float>(k_body.fx),
+              static_cast<float>(k_body.fy), static_cast<float>(k_body.cx),
+              static_cast<float>(k_body.cy));
+  glUniform1f(glGetUniformLocation(body, "u_near"), static_cast<float>(kViewNear_m));
+  glUniform1f(glGetUniformLocation(body, "u_far"), static_cast<float>(kViewFar_m));
+  glUniform1f(glGetUniformLocation(body, "u_exposure"), exposure);
+  texture_buffer(caps_buffer, caps_tex, caps.data(), caps.size() * sizeof(float), GL_RGBA32F, 1,
+                 glGetUniformLocation(body, "u_caps"));
+  texture_buffer(list_buffer, list_tex, tiles.list.data(),
+                 tiles.list.size() * sizeof(tiles.list[0]), GL_RG32I, 0,
+                 glGetUniformLocation(body, "u_list"));
+  glBindBuffer(GL_ARRAY_BUFFER, tiles_vbo);
+  glBufferData(GL_ARRAY_BUFFER,
+               static_cast<GLsizeiptr>(tiles.tiles.size() * sizeof(tiles.tiles[0])),
+               tiles.tiles.data(), GL_STREAM_DRAW);
+  glBindVertexArray(vao);
+  glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(tiles.tiles.size()));
+  glBindVertexArray(0);
+  glBindTexture(GL_TEXTURE_BUFFER, 0);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_BUFFER, 0);
+  glActiveTexture(GL_TEXTURE0);
 }
 
 void BodyPass::composite_body(int slot) {
@@ -268,6 +306,13 @@ void BodyPass::composite_body(int slot) {
   if (slot < 0 || slot >= kSlots)
     throw std::invalid_argument("stereo view: body slot out of range");
   Gl::Slot& s = g.slots[static_cast<std::size_t>(slot)];
+  if (s.direct) {
+    if (s.capsules.empty()) return;
+    g.begin_count();
+    g.mesh->draw(s.k, s.p_RightEye, s.capsules, s.exposure);
+    g.end_count();
+    return;
+  }
   if (s.areas_px.empty()) return;
   if (g.has_scene_depth) g.upload_scene_depth();
   s.target->composite(s.divisor, s.areas_px, g.has_scene_depth ? g.depth_tex : 0);

@@ -12,8 +12,10 @@
 #include <memory>
 #include <opencv2/core.hpp>
 #include <span>
+#include <string>
 #include <vector>
 
+#include "telex/local/view/body_shape.h"
 #include "telex/local/view/eye_view.h"
 
 namespace telex::local {
@@ -26,7 +28,7 @@ inline constexpr std::size_t kMaxBlendNeighbours = 8;
 std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
     std::span<const Capsule> capsules);
 
-// The body marched at 1/divisor of the eye's resolution into an offscreen target (colour with
+// The body drawn at 1/divisor of the eye's resolution into an offscreen target (colour with
 // coverage, depth) and composited over the eye: each of the four low-resolution samples around an
 // eye pixel counts only where it is nearer than the remote depth at that pixel, and the kept ones
 // blend bilinearly.
@@ -92,9 +94,46 @@ void bin_body_tiles(const Intrinsics& k, const glm::dvec3& p_RightEye,
                     int tile_px, BodyTiles& out);
 
 // The body pass's shaders (body_pass_shaders.cpp): a quad per tile, and the march of each pixel
-// against its tile's capsules.
+// against its tile's capsules. kBodyTilesFs, as the mesh's shaders, is completed by body_shader:
+// the version line, kBodyShadeGlsl (the skin's shading) and kBodyFieldGlsl (the capsules' field)
+// before it.
+extern const char* const kBodyShadeGlsl;
+extern const char* const kBodyFieldGlsl;
 extern const char* const kBodyTilesVs;
 extern const char* const kBodyTilesFs;
+// `body` after the version line, kBodyShadeGlsl and kBodyFieldGlsl.
+std::string body_shader(const char* body);
+
+// Per capsule 12 floats, in the eye's frame (its centre the origin): a and its radius, b and its
+// radius, rgb and lit (1) or a marker (0); a capsule with a radius that is not positive or a
+// point that is not finite is all zeros (nothing drawn). The march's and the mesh's texture
+// buffer.
+inline constexpr std::size_t kCapsuleFloats = 12;
+void pack_capsules(std::span<const Capsule> capsules, const glm::dvec3& p_RightEye,
+                   std::vector<float>& out);
+
+// The body as triangles (body_mesh.cpp): one canonical capsule mesh (capsule_mesh.h) drawn once
+// per capsule, instanced, each vertex placed on its capsule's round cone in the vertex shader and
+// pushed out along its normal onto the smooth union with the capsules it shares an end with (the
+// march's field: the fillets at the joints), nearest capsules first, with the early depth test
+// (no gl_FragDepth) and back faces culled.
+class BodyMesh {
+ public:
+  BodyMesh();  // compiles the shaders and uploads the mesh; the GL context must be current
+  ~BodyMesh();
+  BodyMesh(const BodyMesh&) = delete;
+  BodyMesh& operator=(const BodyMesh&) = delete;
+
+  // Into the bound framebuffer (its viewport k's size) with its depth tested and written, lit
+  // with `exposure`; capsules with a radius that is not positive or a point that is not finite
+  // are left out.
+  void draw(const Intrinsics& k, const glm::dvec3& p_RightEye, std::span<const Capsule> capsules,
+            float exposure);
+
+ private:
+  struct Gl;
+  std::unique_ptr<Gl> gl_;
+};
 
 class BodyPass {
  public:
@@ -110,14 +149,26 @@ class BodyPass {
   void draw_contact_shadows(const Intrinsics& k, const glm::dvec3& p_RightEye,
                             std::span<const glm::dvec3> fingertips);
   // The body in two steps, so that the eye's picture can be taken after the body is drawn (the
-  // video late-latched): march_body draws it into `slot`'s own offscreen target (one per eye, 0
-  // or 1) at 1/divisor of the eye's resolution; composite_body puts that slot's body over the
-  // bound framebuffer, each sample hidden where the remote depth (set_scene_depth's, at
-  // composite time) is nearer. The bound framebuffer and viewport are kept by march_body.
-  void march_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
-                  std::span<const Capsule> capsules, float exposure, int divisor = 1);
+  // video late-latched). The mesh at the eye's size (divisor 1): draw_body keeps what to draw
+  // and composite_body draws it into the bound framebuffer (the eye's), depth-tested against its
+  // depth buffer, which must then hold the remote depth (draws_into_target says so). Otherwise
+  // draw_body draws the body into `slot`'s own offscreen target (one per eye, 0 or 1) at
+  // 1/divisor of the eye's resolution, and composite_body puts it over the bound framebuffer,
+  // each sample hidden where the remote depth (set_scene_depth's, at composite time) is nearer.
+  // The bound framebuffer and viewport are kept by draw_body.
+  void draw_body(int slot, const Intrinsics& k, const glm::dvec3& p_RightEye,
+                 std::span<const Capsule> capsules, float exposure, int divisor = 1);
   void composite_body(int slot);
+  bool draws_into_target(int slot) const;
   static constexpr int kSlots = 2;
+
+  // The mesh (the default) or the ray-marched reference.
+  void set_shape(BodyShape shape);
+  // While on, the body's draw (draw_body's, or composite_body's when it draws the mesh) counts
+  // its fragment shader's runs (a stall: for the benchmark); last_body_fragments() is the last
+  // draw's count.
+  void set_counting(bool on);
+  BodyFragments last_body_fragments() const;
 
   static constexpr std::size_t kMaxCapsules = 256;  // more are not drawn
 

@@ -31,6 +31,25 @@ std::vector<std::array<std::int32_t, kMaxBlendNeighbours>> blend_neighbours(
   return out;
 }
 
+void pack_capsules(std::span<const Capsule> capsules, const glm::dvec3& p_RightEye,
+                   std::vector<float>& out) {
+  out.assign(capsules.size() * kCapsuleFloats, 0.0f);
+  for (std::size_t i = 0; i < capsules.size(); ++i) {
+    const Capsule& c = capsules[i];
+    const glm::dvec3 a = c.a - p_RightEye, b = c.b - p_RightEye;
+    const double ra = c.radius_m, rb = c.radius_b_m < 0.0 ? c.radius_m : c.radius_b_m;
+    if (!(ra > 0.0) || !(rb > 0.0) || !std::isfinite(ra + rb + a.x + a.y + a.z + b.x + b.y + b.z))
+      continue;
+    float* cap = out.data() + i * kCapsuleFloats;
+    const float values[kCapsuleFloats] = {
+        static_cast<float>(a.x), static_cast<float>(a.y), static_cast<float>(a.z),
+        static_cast<float>(ra),  static_cast<float>(b.x), static_cast<float>(b.y),
+        static_cast<float>(b.z), static_cast<float>(rb),  c.bgr[2] / 255.0f,
+        c.bgr[1] / 255.0f,       c.bgr[0] / 255.0f,       c.lit ? 1.0f : 0.0f};
+    std::copy(std::begin(values), std::end(values), cap);
+  }
+}
+
 float exposure_from_image(const cv::Mat3b& bgr) {
   if (bgr.empty()) return 1.0f;
   // Every 8th pixel of every 8th row is plenty for a mean.

@@ -5,40 +5,31 @@
 
 namespace telex::local {
 
-// One quad per non-empty tile (per instance: its first pixel, rows top-down, and where its
-// capsule list lies in the list buffer), cut to the target.
-const char* const kBodyTilesVs = R"(#version 330 core
-layout(location = 0) in ivec4 a_tile;  // x, y (pixels), list offset, count | side << 8
-uniform vec2 u_size;                   // the target's pixels
-flat out ivec2 v_list;                 // offset, count
-void main() {
-  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
-  vec2 px = min(vec2(a_tile.xy) + c * float(a_tile.w >> 8), u_size);
-  v_list = ivec2(a_tile.z, a_tile.w & 255);
-  gl_Position = vec4(2.0 * px / u_size - 1.0, 0.0, 1.0);
+// The body's surface colour at a point with outward unit normal n seen along rd (unit, from the
+// eye): both the ray-marched body and the mesh body shade with it.
+const char* const kBodyShadeGlsl = R"(
+// Skin (color.a 1): a key light from above and to the left (the camera's y is down), wrapped so
+// the shadow side stays soft, a sky-and-ground ambient, the creases (`crease`: how deep in a
+// fillet between two capsules, 0..1) darkened, a warm rim where light scatters under the skin,
+// and a faint sheen, all times the video's `exposure`. A marker (color.a 0): its colour, shaded
+// by how squarely it faces the eye.
+vec3 shade_body(vec3 n, vec3 rd, vec4 color, float crease, float exposure) {
+  float facing = max(dot(n, -rd), 0.0);
+  vec3 albedo = color.rgb;
+  if (color.a < 0.5) return albedo * (0.55 + 0.45 * facing);
+  vec3 l = normalize(vec3(-0.35, -0.85, -0.4));
+  float diffuse = max((dot(n, l) + 0.35) / 1.35, 0.0);
+  float ambient = 0.22 + 0.14 * (0.5 - 0.5 * n.y);
+  float ao = 1.0 - 0.12 * crease * crease;
+  vec3 rim = vec3(0.85, 0.35, 0.25) * pow(1.0 - facing, 3.0) * 0.12;
+  float sheen = pow(max(dot(reflect(-l, n), -rd), 0.0), 20.0) * 0.06;
+  return (albedo * (0.78 * diffuse + ambient) * ao + rim + sheen) * exposure;
 }
 )";
 
-// The eye sits at the origin. Each capsule of this pixel's tile (nearest first) is met by the
-// ray where its field, the capsule smoothly joined to its neighbours, first reaches zero; the
-// nearest of those hits is shaded. A capsule that starts beyond the nearest hit so far is not
-// marched, and the list ends once a capsule's nearest z is past it: the union of all the fields
-// is shaded once per pixel instead of once per overlapping capsule box.
-const char* const kBodyTilesFs = R"(#version 330 core
-// Per capsule: a and its radius, b and its radius, rgb and lit (1) or a flat marker (0).
-// A texture buffer, not a uniform block: llvmpipe fetches a texel's four components per pixel
-// at once, and a uniform block's one by one.
-uniform samplerBuffer u_caps;
-// Per tile entry (each tile's nearest first): its capsule, and as bit k its neighbours' entries
-// in the same tile.
-uniform isamplerBuffer u_list;
-uniform vec4 u_k;               // fx, fy, cx, cy of the target
-uniform float u_near;
-uniform float u_far;
-uniform float u_exposure;
-flat in ivec2 v_list;  // this tile's offset and count in u_list
-out vec4 o_color;
-
+// The round cone's signed distance and the smooth minimum that joins two: the ray-marched body's
+// field and the mesh body's fillets (its vertex shader) are made of these.
+const char* const kBodyFieldGlsl = R"(
 float dot2(vec3 v) { return dot(v, v); }
 // Quilez's round cone: spheres of radii r1 at a and r2 at b and the cone tangent to both.
 float round_cone(vec3 p, vec3 a, vec3 b, float r1, float r2) {
@@ -64,6 +55,44 @@ float smin(float a, float b, float k) {
   float h = max(k - abs(a - b), 0.0) / k;
   return min(a, b) - h * h * k * 0.25;
 }
+// How far a capsule of larger radius r blends into its neighbour a-b (radii a.w, b.w).
+float blend_reach(float r, vec4 a, vec4 b) { return 0.7 * min(r, max(a.w, b.w)); }
+)";
+
+// One quad per non-empty tile (per instance: its first pixel, rows top-down, and where its
+// capsule list lies in the list buffer), cut to the target.
+const char* const kBodyTilesVs = R"(#version 330 core
+layout(location = 0) in ivec4 a_tile;  // x, y (pixels), list offset, count | side << 8
+uniform vec2 u_size;                   // the target's pixels
+flat out ivec2 v_list;                 // offset, count
+void main() {
+  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1);
+  vec2 px = min(vec2(a_tile.xy) + c * float(a_tile.w >> 8), u_size);
+  v_list = ivec2(a_tile.z, a_tile.w & 255);
+  gl_Position = vec4(2.0 * px / u_size - 1.0, 0.0, 1.0);
+}
+)";
+
+// The eye sits at the origin. Each capsule of this pixel's tile (nearest first) is met by the
+// ray where its field, the capsule smoothly joined to its neighbours, first reaches zero; the
+// nearest of those hits is shaded. A capsule that starts beyond the nearest hit so far is not
+// marched, and the list ends once a capsule's nearest z is past it: the union of all the fields
+// is shaded once per pixel instead of once per overlapping capsule box.
+const char* const kBodyTilesFs = R"(
+// Per capsule: a and its radius, b and its radius, rgb and lit (1) or a flat marker (0).
+// A texture buffer, not a uniform block: llvmpipe fetches a texel's four components per pixel
+// at once, and a uniform block's one by one.
+uniform samplerBuffer u_caps;
+// Per tile entry (each tile's nearest first): its capsule, and as bit k its neighbours' entries
+// in the same tile.
+uniform isamplerBuffer u_list;
+uniform vec4 u_k;               // fx, fy, cx, cy of the target
+uniform float u_near;
+uniform float u_far;
+uniform float u_exposure;
+flat in ivec2 v_list;  // this tile's offset and count in u_list
+out vec4 o_color;
+
 vec4 g_self_a, g_self_b;  // this capsule
 int g_near_lo, g_near_hi;  // the neighbours near this pixel's ray, a byte each
 int g_count;
@@ -78,7 +107,7 @@ float field(vec3 p) {
   for (int k = 0; k < g_count; ++k) {
     int j = ((k < 4 ? g_near_lo : g_near_hi) >> (8 * (k & 3))) & 255;
     vec4 a = texelFetch(u_caps, 3 * j), b = texelFetch(u_caps, 3 * j + 1);
-    float kj = 0.7 * min(r, max(a.w, b.w));
+    float kj = blend_reach(r, a, b);
     float dj = round_cone(p, a.xyz, b.xyz, a.w, b.w);
     g_blend = max(g_blend, max(kj - abs(d - dj), 0.0) / kj);
     d = smin(d, dj, kj);
@@ -312,23 +341,7 @@ void main() {
     n = normalize(vec3(field(p + vec3(e, 0.0, 0.0)), field(p + vec3(0.0, e, 0.0)),
                        field(p + vec3(0.0, 0.0, e))) - d0);
   }
-  float facing = max(dot(n, -rd), 0.0);
-  vec3 albedo = color.rgb;
-  vec3 c;
-  if (color.a > 0.5) {
-    // Skin: a key light from above and to the left (the camera's y is down), wrapped so the
-    // shadow side stays soft, a sky-and-ground ambient, the creases (deep in a fillet between two
-    // capsules) darkened, a warm rim where light scatters under the skin, and a faint sheen.
-    vec3 l = normalize(vec3(-0.35, -0.85, -0.4));
-    float diffuse = max((dot(n, l) + 0.35) / 1.35, 0.0);
-    float ambient = 0.22 + 0.14 * (0.5 - 0.5 * n.y);
-    float ao = 1.0 - 0.12 * crease * crease;
-    vec3 rim = vec3(0.85, 0.35, 0.25) * pow(1.0 - facing, 3.0) * 0.12;
-    float sheen = pow(max(dot(reflect(-l, n), -rd), 0.0), 20.0) * 0.06;
-    c = (albedo * (0.78 * diffuse + ambient) * ao + rim + sheen) * u_exposure;
-  } else {
-    c = albedo * (0.55 + 0.45 * facing);
-  }
+  vec3 c = shade_body(n, rd, color, crease, u_exposure);
   o_color = vec4(c, 1.0);
   float z = clamp(p.z, u_near, u_far);
   float ndc = (u_far + u_near) / (u_far - u_near) - 2.0 * u_far * u_near / ((u_far - u_near) * z);

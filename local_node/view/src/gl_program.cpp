@@ -56,4 +56,14 @@ GLuint make_texture(GLenum internal, int w, int h, GLenum format, GLenum type, G
   return t;
 }
 
+void texture_buffer(GLuint buffer, GLuint texture, const void* data, std::size_t bytes,
+                    GLenum format, int unit, GLint location) {
+  glBindBuffer(GL_TEXTURE_BUFFER, buffer);
+  glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
+  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
+  glBindTexture(GL_TEXTURE_BUFFER, texture);
+  glTexBuffer(GL_TEXTURE_BUFFER, format, buffer);
+  glUniform1i(location, unit);
+}
+
 }  // namespace telex::local

@@ -6,6 +6,7 @@
 
 #include <epoxy/gl.h>
 
+#include <cstddef>
 #include <string_view>
 
 namespace telex::local {
@@ -22,6 +23,11 @@ void main() {
   gl_Position = vec4(mix(u_rect.xy, u_rect.zw, c), 0.0, 1.0);
 }
 )";
+
+// `bytes` from `data` into `buffer`, read by the shader as the texture buffer `texture` of texel
+// `format` on texture unit `unit` (its sampler uniform at `location`).
+void texture_buffer(GLuint buffer, GLuint texture, const void* data, std::size_t bytes,
+                    GLenum format, int unit, GLint location);
 
 // A 2D texture of w x h with no data yet, `filter` for both directions, edges clamped.
 GLuint make_texture(GLenum internal, int w, int h, GLenum format, GLenum type, GLint filter);

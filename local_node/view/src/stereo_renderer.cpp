@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // The stereo view's renderer: a headless EGL context (Mesa's surfaceless platform) and an
 // offscreen framebuffer whose colour and depth textures are loaded with the eye's image and the
-// remote depth (as window depths) before the body's capsules are ray-cast over them. Rows run
+// remote depth (as window depths) before the body's capsules are drawn over them. Rows run
 // top-down in every buffer (the projection flips y), so nothing is flipped on the way in or out.
 #include "telex/local/view/stereo_renderer.h"
 
@@ -83,11 +83,14 @@ struct StereoRenderer::Impl {
   EGLDisplay display = EGL_NO_DISPLAY;
   EGLContext context = EGL_NO_CONTEXT;
   EGLSurface surface = EGL_NO_SURFACE;
-  GLuint fbo = 0, color_tex = 0;    // the eye's picture; the body has its own depth (BodyPass)
+  GLuint fbo = 0, color_tex = 0;  // the eye's picture
+  // The eye's depth buffer: the remote depth, loaded when the body mesh is drawn into the eye.
+  GLuint depth_tex = 0;
   std::vector<float> window_depth;  // by depth in mm
   cv::Mat1f depth_upload;
   std::unique_ptr<BodyPass> body;
   int body_divisor = 0;  // 0: by the eye's width
+  BodyShape body_shape = BodyShape::Mesh;
   cv::Mat4b readback;
   // A turned eye's capsules and fingertips in its own frame (EyeView::R_EyeRight), kept for reuse.
   std::vector<Capsule> turned_capsules;
@@ -124,6 +127,10 @@ struct StereoRenderer::Impl {
     glGenFramebuffers(1, &fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color_tex, 0);
+    texture(depth_tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, width, height, 0, GL_DEPTH_COMPONENT,
+                 GL_FLOAT, nullptr);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex, 0);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       throw std::runtime_error("stereo view: the offscreen framebuffer is incomplete");
     // Window depth of each depth value in mm (0: no data, the far plane).
@@ -184,7 +191,8 @@ void StereoRenderer::blit_to(unsigned texture, int width, int height) {
 StereoRenderer::~StereoRenderer() {
   if (!impl_->own_context) {  // the context stays: only this renderer's objects go
     Impl& g = *impl_;
-    glDeleteTextures(1, &g.color_tex);
+    const GLuint textures[] = {g.color_tex, g.depth_tex};
+    glDeleteTextures(2, textures);
     const GLuint fbos[] = {g.fbo, g.blit_fbo, g.source_fbo};
     glDeleteFramebuffers(3, fbos);
     g.body.reset();  // the body pass's programs and buffers
@@ -205,6 +213,14 @@ void StereoRenderer::set_body_divisor(int divisor) {
                                 " is not in 0..8");
   impl_->body_divisor = divisor;
 }
+
+void StereoRenderer::set_body_shape(BodyShape shape) {
+  impl_->body_shape = shape;
+  impl_->body->set_shape(shape);
+}
+
+void StereoRenderer::set_count_body_fragments(bool on) { impl_->body->set_counting(on); }
+BodyFragments StereoRenderer::body_fragments() const { return impl_->body->last_body_fragments(); }
 
 std::string StereoRenderer::gl_renderer() const {
   const auto* s = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
@@ -248,8 +264,11 @@ void StereoRenderer::draw_body_layer(int slot, const EyeView& eye,
     capsules = g.turned_capsules;
     p_RightEye = glm::dvec3(0.0);
   }
-  g.body->march_body(slot, eye.k, p_RightEye, capsules, exposure,
-                     g.body_divisor > 0 ? g.body_divisor : std::max(1, g.width / 640));
+  // The mesh costs little per pixel: drawn at the eye's size unless asked otherwise.
+  const int divisor = g.body_divisor > 0                ? g.body_divisor
+                      : g.body_shape == BodyShape::Mesh ? 1
+                                                        : std::max(1, g.width / 640);
+  g.body->draw_body(slot, eye.k, p_RightEye, capsules, exposure, divisor);
 }
 
 void StereoRenderer::finish() {
@@ -311,7 +330,18 @@ cv::Mat3b StereoRenderer::compose(int slot, const EyeView& eye) {
     p_RightEye = glm::dvec3(0.0);
   }
   g.body->draw_contact_shadows(eye.k, p_RightEye, fingertips);
-  // The body, hidden where the remote scene is nearer.
+  // The body, hidden where the remote scene is nearer: drawn into the eye with the remote depth
+  // in its depth buffer, or composited from its own target.
+  if (g.body->draws_into_target(slot)) {
+    if (has_depth) {
+      glBindTexture(GL_TEXTURE_2D, g.depth_tex);
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, g.width, g.height, GL_DEPTH_COMPONENT, GL_FLOAT,
+                      g.depth_upload.data);
+    } else {
+      const GLfloat far = 1.0f;
+      glClearBufferfv(GL_DEPTH, 0, &far);
+    }
+  }
   g.body->composite_body(slot);
 
   if (!eye.read_back) return {};

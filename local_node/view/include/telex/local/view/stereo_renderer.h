@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The operator's stereo view, one eye at a time: that eye's camera image as the background,
 // fingertips' contact shadows on the remote depth registered to that eye, and the virtual body
-// drawn as one smooth shaded surface over its capsules into a target of its own and composited
-// where it is nearer than the remote depth, so the real scene hides it. OpenGL 3.3 core through
-// libepoxy, on a headless EGL context (Mesa's llvmpipe runs it with no display and no GPU).
+// drawn as triangles (each capsule an instance of one mesh) into a target of its own and
+// composited where it is nearer than the remote depth, so the real scene hides it. OpenGL 3.3 core
+// through libepoxy, on a headless EGL context (Mesa's llvmpipe runs it with no display and no GPU).
 #pragma once
 
 #include <cstdint>
@@ -17,6 +17,7 @@
 
 #include "telex/common/depth_image.h"
 #include "telex/haptics/body.h"
+#include "telex/local/view/body_shape.h"
 #include "telex/local/view/eye_view.h"
 
 namespace telex::local {
@@ -56,11 +57,16 @@ class StereoRenderer {
   // an OpenXR swapchain image), scaled to width x height and flipped to GL's bottom-up rows.
   void blit_to(unsigned texture, int width, int height);
 
-  // The body is ray-marched at 1/divisor of the eye's resolution and composited over the eye
-  // with the remote depth tested at every eye pixel: its marching is most of an eye's cost. 0
-  // (the default): the eye's width over 640, rounded down, so a 1280x720 eye marches the body at
-  // 640x360 and a 640x480 eye at its own size. Throws std::invalid_argument outside 0..8.
+  // The body is drawn at 1/divisor of the eye's resolution and composited over the eye with the
+  // remote depth tested at every eye pixel. 0 (the default): the mesh at the eye's own size; the
+  // march at the eye's width over 640, rounded down (a 1280x720 eye marches the body at 640x360).
+  // Throws std::invalid_argument outside 0..8.
   void set_body_divisor(int divisor);
+  void set_body_shape(BodyShape shape);  // BodyShape::Mesh unless set
+  // While on, each body layer counts its fragments (GL queries read at once, a stall: for the
+  // benchmark); body_fragments() is the last layer's count.
+  void set_count_body_fragments(bool on);
+  BodyFragments body_fragments() const;
 
   std::string gl_renderer() const;  // e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
 
