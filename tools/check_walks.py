@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: MIT
-"""Checks the walk tables of docs/ARCHITECTURE.md (issue 47): every file a row names exists, and
+"""Checks the walk tables of docs/ARCHITECTURE.md (issue 47; the depth frame's, the eye pair's and
+the view's stage by stage): every file a row names exists, and
 every function, type or member it names in backticks is found, as a whole word, in a file named
 in that row or in an earlier row of the same table (a row may say `process_tiles` after an
 earlier one named `remote_node/src/pipeline.cpp`). A file named without its folder is the one
@@ -59,8 +60,9 @@ def main():
 
     in_walk, context, dirs = False, [], []
     for lineno, line in enumerate(text, 1):
-        if line.startswith("## "):
-            in_walk = line.startswith("## One depth frame") or line.startswith("## One eye pair")
+        if line.startswith("## ") or line.startswith("### "):
+            in_walk = line.startswith(
+                ("## One depth frame", "## One eye pair", "### The view, stage by stage"))
         if not in_walk:
             continue
         if not line.startswith("|") or line.startswith("|---") or line.startswith("| #"):
