@@ -14,29 +14,16 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "reaching_pose.h"
 #include "telex/haptics/body.h"
 #include "telex/local/view/stereo_renderer.h"
 
 namespace telex::local {
 namespace {
 
-// Both arms reaching toward the camera's view in the right eye's frame (x right, y down, z
-// forward), shoulders above and behind the eyes: tools/bench/stereo_bench.cpp's pose.
+// The stereo benchmark's own pose (tools/bench/reaching_pose.h), as capsules.
 std::vector<Capsule> reaching_capsules() {
-  BodyInputs in;
-  in.time_ns = 0;
-  for (Side s : kSides) {
-    const std::size_t i = index_of(s);
-    const double x = s == Side::Right ? 0.18 : -0.18;
-    in.shoulder[i] = Pose{{x, 0.25, -0.05}, {1.0, 0.0, 0.0, 0.0}};
-    in.wrist[i] = Pose{{x * 0.6, 0.15, 0.45}, {1.0, 0.0, 0.0, 0.0}};
-    in.bend[i] = {0.3, 0.2, 0.4, 0.6, 0.7};
-  }
-  BodyDims dims;
-  dims.up_world = {0.0, -1.0, 0.0};
-  dims.forearm_axis_from_wrist = false;
-  Body body(dims);
-  return body_capsules(body.update(in), [](const glm::dvec3& p) { return p; });
+  return body_capsules(reaching_body(), [](const glm::dvec3& p) { return p; });
 }
 
 // A right hand held up flat 30 cm in front of the eyes, palm to the camera, fingers spread a

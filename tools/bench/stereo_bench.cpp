@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <span>
 
+#include "reaching_pose.h"
 #include "telex/local/view/fig7_view.h"
 #include "telex/local/view/stereo_renderer.h"
 #include "telex/local/view/stereo_view.h"
@@ -29,27 +30,6 @@ double thread_cpu_ms() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
-}
-
-// Both arms reaching toward the camera's view, in the right eye's frame (x right, y down, z
-// forward): shoulders above and behind the eyes.
-BodyState reaching_body() {
-  Body body;
-  BodyInputs in;
-  in.time_ns = 0;
-  for (Side s : kSides) {
-    const std::size_t i = index_of(s);
-    const double x = s == Side::Right ? 0.18 : -0.18;
-    // World = the right eye's camera frame here, with up = -y.
-    in.shoulder[i] = Pose{{x, 0.25, -0.05}, {1.0, 0.0, 0.0, 0.0}};
-    in.wrist[i] = Pose{{x * 0.6, 0.15, 0.45}, {1.0, 0.0, 0.0, 0.0}};
-    in.bend[i] = {0.3, 0.2, 0.4, 0.6, 0.7};
-  }
-  BodyDims dims;
-  dims.up_world = {0.0, -1.0, 0.0};
-  dims.forearm_axis_from_wrist = false;
-  Body b(dims);
-  return b.update(in);
 }
 
 // The pixels the body covers in both eyes' body targets: each eye drawn once over a plain green
