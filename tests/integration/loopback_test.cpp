@@ -17,6 +17,7 @@
 
 #include "daemons.h"
 #include "process.h"
+#include "telex/video/frame_counter.h"
 #include "test_support.h"
 
 namespace telex::test {
@@ -301,7 +302,7 @@ TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
   EXPECT_GT(j["depth_mbit_s"].get<double>(), 0.0) << j.dump();
   EXPECT_TRUE(j.contains("shown_frame_age_ms_p99")) << j.dump();
   EXPECT_TRUE(j.contains("video_plis_sent")) << j.dump();
-  // Glass to glass: the synthetic eyes' frame counter read back from the rendered right eye is the
+  // Glass to glass: the synthetic eyes' frame counter, read from the video each frame drew, is the
   // id of the pair drawn, every time, and its age is positive.
   EXPECT_GT(j["glass_to_glass_samples"].get<int>(), 0) << j.dump();
   EXPECT_EQ(j["glass_to_glass_mismatched"].get<int>(), 0) << j.dump();
@@ -336,6 +337,13 @@ TEST(Loopback, StereoViewShowsBothEyesVideoAndTheArmWhileDepthKeepsFlowing) {
         skin += c[2] > c[0] + 30;
       }
     EXPECT_GT(skin, 3000);
+    // The counter the synthetic eyes stamp top left is measured (glass to glass, above) but not
+    // shown: the corner holds the plane again, no black and white cells, and reads as nothing.
+    const cv::Rect corner = video::frame_counter_rect(eye->size());
+    cv::Scalar mean, spread;
+    cv::meanStdDev((*eye)(corner), mean, spread);
+    EXPECT_LT(spread[1], 12.0) << "the frame counter's cells are in the picture";
+    EXPECT_FALSE(video::read_frame_counter(*eye));
   }
   EXPECT_EQ(local.stderr_text().find("one eye's video only"), std::string::npos);
 }

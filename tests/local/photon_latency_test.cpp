@@ -70,6 +70,9 @@ TEST(PhotonLatency, TheStatusTextSaysWhatIsKnown) {
   EXPECT_EQ(photon_status({22.6, 61.2}), " | to photon: motion 23 ms, video 61 ms");
   EXPECT_EQ(photon_status({22.6, std::nullopt}), " | to photon: motion 23 ms");
   EXPECT_EQ(photon_status({std::nullopt, 61.2}), " | to photon: video 61 ms");
+  // --view png hands its frames to files once a status line: said so, not as a display's.
+  EXPECT_EQ(photon_status({22.6, 61.2}, true), " | to the PNGs: motion 23 ms, video 61 ms");
+  EXPECT_EQ(photon_status({}, true), "");
 }
 
 // The start of motion to photon with NatNet: the latency the frame reports, in each layout.

@@ -133,6 +133,40 @@ TEST(FrameCounter, AWashedOutBitIsAnErasure) {
   EXPECT_FALSE(read_frame_counter(image));
 }
 
+TEST(FrameCounter, ErasedItIsGoneAndTheSmoothPictureUnderItReturns) {
+  // A picture smooth across the corner (a ramp in x and y): what the erase paints from the rows
+  // above and below the pattern is that picture again, within a level; nothing outside changes.
+  for (const cv::Size size : {cv::Size(640, 480), cv::Size(1280, 720)}) {
+    cv::Mat3b ramp(size);
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; ++x)
+        ramp(y, x) = cv::Vec3b(static_cast<std::uint8_t>(40 + y / 6),
+                               static_cast<std::uint8_t>(60 + x / 8), 90);
+    cv::Mat image = ramp.clone();
+    stamp_frame_counter(image, 123456u);
+    ASSERT_EQ(read_frame_counter(image), 123456u);
+    erase_frame_counter(image);
+    EXPECT_FALSE(read_frame_counter(image)) << size;
+    cv::Mat diff;
+    cv::absdiff(image, cv::Mat(ramp), diff);
+    double worst = 0;
+    cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
+    EXPECT_LE(worst, 1.0) << size;
+  }
+  // One channel (a stamped picture made gray) comes back flat; an image too small for the
+  // pattern is left as it is.
+  cv::Mat gray(480, 640, CV_8UC1, cv::Scalar::all(100));
+  cv::Mat3b bgr(480, 640, cv::Vec3b(100, 100, 100));
+  stamp_frame_counter(bgr, 9);
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  ASSERT_EQ(read_frame_counter(gray), 9u);
+  erase_frame_counter(gray);
+  EXPECT_EQ(cv::countNonZero(gray != 100), 0);
+  cv::Mat small(60, 80, CV_8UC3, cv::Scalar::all(7));
+  erase_frame_counter(small);
+  EXPECT_EQ(cv::countNonZero(small.reshape(1) != 7), 0);
+}
+
 TEST(FrameCounter, TooSmallAnImageIsLeftAlone) {
   cv::Mat small(60, 80, CV_8UC3, cv::Scalar::all(100));
   stamp_frame_counter(small, 5);

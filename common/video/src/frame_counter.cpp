@@ -2,6 +2,7 @@
 // The frame counter in an eye's pixels: Manchester-coded cells with a CRC-16 (frame_counter.h).
 #include "telex/video/frame_counter.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -114,6 +115,24 @@ std::optional<std::uint32_t> read_frame_counter(const cv::Mat& bgr) {
   }
   if (crc != crc16(counter)) return std::nullopt;
   return counter;
+}
+
+void erase_frame_counter(cv::Mat& bgr) {
+  TELEX_DEMAND(bgr.depth() == CV_8U && (bgr.channels() == 1 || bgr.channels() == 3));
+  const cv::Rect r = frame_counter_rect(bgr.size());
+  if (r.empty()) return;
+  // The pattern sits a cell in from the top and left edges: the rows above and below it exist.
+  const int above = r.y - 1, below = std::min(r.y + r.height, bgr.rows - 1);
+  const int channels = bgr.channels();
+  const std::uint8_t* top = bgr.ptr<std::uint8_t>(above);
+  const std::uint8_t* bottom = bgr.ptr<std::uint8_t>(below);
+  const double span = below - above;
+  for (int y = r.y; y < r.y + r.height; ++y) {
+    const double t = (y - above) / span;
+    std::uint8_t* row = bgr.ptr<std::uint8_t>(y);
+    for (int x = r.x * channels; x < (r.x + r.width) * channels; ++x)
+      row[x] = static_cast<std::uint8_t>(std::lround((1.0 - t) * top[x] + t * bottom[x]));
+  }
 }
 
 }  // namespace telex::video

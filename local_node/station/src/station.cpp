@@ -441,7 +441,7 @@ void Station::Run::print_status() {
             : (said & SurfaceStage::kEyesEnded)
                 ? std::string(" | eyes ended (the remote's --stereo source played to its end)")
                 : std::string(" | eyes none (no video from the remote yet: see its stats line)");
-  text += photon_status(view_.photon_recent());
+  text += photon_status(view_.photon_recent(), view_.writes_png());
   text += tracker_inputs_.status(now_ns);
   if (cfg_.status_line) {
     std::string forces;

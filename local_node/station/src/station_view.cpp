@@ -17,7 +17,6 @@
 #include "telex/common/head_kinematics.h"
 #include "telex/local/view/openxr_output.h"
 #include "telex/local/view/operator_view.h"
-#include "telex/video/frame_counter.h"
 
 namespace telex::local {
 namespace {
@@ -136,10 +135,8 @@ void StationView::photon_now(const PhotonStamps& stamps) {
   photon_.record(stamps, monotonic_ns(), c ? c->stats().clock_offset_ns.load() : 0);
 }
 
-void StationView::measure_glass(const cv::Mat3b& rendered_right) {
-  if (!drawn_ || rendered_right.empty()) return;
-  const auto counter = video::read_frame_counter(rendered_right);
-  if (!counter) return;  // a source that stamps none, or a warp that moved it
+void StationView::measure_glass(std::optional<std::uint32_t> counter) {
+  if (!drawn_ || !counter) return;  // no pair drawn, or a source that stamps none
   auto* c = client_.load();
   const std::int64_t now_remote_ns = monotonic_ns() + (c ? c->stats().clock_offset_ns.load() : 0);
   std::lock_guard lock(shown_mu_);
@@ -292,7 +289,7 @@ bool StationView::render_stereo(StereoView& view, StereoViewInputs& in) {
     write_overview(in, v.normals);
     photon_now(stamps);
   }
-  measure_glass(v.right);
+  measure_glass(v.frame_counter);
   return true;
 }
 

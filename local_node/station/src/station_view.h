@@ -66,6 +66,7 @@ class StationView {
   // The status line's motion and capture to photon (the newest frames' medians).
   PhotonLatency::Recent photon_recent() const { return photon_.recent(); }
   bool openxr() const { return spec_.kind == ViewSpec::Kind::OpenXr; }
+  bool writes_png() const { return spec_.kind == ViewSpec::Kind::Png; }
   // --view openxr: closed until the headset's session is FOCUSED, and whenever it is not.
   const OutputGate& output_gate() const { return gate_; }
   // --head-source hmd: the headset's newest pose in the NatNet frame (through the rig's
@@ -165,7 +166,8 @@ class StationView {
   std::uint64_t frames_drawn_ = 0;    // frames that took a pair (pairs_shown_ of them a fresh one)
   std::vector<double> shown_age_ms_;  // at most kMaxAgeSamples
   // Glass to glass: capture to the rendered eye handed to the display, for the pairs whose frame
-  // counter (telex/video/frame_counter.h) reads back from the rendered right eye as their id.
+  // counter (telex/video/frame_counter.h), read from the video the frame drew before the view
+  // painted it over, is their id.
   std::vector<double> glass_ms_;          // at most kMaxAgeSamples, guarded by shown_mu_
   std::uint64_t glass_mismatched_ = 0;    // a counter read back that is not the pair's id
   std::shared_ptr<const EyePair> drawn_;  // view thread: the pair stereo_inputs gave the view
@@ -196,8 +198,9 @@ class StationView {
   // From a request made until the view thread has drawn it.
   std::atomic<bool> stereo_busy_{false};
   bool warned_one_eye_ = false;  // view thread
-  // After the rendered eyes went to the display: the glass-to-glass sample of drawn_.
-  void measure_glass(const cv::Mat3b& rendered_right);
+  // After the rendered eyes went to the display: the glass-to-glass sample of drawn_, whose
+  // video carried `counter` (StereoViewImages::frame_counter).
+  void measure_glass(std::optional<std::uint32_t> counter);
   // What a frame drawn from `in` and drawn_ is stamped with, and its motion and capture to
   // photon, handed to the display now.
   PhotonStamps photon_stamps(const StereoViewInputs& in) const;

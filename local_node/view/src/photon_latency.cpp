@@ -51,9 +51,9 @@ PhotonLatency::Recent PhotonLatency::recent() const {
   return {motion_.recent_median(), capture_.recent_median()};
 }
 
-std::string photon_status(const PhotonLatency::Recent& r) {
+std::string photon_status(const PhotonLatency::Recent& r, bool to_png) {
   if (!r.motion_ms && !r.capture_ms) return {};
-  std::string text = " | to photon:";
+  std::string text = to_png ? " | to the PNGs:" : " | to photon:";
   if (r.motion_ms) text += fmt::format(" motion {:.0f} ms", *r.motion_ms);
   if (r.motion_ms && r.capture_ms) text += ",";
   if (r.capture_ms) text += fmt::format(" video {:.0f} ms", *r.capture_ms);

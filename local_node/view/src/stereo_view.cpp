@@ -14,6 +14,7 @@
 #include "telex/local/view/fig7_view.h"
 #include "telex/local/view/operator_view.h"
 #include "telex/local/view/status_band.h"
+#include "telex/video/frame_counter.h"
 
 namespace telex::local {
 namespace {
@@ -261,11 +262,14 @@ bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2
     return resample_pinhole(m, in.k.scaled(m.cols, m.rows), k_drawn_[i], R_CameraDisplay[i],
                             cv::INTER_LINEAR, outside_);
   };
+  // A synthetic eye's frame counter (telex/video/frame_counter.h) is read here, from the video
+  // this frame draws, and painted over: measurable, never in front of the operator.
+  const std::array<cv::Mat3b, 2> video = without_frame_counters(in.eye_bgr);
   // A calibrated eye is undistorted (and the left one rectified) into the eyes' pinhole camera.
   const auto bring = [&](std::size_t i) {
-    return rectifier_[i] ? rectifier_[i]->apply(in.eye_bgr[i], k_drawn_[i], outside_,
+    return rectifier_[i] ? rectifier_[i]->apply(video[i], k_drawn_[i], outside_,
                                                 glm::transpose(R_CameraDisplay[i]))
-                         : fit(in.eye_bgr[i], i);
+                         : fit(video[i], i);
   };
   std::array<cv::Mat3b, 2> eye{bring(0), bring(1)};
   const bool one_eye = eye[0].empty() != eye[1].empty();
@@ -292,6 +296,21 @@ bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2
     R_BasePreviousDisplay_.reset();
   }
   return one_eye;
+}
+
+std::array<cv::Mat3b, 2> StereoView::without_frame_counters(const std::array<cv::Mat3b, 2>& eyes) {
+  std::array<cv::Mat3b, 2> out = eyes;
+  frame_counter_.reset();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (out[i].empty()) continue;
+    const auto counter = video::read_frame_counter(out[i]);
+    if (!counter) continue;
+    // The right eye's counter, or the only eye's.
+    if (i == index_of(Side::Right) || !frame_counter_) frame_counter_ = counter;
+    out[i] = out[i].clone();  // the pair is shared with the receiver: erased in a copy
+    video::erase_frame_counter(out[i]);
+  }
+  return out;
 }
 
 bool StereoView::draw_bodies(const StereoViewInputs& early, const LateVideo& late_video,
@@ -337,6 +356,7 @@ StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVid
   if (renderer_size_ != inset_for)
     inset = normal_inset(out.normals, windows, renderer_size_.width, renderer_size_.height);
   out.warped = warped_;
+  out.frame_counter = frame_counter_;
   out.right = renderer_->compose(index_of(Side::Right), views[index_of(Side::Right)]);
   out.left = renderer_->compose(index_of(Side::Left), views[index_of(Side::Left)]);
   if (in.fig7) {

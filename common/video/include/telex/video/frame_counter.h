@@ -39,4 +39,10 @@ void stamp_frame_counter(cv::Mat& bgr, std::uint32_t counter);
 // nullopt when there is none, or it is too damaged to be sure of.
 std::optional<std::uint32_t> read_frame_counter(const cv::Mat& bgr);
 
+// Paints over the pattern's extent in `bgr` (8-bit, 1 or 3 channels, as stamped: not rescaled)
+// with what surrounds it: each column of the rectangle runs linearly from the pixel just above it
+// to the one just below. The view does this to the picture it shows, after reading the counter:
+// the counter stays measurable and the operator never sees it.
+void erase_frame_counter(cv::Mat& bgr);
+
 }  // namespace telex::video

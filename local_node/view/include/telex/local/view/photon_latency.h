@@ -59,7 +59,8 @@ class PhotonLatency {
 };
 
 // The status line's part: " | to photon: motion 23 ms, video 61 ms" with what is known; empty
-// before either.
-std::string photon_status(const PhotonLatency::Recent& r);
+// before either. `to_png`: the frames went to PNG files (--view png), which the view writes once
+// a status line, not to a display: " | to the PNGs: ...", so it is not read as a display's.
+std::string photon_status(const PhotonLatency::Recent& r, bool to_png = false);
 
 }  // namespace telex::local

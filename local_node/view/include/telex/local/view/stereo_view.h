@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -78,6 +79,10 @@ struct StereoViewImages {
   cv::Mat3b fig7;        // with StereoViewInputs::fig7: the right eye beside the normal map
   bool one_eye = false;  // only one eye's image came: it was used for both
   bool warped = false;   // the eyes were reprojected to the operator's pose
+  // The frame counter stamped in the video drawn (a synthetic eye's, telex/video/frame_counter.h;
+  // the right eye's, or the only eye's), read before it was painted over: the pictures never
+  // show it. None for a camera's video.
+  std::optional<std::uint32_t> frame_counter;
   // The full-frame normals shown (display_normals, fig7_view.h), the depth's size; empty without a
   // depth of the surface's size. May view the surface's own buffer: valid while it is held.
   cv::Mat3f normals;
@@ -151,6 +156,9 @@ class StereoView {
                         std::vector<Capsule>& capsules);
   void prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2>& eyes);
   bool prepare_video(const StereoViewInputs& in, std::array<EyeView, 2>& eyes);
+  // The eyes' video with any frame counter painted over (copies where one was), the counter kept
+  // in frame_counter_.
+  std::array<cv::Mat3b, 2> without_frame_counters(const std::array<cv::Mat3b, 2>& eyes);
 
   std::array<std::optional<EyeRectifier>, 2> rectifier_;
   bool current_context_ = false;
@@ -164,6 +172,7 @@ class StereoView {
   std::array<Intrinsics, 2> k_drawn_;  // each eye's pinhole, by Side
   cv::Scalar outside_;                 // what an eye shows beyond the camera's field
   bool warped_ = false;
+  std::optional<std::uint32_t> frame_counter_;  // the last prepare_video's, see StereoViewImages
   cv::Size renderer_size_;
   Body body_;
 };
