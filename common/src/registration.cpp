@@ -159,6 +159,33 @@ DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
   return out;
 }
 
+void shift_depth_along_rows(const cv::Mat1w& depth_mm, double fx, double shift_m, cv::Mat1w& out) {
+  if (!(fx > 0.0)) throw std::invalid_argument("shift_depth_along_rows: fx must be > 0");
+  const int w = depth_mm.cols;
+  out.create(depth_mm.size());
+  const double f_t_mm = fx * shift_m * 1000.0;  // the shift in px is f_t_mm / z_mm
+  std::vector<std::uint16_t> splat(static_cast<std::size_t>(w));
+  for (int v = 0; v < depth_mm.rows; ++v) {
+    const std::uint16_t* src = depth_mm[v];
+    std::uint16_t* dst = out[v];
+    std::fill(dst, dst + w, kNoDepth);
+    std::fill(splat.begin(), splat.end(), kNoDepth);
+    for (int u = 0; u < w; ++u) {
+      const std::uint16_t z = src[u];
+      if (z == kNoDepth) continue;
+      const double tu = u + f_t_mm / z;
+      if (!(tu > -1.0 && tu < w + 1.0)) continue;  // keeps the int conversions defined
+      const int iu = floor_int(tu + 0.5);
+      if (iu >= 0 && iu < w) keep_nearest(dst[iu], z);
+      const int u0 = floor_int(tu);
+      for (int su = std::max(u0, 0); su < std::min(u0 + 2, w); ++su)
+        keep_nearest(splat[static_cast<std::size_t>(su)], z);
+    }
+    for (int u = 0; u < w; ++u)
+      if (dst[u] == kNoDepth) dst[u] = splat[static_cast<std::size_t>(u)];
+  }
+}
+
 std::size_t fill_disocclusions(cv::Mat1w& depth_mm, double fx, double baseline_m, double slack_px) {
   if (!(fx > 0.0)) throw std::invalid_argument("fill_disocclusions: fx must be > 0");
   const double f_b_mm = fx * std::abs(baseline_m) * 1000.0;  // parallax px = f_b_mm / z_mm

@@ -92,6 +92,34 @@ TEST_P(RegistrationScene, FullReprojectionMatchesSecondViewpoint) {
   }
 }
 
+// The stereo view's left eye: the same camera 6.5 cm to the side. Along the rows it is as true as
+// the full reprojection, against the scene rendered from there, and mostly the same pixels.
+TEST_P(RegistrationScene, AShiftAlongTheRowsMatchesTheFullReprojection) {
+  const char* name = GetParam();
+  const synth::Scene scene = synth::Scene::named(name);
+  const synth::Rendered from_depth = synth::render(scene, kDepthK, synth::SensorModel::ideal());
+  const glm::dvec3 left_m(-0.065, 0.0, 0.0);
+  const synth::Rendered truth =
+      synth::render_from(scene, kDepthK, left_m, synth::SensorModel::ideal());
+  const RigidTransform X_LeftDepth{glm::dmat3(1.0), -left_m};
+  const DepthImage full = reproject_depth(from_depth.depth, kDepthK, X_LeftDepth);
+  cv::Mat1w rows(3, 3, std::uint16_t{7});  // another size: reallocated
+  shift_depth_along_rows(from_depth.depth.depth_mm, kDepthK.fx, 0.065, rows);
+  ASSERT_EQ(rows.size(), full.depth_mm.size());
+  const test::DepthError e_full = test::compare_depth(full.depth_mm, truth.true_depth_m);
+  const test::DepthError e_rows = test::compare_depth(rows, truth.true_depth_m);
+  const double same = static_cast<double>(cv::countNonZero(rows == full.depth_mm)) /
+                      static_cast<double>(rows.total());
+  std::printf("[ rows ] %-7s median %.2f mm (full %.2f), coverage %.4f (full %.4f), same %.4f\n",
+              name, e_rows.median_mm, e_full.median_mm, e_rows.coverage, e_full.coverage, same);
+  EXPECT_LE(e_rows.median_mm, e_full.median_mm + 0.5);
+  EXPECT_LE(e_rows.p90_mm, e_full.p90_mm + 1.0);
+  EXPECT_GE(e_rows.coverage, e_full.coverage - 0.002);
+  EXPECT_GT(same, 0.99);
+  EXPECT_THROW(shift_depth_along_rows(from_depth.depth.depth_mm, 0.0, 0.065, rows),
+               std::invalid_argument);
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenes, RegistrationScene,
                          ::testing::Values("desk", "box", "sphere", "tilted", "stairs"),
                          [](const auto& info) { return std::string(info.param); });

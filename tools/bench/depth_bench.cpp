@@ -24,6 +24,7 @@
 #include "telex/common/depth_image.h"
 #include "telex/common/hole_fill.h"
 #include "telex/common/normals.h"
+#include "telex/common/registration.h"
 #include "telex/common/synthetic.h"
 #include "telex/haptics/haptic_surface.h"
 
@@ -163,6 +164,24 @@ void BM_CvDepthTo3d(benchmark::State& state) {
   }
 }
 
+// The stereo view's left eye, every frame it draws: the depth (registered to the right eye) seen
+// from 6.5 cm to its left, and the strips behind edges filled (StereoView::prepare_depth). The
+// argument: 0 by the full reprojection (the view before), 1 along the rows (the view now).
+void BM_LeftEyeDepth(benchmark::State& state) {
+  const Frames& f = frames();
+  const telex::RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(0.065, 0.0, 0.0)};
+  cv::Mat1w left;
+  for (auto _ : state) {
+    if (state.range(0) == 0)
+      left =
+          telex::reproject_depth({f.filled_mm, f.intrinsics}, f.intrinsics, X_LeftRight).depth_mm;
+    else
+      telex::shift_depth_along_rows(f.filled_mm, f.intrinsics.fx, 0.065, left);
+    telex::fill_disocclusions(left, f.intrinsics.fx, 0.065);
+    benchmark::DoNotOptimize(left.data);
+  }
+}
+
 BENCHMARK(BM_FillMode_1pass_5x5)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FillMode_default_16pass_5x5)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CvMedianBlur_5x5_16U)->Unit(benchmark::kMillisecond);
@@ -172,6 +191,7 @@ BENCHMARK(BM_CvBilateral32F)->Arg(5)->Arg(13)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CvRgbdNormalsFALS_w5)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CvDepthTo3d)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LeftEyeDepth)->ArgName("rows")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // Console output plus the per-iteration times, for the ratio summary. The verdict uses CPU time:
 // on a shared machine real time also counts waits for a core, which hit ours and the peer

@@ -242,10 +242,11 @@ void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2
   // The remote depth is registered to the right eye; the left eye sees it from B to the left.
   // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
   // an edge) at each eye pixel's ray.
-  const RigidTransform X_LeftRight{glm::dmat3(1.0), glm::dvec3(in.baseline_m, 0.0, 0.0)};
+  // p_Left = p_Right + (B, 0, 0): each point moves along its row (shift_depth_along_rows).
   // The strips the right eye could not see behind an edge, and the left border, are what the left
   // video shows there: given the depth behind, not left as holes the warp would outline.
-  cv::Mat1w left_mm = reproject_depth({in.depth_mm, in.k}, in.k, X_LeftRight).depth_mm;
+  cv::Mat1w left_mm;
+  shift_depth_along_rows(in.depth_mm, in.k.fx, in.baseline_m, left_mm);
   fill_disocclusions(left_mm, in.k.fx, in.baseline_m);
   right.depth_mm =
       resample_depth_turned(in.depth_mm, in.k, right.k, in.R_CameraDisplay[index_of(Side::Right)]);

@@ -51,6 +51,16 @@ struct RigidTransform {
 DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
                            const RigidTransform& target_from_depth, bool fill_cracks = true);
 
+// reproject_depth for the one case a stereo view draws every frame: the target camera has the
+// depth's intrinsics and sits `shift_m` along its x axis (p_target = p_depth + (shift_m, 0, 0);
+// the left eye seeing the right eye's depth: +baseline). A point then stays on its row and moves
+// fx shift_m / z pixels along it, so the rows are done apart, without a rotation per pixel or a
+// frame-sized splat buffer: the nearest depth wins each pixel, and a pixel no point lands on
+// takes the nearest of the points whose two-pixel splat along the row covers it (the cracks a
+// slanted surface opens). Writes into `out` (reallocated only when its size differs). Throws
+// std::invalid_argument when fx is not > 0.
+void shift_depth_along_rows(const cv::Mat1w& depth_mm, double fx, double shift_m, cv::Mat1w& out);
+
 // Closes, in a depth image reprojected to a camera displaced sideways by `baseline_m` (the left
 // eye seeing the right eye's depth), the gaps the displacement opens: along each row, a run of
 // holes between a nearer and a farther depth takes the farther (what was uncovered lies behind
