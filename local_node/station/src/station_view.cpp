@@ -231,16 +231,15 @@ void StationView::log_window_counts() const {
 // ---- view thread: the stereo pair, off the main thread (and off the haptic one). Its headless
 // EGL context is made while the station connects; a machine without EGL stops the station here,
 // named. A window gets the pair through sbs_for_window_. ----
-void StationView::run_stereo(std::stop_token stop) {
+void StationView::run_stereo(std::stop_token stop, int niceness) {
   if (openxr()) {
     run_openxr(stop);
     return;
   }
-  // At video rate on a machine without a GPU (llvmpipe) the view would take a core from the
-  // surface thread and the remote: it runs at nice 5, and so do llvmpipe's rasterizer threads,
-  // which its context starts and which inherit the niceness. The haptic thread is unaffected
-  // (SCHED_FIFO, or its own thread at nice 0).
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 5);
+  // On a machine without a GPU (llvmpipe) the view could take a core from a surface thread that
+  // is not real-time: there it runs at the niceness it is given, and so do llvmpipe's rasterizer
+  // threads, which its context starts and which inherit it.
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), niceness);
   try {
     const cv::Size first = cfg_.eye_size.empty() ? cv::Size(640, 480) : cfg_.eye_size;
     StereoView view(first.width, first.height, cfg_.body);

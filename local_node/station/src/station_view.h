@@ -119,8 +119,9 @@ class StationView {
   // At the end: what the window showed.
   void log_window_counts() const;
 
-  // The view thread's body (started by the station when stereo()).
-  void run_stereo(std::stop_token stop);
+  // The view thread's body (started by the station when stereo()), at `niceness` (it and the
+  // renderer's threads).
+  void run_stereo(std::stop_token stop, int niceness);
 
  private:
   // The decoded pair captured nearest to `want_capture_ns` (0: the newest), counted as shown now
