@@ -256,6 +256,30 @@ StereoViewInputs hand_at_a_wall() {
   return in;
 }
 
+// The work that depends on the depth frame alone (each eye's depth, the normal-map inset) is done
+// once per frame and reused while the display draws faster than the depth comes; a new frame is
+// drawn anew, exactly as a view that never saw the old one draws it.
+TEST(StereoView, TheDepthsWorkIsReusedForItsFrameAndRedoneForANewOne) {
+  const StereoViewInputs in = hand_at_a_wall();
+  StereoView view(640, 480);
+  const StereoViewImages a = view.render(in);
+  const StereoViewImages again = view.render(in);
+  EXPECT_EQ(cv::norm(a.sbs, again.sbs, cv::NORM_INF), 0.0);
+  StereoViewInputs nearer = in;  // a new depth frame: a wall 20 cm away hides the whole body
+  nearer.depth_mm = cv::Mat1w(480, 640, std::uint16_t{200});
+  const StereoViewImages b = view.render(nearer);
+  StereoView fresh(640, 480);
+  EXPECT_EQ(cv::norm(fresh.render(nearer).sbs, b.sbs, cv::NORM_INF), 0.0);
+  // Without the inset (its normals' colours count as skin): the body is hidden by the new wall.
+  const auto skin = [](const cv::Vec3b& c) { return c[2] > c[0] + 30; };
+  StereoViewInputs bare = in;
+  bare.overlays = nearer.overlays = false;
+  EXPECT_GT(count(view.render(bare).right, skin), 2000);
+  const StereoViewImages hidden = view.render(nearer);
+  EXPECT_LT(count(hidden.right, skin), 50) << "the old frame's depth was drawn";
+  EXPECT_LT(count(hidden.left, skin), 50);
+}
+
 TEST(StereoView, ALateVideoThatChangesNothingGivesTheSameImagesAsTheOneShot) {
   const StereoViewInputs in = hand_at_a_wall();
   StereoView one_shot(640, 480), latched(640, 480);

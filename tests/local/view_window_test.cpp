@@ -79,6 +79,12 @@ TEST(PickMonitor, ByNameByIndexAndTheLastByDefault) {
   EXPECT_EQ(pick_monitor(numbered, "0"), 1u);
 }
 
+TEST(DisplayPeriod, TheMonitorsRefreshOr60HzWhenItDoesNotSay) {
+  EXPECT_EQ(display_period_ns({"HDMI-1", {0, 0, 1920, 1080}, 90}), 11'111'111);
+  EXPECT_EQ(display_period_ns({"eDP-1", {0, 0, 2560, 1600}, 144}), 6'944'444);
+  EXPECT_EQ(display_period_ns({"screen", {0, 0, 1920, 1080}, 0}), 16'666'666);
+}
+
 TEST(PickMonitor, AnUnknownMonitorIsNamedAndThoseThereAreListed) {
   const auto m = two_monitors();
   for (const std::string want : {"DP-3", "2", "hdmi-1"}) {

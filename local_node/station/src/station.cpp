@@ -37,8 +37,9 @@ namespace {
 
 using std::chrono::milliseconds;
 
-// On a screen (--view window | hmd) the stereo pair is drawn at video rate (the synthetic and V4L2
-// stereo sources send 30 fps); into PNGs once a second.
+// On a screen (--view window | hmd) the stereo pair is asked for at the monitor's refresh rate
+// (StationView::window_period_ns), whenever the last one is drawn; into PNGs once a second. An
+// OpenXR view takes the newest body this often (the headset draws at its own rate).
 constexpr std::int64_t kOnScreenViewPeriodNs = 33'333'333;
 // The stereo view's niceness where the depth-to-force path runs without SCHED_FIFO.
 constexpr int kViewNicenessBelowPath = 5;
@@ -339,7 +340,7 @@ void Station::Run::main_loop() {
     faults_.check(StationLoop::Main);
     if (poll_thread_faults()) break;
     if (view_.window() && monotonic_ns() >= next_view && view_.stereo_idle()) {
-      next_view = monotonic_ns() + kOnScreenViewPeriodNs;
+      next_view = monotonic_ns() + view_.window_period_ns();  // the monitor's rate, not the video's
       view_.request_stereo(stats_.last().forces, last_status_);
     }
     if (view_.openxr()) {

@@ -56,6 +56,10 @@ class StationView {
     return video_ ? video_->thread_fault() : std::nullopt;
   }
   bool window() const { return window_ != nullptr; }
+  // How often the window asks for a frame: its monitor's refresh period (display_period_ns).
+  std::int64_t window_period_ns() const {
+    return window_ ? display_period_ns(window_->monitor()) : 0;
+  }
   // Encoded pairs received so far: the status line's eye rate.
   std::uint64_t eye_frames_received() const {
     return video_ ? video_->counters().received.load() : 0;

@@ -239,6 +239,15 @@ void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2
   if (in.depth_mm.empty() || in.depth_mm.size() != cv::Size(in.k.width, in.k.height)) return;
   EyeView& right = views[index_of(Side::Right)];
   EyeView& left = views[index_of(Side::Left)];
+  // Once per depth frame: a display drawing faster than the depth comes draws the same eyes' depth.
+  EyeDepths& c = eye_depths_;
+  if (c.source.data == in.depth_mm.data && c.source.size() == in.depth_mm.size() && c.k == in.k &&
+      c.baseline_m == in.baseline_m && c.R_CameraDisplay == in.R_CameraDisplay &&
+      c.eye_k[0] == right.k && c.eye_k[1] == left.k) {
+    right.depth_mm = c.right;
+    left.depth_mm = c.left;
+    return;
+  }
   // The remote depth is registered to the right eye; the left eye sees it from B to the left.
   // Both are reprojected at the depth's size and then sampled (nearest: an occluding edge stays
   // an edge) at each eye pixel's ray.
@@ -252,6 +261,33 @@ void StereoView::prepare_depth(const StereoViewInputs& in, std::array<EyeView, 2
       resample_depth_turned(in.depth_mm, in.k, right.k, in.R_CameraDisplay[index_of(Side::Right)]);
   left.depth_mm =
       resample_depth_turned(left_mm, in.k, left.k, in.R_CameraDisplay[index_of(Side::Left)]);
+  c = {in.depth_mm,       in.k,           in.baseline_m, in.R_CameraDisplay,
+       {right.k, left.k}, right.depth_mm, left.depth_mm};
+}
+
+const cv::Mat3b& StereoView::normal_inset_for(const StereoViewInputs& in, cv::Mat3f& normals,
+                                              cv::Size size) {
+  InsetWork& c = inset_;
+  const bool depth_fits =
+      !in.depth_mm.empty() && in.depth_mm.size() == cv::Size(in.k.width, in.k.height);
+  // Once per depth frame and surface, as the eyes' depth (the cache holds the depth, so its
+  // buffer is not another frame's while it is here).
+  if (depth_fits && c.depth.data == in.depth_mm.data && c.depth.size() == in.depth_mm.size() &&
+      c.surface == in.surface && c.k == in.k && c.size == size) {
+    normals = c.normals;
+    return c.inset;
+  }
+  // The normal map the view shows: full-frame, computed here when the haptic path built only
+  // fingertip windows. From the depth alone: before any video is taken.
+  normals = depth_fits ? display_normals(in.depth_mm, in.k, in.surface) : cv::Mat3f();
+  const std::vector<cv::Rect> windows = haptic_windows(in.surface, normals);
+  c = {depth_fits ? in.depth_mm : cv::Mat1w(),
+       in.surface,
+       in.k,
+       size,
+       normals,
+       normal_inset(normals, windows, size.width, size.height)};
+  return c.inset;
 }
 
 bool StereoView::prepare_video(const StereoViewInputs& in, std::array<EyeView, 2>& views) {
@@ -341,21 +377,14 @@ bool StereoView::draw_bodies(const StereoViewInputs& early, const LateVideo& lat
 
 StereoViewImages StereoView::render(const StereoViewInputs& early, const LateVideo& late_video) {
   StereoViewImages out;
-  // The normal map the view shows: full-frame, computed here when the haptic path built only
-  // fingertip windows. From the depth alone: before any video is taken.
-  const bool depth_fits =
-      !early.depth_mm.empty() && early.depth_mm.size() == cv::Size(early.k.width, early.k.height);
-  if (depth_fits) out.normals = display_normals(early.depth_mm, early.k, early.surface);
   // The inset once for both eyes, before any video is taken, at the size of the eyes drawn last
   // (again if these are not).
-  const std::vector<cv::Rect> windows = haptic_windows(early.surface, out.normals);
   const cv::Size inset_for = renderer_size_;
-  cv::Mat3b inset = normal_inset(out.normals, windows, inset_for.width, inset_for.height);
+  cv::Mat3b inset = normal_inset_for(early, out.normals, inset_for);
   std::array<EyeView, 2> views;
   StereoViewInputs in;
   out.one_eye = draw_bodies(early, late_video, in, views);
-  if (renderer_size_ != inset_for)
-    inset = normal_inset(out.normals, windows, renderer_size_.width, renderer_size_.height);
+  if (renderer_size_ != inset_for) inset = normal_inset_for(early, out.normals, renderer_size_);
   out.warped = warped_;
   out.frame_counter = frame_counter_;
   out.right = renderer_->compose(index_of(Side::Right), views[index_of(Side::Right)]);

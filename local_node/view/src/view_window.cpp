@@ -57,6 +57,7 @@ std::vector<MonitorInfo> list_monitors() {
     glfwGetMonitorPos(monitors[i], &x, &y);
     const GLFWvidmode* mode = glfwGetVideoMode(monitors[i]);
     m.rect = cv::Rect(x, y, mode ? mode->width : 0, mode ? mode->height : 0);
+    m.refresh_hz = mode ? mode->refreshRate : 0;
     out.push_back(std::move(m));
   }
   return out;
@@ -99,6 +100,10 @@ ViewSpec ViewSpec::parse(const std::string& text) {
   }
   throw std::invalid_argument("--view '" + text +
                               "': expected none, png:DIR, window, hmd, hmd:MONITOR or openxr");
+}
+
+std::int64_t display_period_ns(const MonitorInfo& monitor) {
+  return 1'000'000'000 / (monitor.refresh_hz > 0 ? monitor.refresh_hz : 60);
 }
 
 std::string describe_monitors(std::span<const MonitorInfo> monitors) {

@@ -27,8 +27,10 @@ namespace telex::local {
 
 struct StereoViewInputs {
   std::array<cv::Mat3b, 2> eye_bgr;  // by Side (left 0, right 1); an empty one: the other eye's
-  cv::Mat1w depth_mm;                // the remote depth, registered to the right eye
-  Intrinsics k;                      // the depth's: the right eye's camera at the depth's size
+  // The remote depth, registered to the right eye. A frame is not changed in place once drawn: the
+  // view keys the work it does once per depth frame on its buffer.
+  cv::Mat1w depth_mm;
+  Intrinsics k;  // the depth's: the right eye's camera at the depth's size
   // Each eye's image size (--eye-size); empty: the eye video's size when video came, else the
   // depth's. The eyes see the depth's camera through eye_intrinsics(k, eye_size).
   cv::Size eye_size;
@@ -159,6 +161,9 @@ class StereoView {
   // The eyes' video with any frame counter painted over (copies where one was), the counter kept
   // in frame_counter_.
   std::array<cv::Mat3b, 2> without_frame_counters(const std::array<cv::Mat3b, 2>& eyes);
+  // The normal-map inset for eyes of `size` and the full-frame normals it shows (`normals`), made
+  // once per depth frame and surface.
+  const cv::Mat3b& normal_inset_for(const StereoViewInputs& in, cv::Mat3f& normals, cv::Size size);
 
   std::array<std::optional<EyeRectifier>, 2> rectifier_;
   bool current_context_ = false;
@@ -173,6 +178,25 @@ class StereoView {
   cv::Scalar outside_;                 // what an eye shows beyond the camera's field
   bool warped_ = false;
   std::optional<std::uint32_t> frame_counter_;  // the last prepare_video's, see StereoViewImages
+  // What prepare_depth made of the last depth frame, and from what: the depth (held, so its
+  // buffer stays its own) and the cameras.
+  struct EyeDepths {
+    cv::Mat1w source;
+    Intrinsics k;
+    double baseline_m = 0.0;
+    std::array<glm::dmat3, 2> R_CameraDisplay{};
+    std::array<Intrinsics, 2> eye_k;  // right, left
+    cv::Mat1w right, left;
+  } eye_depths_;
+  // The same for the normal-map inset.
+  struct InsetWork {
+    cv::Mat1w depth;
+    const Surface* surface = nullptr;
+    Intrinsics k;
+    cv::Size size;
+    cv::Mat3f normals;
+    cv::Mat3b inset;
+  } inset_;
   cv::Size renderer_size_;
   Body body_;
 };

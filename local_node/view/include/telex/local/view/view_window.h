@@ -34,8 +34,12 @@ struct ViewSpec {
 // A monitor as GLFW reports it (on X11 the RandR output's name, as `xrandr` lists it).
 struct MonitorInfo {
   std::string name;
-  cv::Rect rect;  // on the virtual desktop, pixels: position and current mode's size
+  cv::Rect rect;       // on the virtual desktop, pixels: position and current mode's size
+  int refresh_hz = 0;  // the current mode's refresh rate; 0: the window system does not say
 };
+
+// The period a view on `monitor` draws at: its refresh's, or 60 Hz's when it does not say.
+std::int64_t display_period_ns(const MonitorInfo& monitor);
 
 // The monitor `want` names among `monitors`: an exact name first, then a 0-based index; an empty
 // `want` picks the last (an HMD is usually the secondary monitor). Throws std::invalid_argument
