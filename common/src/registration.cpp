@@ -164,25 +164,35 @@ void shift_depth_along_rows(const cv::Mat1w& depth_mm, double fx, double shift_m
   const int w = depth_mm.cols;
   out.create(depth_mm.size());
   const double f_t_mm = fx * shift_m * 1000.0;  // the shift in px is f_t_mm / z_mm
-  std::vector<std::uint16_t> splat(static_cast<std::size_t>(w));
+  // One row's nearest hits and splats, "none" as the largest depth so that the nearest is a
+  // plain min (no branch per pixel), one pixel of margin each side for the pixels that land
+  // just outside the row (index = column + 1).
+  constexpr std::uint16_t kNone = 0xFFFF;
+  std::vector<std::uint16_t> hit(static_cast<std::size_t>(w) + 2), splat(hit.size());
   for (int v = 0; v < depth_mm.rows; ++v) {
     const std::uint16_t* src = depth_mm[v];
-    std::uint16_t* dst = out[v];
-    std::fill(dst, dst + w, kNoDepth);
-    std::fill(splat.begin(), splat.end(), kNoDepth);
+    std::fill(hit.begin(), hit.end(), kNone);
+    std::fill(splat.begin(), splat.end(), kNone);
     for (int u = 0; u < w; ++u) {
       const std::uint16_t z = src[u];
       if (z == kNoDepth) continue;
       const double tu = u + f_t_mm / z;
-      if (!(tu > -1.0 && tu < w + 1.0)) continue;  // keeps the int conversions defined
-      const int iu = floor_int(tu + 0.5);
-      if (iu >= 0 && iu < w) keep_nearest(dst[iu], z);
-      const int u0 = floor_int(tu);
-      for (int su = std::max(u0, 0); su < std::min(u0 + 2, w); ++su)
-        keep_nearest(splat[static_cast<std::size_t>(su)], z);
+      if (!(tu > -1.0 && tu < w)) continue;  // lands nowhere in the row (and the ints stay defined)
+      const auto at = [](std::vector<std::uint16_t>& row, int column) -> std::uint16_t& {
+        return row[static_cast<std::size_t>(column + 1)];
+      };
+      std::uint16_t& h = at(hit, floor_int(tu + 0.5));  // -1 .. w
+      h = std::min(h, z);
+      const int u0 = floor_int(tu);  // -1 .. w - 1
+      at(splat, u0) = std::min(at(splat, u0), z);
+      at(splat, u0 + 1) = std::min(at(splat, u0 + 1), z);
     }
-    for (int u = 0; u < w; ++u)
-      if (dst[u] == kNoDepth) dst[u] = splat[static_cast<std::size_t>(u)];
+    std::uint16_t* dst = out[v];
+    for (int u = 0; u < w; ++u) {
+      const std::uint16_t h = hit[static_cast<std::size_t>(u + 1)];
+      const std::uint16_t d = h != kNone ? h : splat[static_cast<std::size_t>(u + 1)];
+      dst[u] = d == kNone ? kNoDepth : d;
+    }
   }
 }
 

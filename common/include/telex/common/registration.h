@@ -57,8 +57,8 @@ DepthImage reproject_depth(const DepthImage& depth, const Intrinsics& target,
 // fx shift_m / z pixels along it, so the rows are done apart, without a rotation per pixel or a
 // frame-sized splat buffer: the nearest depth wins each pixel, and a pixel no point lands on
 // takes the nearest of the points whose two-pixel splat along the row covers it (the cracks a
-// slanted surface opens). Writes into `out` (reallocated only when its size differs). Throws
-// std::invalid_argument when fx is not > 0.
+// slanted surface opens). Writes into `out` (reallocated only when its size differs). A depth of
+// 65535 mm reads as none. Throws std::invalid_argument when fx is not > 0.
 void shift_depth_along_rows(const cv::Mat1w& depth_mm, double fx, double shift_m, cv::Mat1w& out);
 
 // Closes, in a depth image reprojected to a camera displaced sideways by `baseline_m` (the left
