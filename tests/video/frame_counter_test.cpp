@@ -83,13 +83,49 @@ TEST(FrameCounter, ReadsExactlyWithoutACodec) {
   }
 }
 
+// A 640x480 eye sent at another size (--video-size 1280x720 stretches 4:3 to 16:9; 800x600 and
+// 320x240 keep it) reads the same, and so does one that went through H.264 at that size.
+TEST(FrameCounter, ReadsAfterAResizeOfOtherFactorsAcrossAndDown) {
+  cv::Mat3b left, right;
+  render_moving_eyes(5, cv::Size(640, 480), 0.0, left, right);
+  for (const cv::Size to :
+       {cv::Size(1280, 720), cv::Size(800, 600), cv::Size(320, 240), cv::Size(1920, 1080)})
+    for (const int interpolation : {cv::INTER_AREA, cv::INTER_LINEAR}) {
+      cv::Mat image = left.clone();
+      stamp_frame_counter(image, 0xC0FFEEu);
+      cv::Mat resized;
+      cv::resize(image, resized, to, 0, 0, interpolation);
+      EXPECT_EQ(read_frame_counter(resized), 0xC0FFEEu) << to << " " << interpolation;
+    }
+  EncoderConfig c;
+  c.encoder = "libx264";
+  c.eye_width_px = 1280;
+  c.eye_height_px = 720;
+  c.bitrate_bps = 2'000'000;
+  auto enc = EyeEncoder::create(c);
+  EyeDecoder dec;
+  DecodedPair out;
+  for (std::uint32_t i = 0; i < 10; ++i) {
+    cv::Mat3b l, r;
+    render_moving_eyes(static_cast<int>(i), cv::Size(640, 480), 2.0, l, r);
+    stamp_frame_counter(l, 100 + i);
+    stamp_frame_counter(r, 100 + i);
+    cv::resize(l, l, cv::Size(1280, 720), 0, 0, cv::INTER_AREA);
+    cv::resize(r, r, cv::Size(1280, 720), 0, 0, cv::INTER_AREA);
+    std::vector<std::uint8_t> bytes;
+    ASSERT_EQ(enc->encode(l, r, i, 0, bytes), EncodeStatus::Ok);
+    ASSERT_EQ(dec.decode(bytes, out), DecodeStatus::Ok) << "pair " << i;
+    EXPECT_EQ(read_frame_counter(out.right_bgr), 100 + i) << "after H.264 at 1280x720, pair " << i;
+  }
+}
+
 TEST(FrameCounter, StampsOnlyItsCorner) {
   cv::Mat3b left, right;
   render_moving_eyes(1, cv::Size(1280, 720), 0.0, left, right);
   cv::Mat image = left.clone();
   stamp_frame_counter(image, 42);
   const cv::Rect r = frame_counter_rect(image.size());
-  EXPECT_EQ(r, cv::Rect(18, 18, 288, 108));
+  EXPECT_EQ(r, cv::Rect(24, 18, 384, 108));  // cells 24 x 18 px, one in from the edges
   cv::Mat diff;
   cv::absdiff(image, cv::Mat(left), diff);
   cv::Mat outside = diff.clone();

@@ -17,7 +17,11 @@ constexpr int kBits = kCounterBits + kCrcBits;
 constexpr int kBitsPerRow = 8;  // 16 cells: a white and a black one per bit
 constexpr int kCols = 2 * kBitsPerRow;
 constexpr int kRows = kBits / kBitsPerRow;
-constexpr double kRowsPerCell = 40.0;  // cell side = image height / this
+// A cell is the image's height / 40 tall and its width / (160 / 3) wide: square in a 4:3 image,
+// and where it lands in a picture resized by different factors across and down (a 640x480 eye
+// sent at 1280x720), the reader finds it by the same fractions.
+constexpr double kRowsPerCell = 40.0;
+constexpr double kColsPerCell = 160.0 / 3.0;
 constexpr int kMarginCells = 1;
 
 // CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) of the counter's four bytes, low byte first.
@@ -41,17 +45,17 @@ std::array<bool, kBits> bits_of(std::uint32_t counter) {
   return bits;
 }
 
-double cell_px(cv::Size size) { return static_cast<double>(size.height) / kRowsPerCell; }
+double cell_width_px(cv::Size size) { return static_cast<double>(size.width) / kColsPerCell; }
+double cell_height_px(cv::Size size) { return static_cast<double>(size.height) / kRowsPerCell; }
 
 bool fits(cv::Size size) {
-  return size.height >= kMinFrameCounterHeightPx &&
-         static_cast<double>(size.width) >= (kCols + 2 * kMarginCells) * cell_px(size);
+  return size.height >= kMinFrameCounterHeightPx && cell_width_px(size) >= 2.0;
 }
 
 // Cell (col, row) of the grid in an image of `size`, in (fractional) pixels.
 cv::Rect2d cell_rect(cv::Size size, int col, int row) {
-  const double side = cell_px(size);
-  return {(kMarginCells + col) * side, (kMarginCells + row) * side, side, side};
+  const double w = cell_width_px(size), h = cell_height_px(size);
+  return {(kMarginCells + col) * w, (kMarginCells + row) * h, w, h};
 }
 
 cv::Rect round_rect(const cv::Rect2d& r) {

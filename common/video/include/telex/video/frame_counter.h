@@ -10,10 +10,11 @@
 // clear and the CRC matches, so a damaged or absent pattern gives nullopt rather than a wrong
 // number (a random pattern passes with odds 2^-16 at most, after its 48 contrast tests).
 //
-// The cell side is the image height / 40 (18 px at 720 rows, the pattern 288 x 108 px), in
-// floating point, and read at each cell's centre over half its side: a picture resized by any
-// factor (by half: 9 px cells at 360 rows) reads the same, and H.264 at 2-4 Mbit/s smears the
-// cells' edges, not their centres.
+// A cell is the image's height / 40 tall and its width / (160 / 3) wide (12 px square at 640x480;
+// 24 x 18 px at 1280x720, the pattern 384 x 108 px), in floating point, and read at each cell's
+// centre over half its size: a picture resized by any factors across and down (by half: 6 px
+// cells at 320x240; a 640x480 eye sent at 1280x720) reads the same, and H.264 at 2-4 Mbit/s
+// smears the cells' edges, not their centres.
 #pragma once
 
 #include <cstdint>
@@ -22,7 +23,7 @@
 
 namespace telex::video {
 
-// Images with fewer rows carry no counter: the cells would be under 2 px.
+// Images with fewer rows (or under 107 columns) carry no counter: the cells would be under 2 px.
 inline constexpr int kMinFrameCounterHeightPx = 80;
 // Least luma difference (0-255) between a bit's two cells for the bit to count as read.
 inline constexpr double kMinCounterContrast = 48.0;
