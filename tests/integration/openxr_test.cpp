@@ -138,7 +138,7 @@ std::vector<std::string> station_args(const RemoteProcess& remote, const std::fi
 // The runs end on a frame count, never on a time: the runtime's script takes the session down to
 // STOPPING (the headset's user quitting) once its "stop_at_frame"th frame has ended, and the
 // station leaves on that. llvmpipe draws a frame in 16 ms on a quiet machine and in 3 s at a load
-// average of 17 (the view thread runs at nice 5: measured 47 frames of a 640x720 pair in 150 s),
+// average of 17 (below the real-time depth path: measured 47 frames of a 640x720 pair in 150 s),
 // so a run lasts what its few tens of frames take. --duration and the wait stay only as safety
 // bounds beyond that: a run they end fails here, saying so.
 constexpr const char* kSafetyBoundS = "240";

@@ -105,8 +105,8 @@ TEST(ViewOnScreen, HmdShowsBothEyesVideoAndTheArmFullScreenAtVideoRate) {
   const double span_s = j["haptic_span_s"].get<double>();
   EXPECT_GT(span_s, 3.0) << j.dump();
   EXPECT_EQ(haptic_rate_problem(j, span_s), "");
-  // Pairs at video rate, more than the once a second of the PNG view (the view runs at nice 5,
-  // so a loaded machine slows it first).
+  // Pairs at video rate, more than the once a second of the PNG view (the view runs below the
+  // real-time depth path, so a loaded machine slows it first).
   std::smatch m;
   ASSERT_TRUE(std::regex_search(err, m, std::regex("view window: (\\d+) stereo pairs shown")))
       << err;
