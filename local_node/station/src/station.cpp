@@ -210,9 +210,9 @@ void Station::Run::connect() {
   thread_scheduling_.emplace_back("surface", surface_scheduling);
   if (view_.stereo()) {
     // The view gives way (nice 5) only where the depth path is not SCHED_FIFO: a real-time path
-    // preempts it at any niceness, and on loopback a view at nice 5 lost the remote's busy
-    // threads a quarter of its core (12.8 frames a second against 17.6 at nice 0, the surface
-    // and eye rates the same).
+    // preempts it at any niceness, and on loopback a view at nice 5 lost most of its core to the
+    // remote's busy threads (12.8 frames a second against 16.4 at nice 0, the surface and eye
+    // rates the same).
     const int niceness = surface_scheduling.starts_with("SCHED_FIFO") ? 0 : kViewNicenessBelowPath;
     spdlog::info("view thread at nice {}{}", niceness,
                  niceness > 0 ? " (the depth path is not real-time)" : "");
